@@ -1,0 +1,36 @@
+"""Exceptions raised by the engine.
+
+Every error that comes from bad input subclasses :class:`ValueError`, so callers that
+only know the standard library can still catch it.
+"""
+
+from __future__ import annotations
+
+
+class EngineError(ValueError):
+    """Base class of every input error raised by the engine."""
+
+
+class ParameterError(EngineError):
+    """A model parameter (vehicle, track, sensor, solver) is out of range."""
+
+
+class LogFormatError(EngineError):
+    """A run log cannot be read: missing column, bad number, unknown unit, bad sampling.
+
+    Attributes
+    ----------
+    column : str or None
+        The column the problem is in, when there is one.
+    row : int or None
+        The 1-based line number in the file (the header is line 1), when there is one.
+    """
+
+    def __init__(self, message: str, *, column: str | None = None, row: int | None = None):
+        super().__init__(message)
+        self.column = column
+        self.row = row
+
+
+class InversionError(EngineError):
+    """The log cannot be inverted (too short, speed out of range, not enough coverage)."""

@@ -1,0 +1,104 @@
+"""Result objects returned by the engine's processing pipeline."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass(frozen=True)
+class SoftSpot:
+    """A local dip of the loaded level: a place where the track support is weak.
+
+    Attributes
+    ----------
+    start_m, end_m : float
+        Chainage where the zone starts and ends, m.
+    peak_m : float
+        Chainage of the deepest point, m.
+    depth_mm : float
+        Depth of the dip below the local baseline, mm (positive = deeper).
+    stiffness_loss_pct : float
+        Estimated loss of support stiffness against nominal, % (0-100).
+    """
+
+    start_m: float
+    end_m: float
+    peak_m: float
+    depth_mm: float
+    stiffness_loss_pct: float
+
+    def to_dict(self) -> dict[str, float]:
+        """Plain dict with the field names above (what the API and soft_spots.json carry)."""
+        return {k: float(v) for k, v in asdict(self).items()}
+
+
+@dataclass(frozen=True)
+class Quality:
+    """Quality indicators of one processed run.
+
+    Attributes
+    ----------
+    noise_accel_mps2 : float
+        Estimated white-noise level of the accelerometer, m/s² RMS.
+    noise_pitch_rate_radps : float
+        Estimated white-noise level of the gyroscope, rad/s RMS.
+    axle_agreement_mm : float
+        RMS difference between front- and rear-axle profiles where both cover the track, mm.
+    coverage_m : float
+        Length of track covered by the fused profile, m.
+    speed_min_mps, speed_max_mps : float
+        Speed range of the run, m/s.
+    sample_rate_hz : float
+        Sample rate of the log, Hz.
+    """
+
+    noise_accel_mps2: float
+    noise_pitch_rate_radps: float
+    axle_agreement_mm: float
+    coverage_m: float
+    speed_min_mps: float
+    speed_max_mps: float
+    sample_rate_hz: float
+
+    def to_dict(self) -> dict[str, float]:
+        """Plain dict of the indicators."""
+        return {k: float(v) for k, v in asdict(self).items()}
+
+
+@dataclass(frozen=True)
+class ProcessResult:
+    """Everything the pipeline derives from one run log.
+
+    Attributes
+    ----------
+    chainage_m : ndarray
+        Regular chainage grid of the fused profile, m, increasing.
+    level_mm : ndarray
+        Fused loaded level on that grid, mm, positive up (band-limited, zero mean).
+    front_level_mm, rear_level_mm : ndarray
+        Each axle's loaded level on the same grid, mm (NaN where that axle did not pass).
+    baseline_mm : ndarray
+        Slowly varying baseline the soft spots are measured against, mm.
+    soft_spots : list of SoftSpot
+        Detected zones, ordered by chainage.
+    quality : Quality
+        Quality indicators.
+    method : str
+        Name of the inversion method used.
+    extras : dict
+        Method-specific diagnostics.
+    """
+
+    chainage_m: NDArray[np.float64]
+    level_mm: NDArray[np.float64]
+    front_level_mm: NDArray[np.float64]
+    rear_level_mm: NDArray[np.float64]
+    baseline_mm: NDArray[np.float64]
+    soft_spots: list[SoftSpot]
+    quality: Quality
+    method: str
+    extras: dict[str, Any] = field(default_factory=dict)

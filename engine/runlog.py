@@ -1,0 +1,111 @@
+"""A run log in canonical SI form: what the inversion consumes.
+
+Whatever the logger wrote (column names, units, gravity included or not), it is turned into a
+:class:`RunLog` by :mod:`engine.logio` before any numerics run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import LogFormatError
+
+
+@dataclass(frozen=True)
+class RunLog:
+    """One pass of an instrumented vehicle, in SI units.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Sample times, s, strictly increasing with a constant step.
+    accel_z_mps2 : ndarray, shape (n,)
+        Vertical body acceleration at the centre of gravity, m/s², gravity removed, positive up.
+    pitch_rate_radps : ndarray, shape (n,)
+        Body pitch rate, rad/s, positive nose-up.
+    speed_mps : ndarray, shape (n,), optional
+        Vehicle speed, m/s (> 0). Needed unless ``chainage_m`` is given.
+    chainage_m : ndarray, shape (n,), optional
+        Chainage of the body centre at each sample, m (odometer).
+    """
+
+    time_s: NDArray[np.float64]
+    accel_z_mps2: NDArray[np.float64]
+    pitch_rate_radps: NDArray[np.float64]
+    speed_mps: NDArray[np.float64] | None = None
+    chainage_m: NDArray[np.float64] | None = None
+
+    def __post_init__(self) -> None:
+        n = np.shape(self.time_s)[0] if np.ndim(self.time_s) == 1 else -1
+        if n < 2:
+            raise LogFormatError("a run log needs a 1-D time column with at least 2 samples")
+        for name in ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps", "chainage_m"):
+            arr = getattr(self, name)
+            if arr is None:
+                continue
+            a = np.ascontiguousarray(arr, dtype=np.float64)
+            if a.shape != (n,):
+                raise LogFormatError(
+                    f"column {name} has shape {a.shape}, expected ({n},) like time_s", column=name
+                )
+            bad = ~np.isfinite(a)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise LogFormatError(
+                    f"column {name} sample {i} is {a[i]}: every value must be a finite number",
+                    column=name, row=i + 2,
+                )  # fmt: skip
+            object.__setattr__(self, name, a)
+        if self.speed_mps is None and self.chainage_m is None:
+            raise LogFormatError(
+                "a run log needs a speed column (m/s) or a chainage column (m)", column="speed_mps"
+            )
+        dt = np.diff(self.time_s)
+        if np.any(dt <= 0):
+            i = int(np.flatnonzero(dt <= 0)[0])
+            raise LogFormatError(
+                f"time must be strictly increasing: sample {i + 1} ({self.time_s[i + 1]} s) "
+                f"does not follow sample {i} ({self.time_s[i]} s)",
+                column="time_s", row=i + 3,
+            )  # fmt: skip
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.time_s.shape[0])
+
+    @property
+    def dt(self) -> float:
+        """Mean sample step, s."""
+        return float((self.time_s[-1] - self.time_s[0]) / (self.n - 1))
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Mean sample rate, Hz."""
+        return 1.0 / self.dt
+
+    @property
+    def duration_s(self) -> float:
+        """Time from first to last sample, s."""
+        return float(self.time_s[-1] - self.time_s[0])
+
+    def speed(self) -> NDArray[np.float64]:
+        """Speed at each sample, m/s: the speed column, or the chainage column differentiated."""
+        if self.speed_mps is not None:
+            return self.speed_mps
+        assert self.chainage_m is not None
+        return np.abs(np.gradient(self.chainage_m, self.time_s))
+
+    def distance(self) -> NDArray[np.float64]:
+        """Distance travelled since the first sample, m (from chainage or integrated speed)."""
+        if self.chainage_m is not None:
+            return np.abs(self.chainage_m - self.chainage_m[0])
+        v = self.speed()
+        dt = np.diff(self.time_s)
+        out = np.empty(self.n)
+        out[0] = 0.0
+        np.cumsum(0.5 * (v[1:] + v[:-1]) * dt, out=out[1:])
+        return out

@@ -1,0 +1,147 @@
+"""The 4-DOF half-car vehicle (body bounce and pitch, two axles).
+
+Degrees of freedom ``[u_s, theta_s, u_u1, u_u2]``: body bounce (m, positive up), body pitch
+(rad, positive nose-up), front-axle and rear-axle displacement (m, positive up). Axle 1 leads,
+``d1`` ahead of the body centre of gravity; axle 2 trails ``d2`` behind it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import ParameterError
+
+GRAVITY = 9.81
+"""Acceleration of gravity used by the model, m/s²."""
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Parameters of the half-car; defaults are the paper's Table 1 vehicle.
+
+    Parameters
+    ----------
+    ms : float
+        Body mass, kg.
+    Is : float
+        Body pitch inertia about the centre of gravity, kg m².
+    mu1, mu2 : float
+        Front and rear axle (unsprung) masses, kg.
+    ks1, ks2 : float
+        Front and rear suspension stiffness, N/m.
+    cs1, cs2 : float
+        Front and rear suspension damping, N s/m (may be zero).
+    kt1, kt2 : float
+        Front and rear contact ("tyre") stiffness, N/m.
+    d1, d2 : float
+        Distance from the body centre of gravity to the front and rear axle, m.
+
+    Raises
+    ------
+    ParameterError
+        If a mass, inertia, stiffness or distance is not a finite positive number, or a
+        damping is negative or not finite.
+    """
+
+    ms: float = 16200.0
+    Is: float = 111193.0
+    mu1: float = 700.0
+    mu2: float = 1100.0
+    ks1: float = 0.4e6
+    ks2: float = 1.0e6
+    cs1: float = 10e3
+    cs2: float = 20e3
+    kt1: float = 1.75e6
+    kt2: float = 3.5e6
+    d1: float = 4.13
+    d2: float = 4.13
+
+    def __post_init__(self) -> None:
+        units = {
+            "ms": "kg", "Is": "kg m²", "mu1": "kg", "mu2": "kg", "ks1": "N/m", "ks2": "N/m",
+            "cs1": "N s/m", "cs2": "N s/m", "kt1": "N/m", "kt2": "N/m", "d1": "m", "d2": "m",
+        }  # fmt: skip
+        for f in fields(self):
+            value = getattr(self, f.name)
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ParameterError(
+                    f"vehicle parameter {f.name} must be a number in {units[f.name]}, "
+                    f"got {value!r}"
+                ) from None
+            object.__setattr__(self, f.name, value)
+            if not math.isfinite(value):
+                raise ParameterError(f"vehicle parameter {f.name} must be finite, got {value}")
+            if f.name.startswith("cs"):
+                if value < 0:
+                    raise ParameterError(
+                        f"vehicle parameter {f.name} (damping, {units[f.name]}) must be >= 0, "
+                        f"got {value}"
+                    )
+            elif value <= 0:
+                raise ParameterError(
+                    f"vehicle parameter {f.name} must be > 0 {units[f.name]}, got {value}"
+                )
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> VehicleParams:
+        """Build from a mapping; unknown keys are an error, missing keys take Table 1 values."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ParameterError(
+                f"unknown vehicle parameter(s) {unknown}; expected some of {sorted(known)}"
+            )
+        return cls(**data)
+
+    def to_dict(self) -> dict[str, float]:
+        """Parameters as a plain dict (SI units)."""
+        return asdict(self)
+
+    @property
+    def wheelbase(self) -> float:
+        """Distance between the two axles, m."""
+        return self.d1 + self.d2
+
+    def static_axle_loads(self, g: float = GRAVITY) -> tuple[float, float]:
+        """Static wheel-rail contact forces of the front and rear axle, N (compression > 0)."""
+        body1 = self.ms * g * self.d2 / (self.d1 + self.d2)
+        body2 = self.ms * g * self.d1 / (self.d1 + self.d2)
+        return body1 + self.mu1 * g, body2 + self.mu2 * g
+
+    def matrices(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Mass, damping and stiffness matrices of the free vehicle (contact springs included).
+
+        Returns
+        -------
+        M, C, K : ndarray, shape (4, 4)
+            In SI units for the DOFs ``[u_s (m), theta_s (rad), u_u1 (m), u_u2 (m)]``.
+            ``K`` contains the contact stiffnesses ``kt1``, ``kt2`` on the axle diagonals; the
+            rail level enters the axle equations as a force ``kt_i * y_i``.
+        """
+        d1, d2 = self.d1, self.d2
+        M = np.diag([self.ms, self.Is, self.mu1, self.mu2])
+
+        def spring_matrix(k1: float, k2: float) -> NDArray[np.float64]:
+            # suspension i links body point (u_s + d1 th) or (u_s - d2 th) to axle i
+            a1 = np.array([1.0, d1, -1.0, 0.0])
+            a2 = np.array([1.0, -d2, 0.0, -1.0])
+            return k1 * np.outer(a1, a1) + k2 * np.outer(a2, a2)
+
+        C = spring_matrix(self.cs1, self.cs2)
+        K = spring_matrix(self.ks1, self.ks2)
+        K[2, 2] += self.kt1
+        K[3, 3] += self.kt2
+        return M, C, K
+
+
+TABLE1 = VehicleParams()
+"""The paper's Table 1 vehicle."""
