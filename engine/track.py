@@ -173,11 +173,11 @@ class Track:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.length, int | float) and math.isfinite(self.length)):
-            raise ParameterError(f"track length must be a finite number of metres, got {self.length!r}")
-        if self.length < 4 * self.params.spacing:
             raise ParameterError(
-                f"track length {self.length} m is shorter than 4 support spacings"
+                f"track length must be a finite number of metres, got {self.length!r}"
             )
+        if self.length < 4 * self.params.spacing:
+            raise ParameterError(f"track length {self.length} m is shorter than 4 support spacings")
         n = self.n_supports
         object.__setattr__(self, "zones", tuple(self.zones))
         if self.support_stiffness is None:

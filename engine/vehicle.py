@@ -72,8 +72,7 @@ class VehicleParams:
                 value = float(value)
             except (TypeError, ValueError):
                 raise ParameterError(
-                    f"vehicle parameter {f.name} must be a number in {units[f.name]}, "
-                    f"got {value!r}"
+                    f"vehicle parameter {f.name} must be a number in {units[f.name]}, got {value!r}"
                 ) from None
             object.__setattr__(self, f.name, value)
             if not math.isfinite(value):

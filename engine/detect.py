@@ -1,0 +1,147 @@
+"""Soft-spot detection on a fused loaded profile: local dips against a robust baseline."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import median_filter, uniform_filter1d
+
+from .errors import ParameterError
+
+
+@dataclass(frozen=True)
+class DetectionConfig:
+    """Thresholds of the soft-spot detector.
+
+    Parameters
+    ----------
+    baseline_window_m : float
+        Length of the running median that gives the baseline, m; longer than the longest
+        soft zone expected (a dip narrower than half of it does not move the median).
+    min_depth_mm : float
+        Smallest dip reported, mm below the baseline.
+    noise_factor : float
+        A dip must also be deeper than this many robust standard deviations of the residual.
+    min_length_m : float
+        Shortest dip reported (width at half depth), m.
+    edge_m : float
+        Dips closer than this to either end of the profile are ignored, m (filter edge effects).
+    """
+
+    baseline_window_m: float = 40.0
+    min_depth_mm: float = 0.06
+    noise_factor: float = 5.0
+    min_length_m: float = 1.0
+    edge_m: float = 6.0
+
+    def __post_init__(self) -> None:
+        for name in ("baseline_window_m", "min_depth_mm", "noise_factor", "min_length_m"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ParameterError(f"detection {name} must be > 0, got {v}")
+        if not (np.isfinite(self.edge_m) and self.edge_m >= 0):
+            raise ParameterError(f"detection edge_m must be >= 0, got {self.edge_m}")
+
+
+@dataclass(frozen=True)
+class Dip:
+    """A detected dip before stiffness fitting (chainages in m, depth in mm, positive)."""
+
+    start_m: float
+    end_m: float
+    peak_m: float
+    depth_mm: float
+
+
+def robust_baseline(
+    level_mm: NDArray[np.float64], step_m: float, window_m: float
+) -> NDArray[np.float64]:
+    """Slowly varying baseline of a profile: running median then running mean, mm.
+
+    NaN samples are filled from their neighbours for the computation and stay NaN.
+    Computed on a grid decimated to about 0.5 m, so its cost stays small on long runs.
+    """
+    y = np.asarray(level_mm, dtype=float)
+    ok = np.isfinite(y)
+    out = np.full_like(y, np.nan)
+    if ok.sum() < 2:
+        return out
+    idx = np.arange(y.size)
+    filled = np.interp(idx, idx[ok], y[ok])
+    dec = max(1, int(round(0.5 / step_m)))
+    coarse = filled[::dec]
+    size = max(3, int(round(window_m / (step_m * dec))) | 1)
+    med = median_filter(coarse, size=size, mode="reflect")
+    smooth = uniform_filter1d(med, size=max(1, size // 4), mode="reflect")
+    base = np.interp(idx, idx[::dec], smooth)
+    out[ok] = base[ok]
+    return out
+
+
+def robust_sigma(x: NDArray[np.float64]) -> float:
+    """Standard deviation estimated from the median absolute deviation (NaN ignored)."""
+    v = x[np.isfinite(x)]
+    if v.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(v - np.median(v))))
+
+
+def find_dips(
+    chainage_m: NDArray[np.float64], residual_mm: NDArray[np.float64], config: DetectionConfig
+) -> tuple[list[Dip], float]:
+    """Dips of a residual profile (level minus baseline) below the detection threshold.
+
+    Returns the dips ordered by chainage and the threshold used, mm. A dip's extent is where
+    the residual is below half its peak depth; dips closer than ``min_length_m`` merge.
+    """
+    step = float(chainage_m[1] - chainage_m[0])
+    r = np.where(np.isfinite(residual_mm), residual_mm, 0.0)
+    sigma = robust_sigma(residual_mm)
+    thr = max(config.min_depth_mm, config.noise_factor * sigma)
+    valid = np.isfinite(residual_mm)
+    idx = np.flatnonzero(valid)
+    if idx.size == 0:
+        return [], thr
+    lo_ok = chainage_m[idx[0]] + config.edge_m
+    hi_ok = chainage_m[idx[-1]] - config.edge_m
+    below = (r < -thr) & valid
+    dips: list[Dip] = []
+    taken = np.zeros(r.size, dtype=bool)
+    # visit candidate minima from the deepest, growing each to its half-depth extent
+    order = np.flatnonzero(below)
+    order = order[np.argsort(r[order])]
+    for k in order:
+        if taken[k]:
+            continue
+        half = 0.5 * r[k]
+        a = k
+        while a > 0 and r[a - 1] < half and valid[a - 1]:
+            a -= 1
+        b = k
+        while b < r.size - 1 and r[b + 1] < half and valid[b + 1]:
+            b += 1
+        taken[max(0, a - 1) : b + 2] = True
+        # linear interpolation of the half-depth crossings
+        xa = chainage_m[a]
+        if a > 0 and r[a - 1] != r[a]:
+            xa -= step * (half - r[a]) / (r[a - 1] - r[a])
+        xb = chainage_m[b]
+        if b < r.size - 1 and r[b + 1] != r[b]:
+            xb += step * (half - r[b]) / (r[b + 1] - r[b])
+        if xb - xa < config.min_length_m:
+            continue
+        if chainage_m[k] < lo_ok or chainage_m[k] > hi_ok:
+            continue
+        dips.append(Dip(float(xa), float(xb), float(chainage_m[k]), float(-r[k])))
+    dips.sort(key=lambda d: d.start_m)
+    merged: list[Dip] = []
+    for d in dips:
+        if merged and d.start_m - merged[-1].end_m < config.min_length_m:
+            p = merged[-1]
+            deeper = p if p.depth_mm >= d.depth_mm else d
+            merged[-1] = Dip(p.start_m, max(p.end_m, d.end_m), deeper.peak_m, deeper.depth_mm)
+        else:
+            merged.append(d)
+    return merged, thr
