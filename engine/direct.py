@@ -230,7 +230,7 @@ def direct_inverse_loop(
     vectorised version is checked and benchmarked against. Same parameters and units.
     """
     a_s, qd_in = _check(accel, pitch_rate)
-    nm = Newmark(dt, gamma, beta)
+    Newmark(dt, gamma, beta)  # validates the step and parameters
     v = vehicle
     g, b = gamma, beta
     n = a_s.size

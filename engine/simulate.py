@@ -110,15 +110,14 @@ class SimulationResult:
 def _positions(
     speed: Speed, n_steps: int, dt: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    t = np.arange(n_steps) * dt
+    t: NDArray[np.float64] = np.arange(n_steps, dtype=np.float64) * dt
+    v: NDArray[np.float64]
     if callable(speed):
-        v = np.asarray(speed(t), dtype=float)
-        if v.shape != t.shape:
-            v = np.broadcast_to(v, t.shape).astype(float)
+        v = np.broadcast_to(np.asarray(speed(t), dtype=np.float64), t.shape).copy()
     elif np.ndim(speed) == 0:
-        v = np.full(n_steps, float(speed))  # type: ignore[arg-type]
+        v = np.full(n_steps, float(speed))
     else:
-        v = np.asarray(speed, dtype=float)
+        v = np.asarray(speed, dtype=np.float64)
         if v.shape != (n_steps,):
             raise ParameterError(
                 f"speed array has {v.size} values, expected one per step ({n_steps})"
@@ -322,7 +321,7 @@ def simulate(
             raise ParameterError("the vehicle starts too close to the end of the track")
         if callable(speed) or np.ndim(speed) > 0:
             raise ParameterError("give a duration (s) when the speed is not constant")
-        duration = room / float(speed)  # type: ignore[arg-type]
+        duration = room / float(speed)
     if not (np.isfinite(duration) and duration > 0):
         raise ParameterError(f"duration must be a positive number of seconds, got {duration}")
     n_steps = int(np.floor(duration / dt + 1e-9)) + 1
@@ -436,7 +435,7 @@ def simulate(
 
     cf1 = kt[0] * (y1 - out_q[:, 2])
     cf2 = kt[1] * (y2 - out_q[:, 3])
-    t = np.arange(n_steps) * dt
+    t = np.arange(n_steps, dtype=np.float64) * dt
     return SimulationResult(
         t=t, x_body=xb, x_front=x1, x_rear=x2, speed=v,
         accel=out_qdd[:, 0].copy(), pitch_rate=out_qd[:, 1].copy(),

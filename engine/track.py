@@ -191,7 +191,8 @@ class Track:
             if k.shape != (n,):
                 raise ParameterError(
                     f"support_stiffness must have one value per support ({n} for a "
-                    f"{self.length} m track at {self.params.spacing} m spacing), got shape {k.shape}"
+                    f"{self.length} m track at {self.params.spacing} m spacing), "
+                    f"got shape {k.shape}"
                 )
             if not np.all(np.isfinite(k)) or np.any(k <= 0):
                 i = int(np.flatnonzero(~np.isfinite(k) | (k <= 0))[0])
@@ -210,7 +211,7 @@ class Track:
     @property
     def support_x(self) -> NDArray[np.float64]:
         """Chainage of each support, m."""
-        return np.arange(self.n_supports) * self.params.spacing
+        return np.arange(self.n_supports, dtype=np.float64) * self.params.spacing
 
     @property
     def k(self) -> NDArray[np.float64]:
