@@ -6,9 +6,10 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .chainage import axle_positions, bandpass_distance, to_grid
-from .detect import DetectionConfig, find_dips, robust_baseline, robust_sigma
+from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .direct import direct_inverse
 from .errors import InversionError, ParameterError
 from .results import ProcessResult, Quality, SoftSpot
@@ -36,7 +37,9 @@ class ProcessConfig:
         ``direct``: the paper's direct integration, then the same band-pass (reference only;
         wrong on noisy data).
     lambda_min_m, lambda_max_m : float
-        Wavelength band of the profile, m. Default 3-25 m, EN 13848 D1.
+        Wavelength band of the profile, m. Default 3-40 m: all of EN 13848 D1 (3-25 m) and
+        enough of D2 that a soft zone up to ~15 m long keeps its depth (a 25 m cut-off
+        carves the middle out of a 10 m zone); see docs/method.md.
     grid_step_m : float
         Spacing of the chainage grid, m.
     taper : float
@@ -49,7 +52,7 @@ class ProcessConfig:
 
     method: Method = "spectral"
     lambda_min_m: float = 3.0
-    lambda_max_m: float = 25.0
+    lambda_max_m: float = 40.0
     grid_step_m: float = 0.25
     taper: float = 0.3
     detection: DetectionConfig = field(default_factory=DetectionConfig)
@@ -67,6 +70,45 @@ class ProcessConfig:
             raise ParameterError(f"grid_step_m must be in (0, 0.25] m, got {self.grid_step_m}")
         if not (0 < self.taper <= 1):
             raise ParameterError(f"taper must be in (0, 1], got {self.taper}")
+
+
+def _soft_spots(
+    grid: NDArray[np.float64],
+    residual: NDArray[np.float64],
+    dips: list[Dip],
+    cfg: ProcessConfig,
+    trk: TrackParams,
+    load: float,
+) -> list[SoftSpot]:
+    """Fit each dip with the beam model; dips whose fitted zones overlap become one zone."""
+    if not cfg.fit_stiffness:
+        return [SoftSpot(d.start_m, d.end_m, d.peak_m, d.depth_mm, float("nan")) for d in dips]
+    half = 0.5 * trk.spacing
+
+    def fit(a: float, b: float) -> tuple[float, float, float]:
+        f = fit_zone(grid, residual, a, b, trk, load, cfg.lambda_min_m, cfg.lambda_max_m)
+        return f.start_m - half, f.end_m + half, f.loss
+
+    fitted = [(d, *fit(d.start_m, d.end_m)) for d in dips]
+    merged: list[tuple[Dip, float, float, float]] = []
+    for d, a, b, loss in sorted(fitted, key=lambda f: f[1]):
+        if merged and a <= merged[-1][2]:
+            pd, pa, pb, _ = merged[-1]
+            deeper = pd if pd.depth_mm >= d.depth_mm else d
+            na, nb, nl = fit(min(pa, a) + half, max(pb, b) - half)
+            merged[-1] = (Dip(na, nb, deeper.peak_m, deeper.depth_mm), na, nb, nl)
+        else:
+            merged.append((d, a, b, loss))
+    return [
+        SoftSpot(
+            start_m=float(a),
+            end_m=float(b),
+            peak_m=d.peak_m,
+            depth_mm=d.depth_mm,
+            stiffness_loss_pct=float(100.0 * loss),
+        )
+        for d, a, b, loss in merged
+    ]
 
 
 def process_run(
@@ -161,27 +203,7 @@ def process_run(
     dips, _thr = find_dips(grid, residual, cfg.detection)
     loads = vehicle.static_axle_loads()
     load = 0.5 * (loads[0] + loads[1])
-    spots: list[SoftSpot] = []
-    for d in dips:
-        if cfg.fit_stiffness:
-            fit = fit_zone(
-                grid, residual, d.start_m, d.end_m, trk, load, cfg.lambda_min_m, cfg.lambda_max_m
-            )
-            half = 0.5 * trk.spacing
-            start, end, loss = fit.start_m - half, fit.end_m + half, fit.loss
-        else:
-            start, end, loss = d.start_m, d.end_m, float("nan")
-        spots.append(
-            SoftSpot(
-                start_m=float(start),
-                end_m=float(end),
-                peak_m=d.peak_m,
-                depth_mm=d.depth_mm,
-                stiffness_loss_pct=float(100.0 * loss),
-            )
-        )
-    if pos.sign < 0:
-        pass  # grid is increasing whatever the direction of travel
+    spots = _soft_spots(grid, residual, dips, cfg, trk, load)
     agreement = (
         float(np.sqrt(np.mean((front[both] - rear[both]) ** 2))) if both.any() else float("nan")
     )

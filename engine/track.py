@@ -7,7 +7,7 @@ Chainage is the position along the track in metres. Supports (sleepers) stand at
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -227,7 +227,7 @@ class Track:
         return np.asarray(self.irregularity(xa), dtype=float)
 
 
-def irregularity_from_samples(x: Sequence[float], r: Sequence[float]) -> Irregularity:
+def irregularity_from_samples(x: ArrayLike, r: ArrayLike) -> Irregularity:
     """Rail irregularity interpolated linearly from samples ``(x (m), r (m))``."""
     xa = np.asarray(x, dtype=float)
     ra = np.asarray(r, dtype=float)

@@ -1,0 +1,404 @@
+"""Command line: ``python -m engine simulate | invert | process``.
+
+Every option states its unit; errors in the input are reported on stderr with exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+
+from .detect import DetectionConfig
+from .direct import direct_inverse
+from .errors import EngineError
+from .pipeline import METHODS, ProcessConfig, process_run
+from .runlog import RunLog
+from .sensor import SensorModel
+from .simulate import simulate
+from .track import SoftZone, Track, TrackParams, irregularity_from_samples
+from .vehicle import VehicleParams
+
+VEHICLE_HELP = {
+    "ms": "body mass, kg", "Is": "body pitch inertia, kg m^2", "mu1": "front axle mass, kg",
+    "mu2": "rear axle mass, kg", "ks1": "front suspension stiffness, N/m",
+    "ks2": "rear suspension stiffness, N/m", "cs1": "front suspension damping, N s/m",
+    "cs2": "rear suspension damping, N s/m", "kt1": "front contact stiffness, N/m",
+    "kt2": "rear contact stiffness, N/m", "d1": "CG to front axle, m", "d2": "CG to rear axle, m",
+}  # fmt: skip
+TRACK_HELP = {
+    "spacing": "support (sleeper) spacing, m", "EI": "rail bending stiffness, N m^2",
+    "mass_per_m": "rail mass, kg/m", "k_nominal": "nominal support stiffness, N/m",
+    "c_support": "support damping, N s/m",
+}  # fmt: skip
+
+
+def _add_vehicle(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("vehicle (default: the paper's Table 1)")
+    defaults = VehicleParams()
+    for f in fields(VehicleParams):
+        g.add_argument(
+            f"--{f.name}",
+            type=float,
+            default=None,
+            metavar="X",
+            help=f"{VEHICLE_HELP[f.name]} (default {getattr(defaults, f.name):g})",
+        )
+
+
+def _add_track(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("track (default: UIC60 on 80 kN/mm supports every 0.6 m)")
+    defaults = TrackParams()
+    for f in fields(TrackParams):
+        g.add_argument(
+            f"--{f.name.replace('_', '-')}",
+            dest=f"track_{f.name}",
+            type=float,
+            default=None,
+            metavar="X",
+            help=f"{TRACK_HELP[f.name]} (default {getattr(defaults, f.name):g})",
+        )
+
+
+def _add_columns(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group(
+        "columns and units of the input CSV (default: recognised from the header)"
+    )
+    g.add_argument("--time-column", help="name of the time column")
+    g.add_argument("--accel-column", help="name of the vertical acceleration column")
+    g.add_argument("--pitch-rate-column", help="name of the pitch-rate column")
+    g.add_argument("--speed-column", help="name of the speed column")
+    g.add_argument("--chainage-column", help="name of the chainage (odometer) column")
+    g.add_argument("--time-unit", choices=["s", "ms", "epoch_s"], help="unit of the time column")
+    g.add_argument("--accel-unit", choices=["m/s2", "g"], help="unit of the acceleration")
+    g.add_argument("--pitch-rate-unit", choices=["rad/s", "deg/s"], help="unit of the pitch rate")
+    g.add_argument("--speed-unit", choices=["m/s", "km/h"], help="unit of the speed")
+    g.add_argument(
+        "--gravity",
+        choices=["auto", "included", "removed"],
+        default="auto",
+        help="whether the acceleration includes gravity (+1 g at rest); default auto",
+    )
+
+
+def _vehicle(ns: argparse.Namespace) -> VehicleParams:
+    over = {f.name: getattr(ns, f.name) for f in fields(VehicleParams)}
+    return VehicleParams(**{k: v for k, v in over.items() if v is not None})
+
+
+def _track_params(ns: argparse.Namespace) -> TrackParams:
+    over = {f.name: getattr(ns, f"track_{f.name}") for f in fields(TrackParams)}
+    return TrackParams(**{k: v for k, v in over.items() if v is not None})
+
+
+def _read_log(ns: argparse.Namespace) -> RunLog:
+    from .logio import CsvOptions, read_run_csv
+
+    opts = CsvOptions(
+        time_column=ns.time_column,
+        accel_column=ns.accel_column,
+        pitch_rate_column=ns.pitch_rate_column,
+        speed_column=ns.speed_column,
+        chainage_column=ns.chainage_column,
+        time_unit=ns.time_unit,
+        accel_unit=ns.accel_unit,
+        pitch_rate_unit=ns.pitch_rate_unit,
+        speed_unit=ns.speed_unit,
+        gravity=ns.gravity,
+    )
+    return read_run_csv(Path(ns.run), opts)
+
+
+def _cmd_simulate(ns: argparse.Namespace) -> int:
+    from .logio import write_run_csv
+
+    params = _track_params(ns)
+    zones = tuple(SoftZone.parse(z) for z in ns.zone)
+    track = Track(ns.length, params=params, zones=zones)
+    if ns.jitter > 0:
+        rng = np.random.default_rng(ns.seed)
+        k = track.k * np.clip(1.0 + ns.jitter * rng.standard_normal(track.n_supports), 0.5, 1.5)
+        track = Track(ns.length, params=params, support_stiffness=k, zones=zones)
+    if ns.irregularity:
+        data = np.loadtxt(ns.irregularity, delimiter=",", skiprows=1, ndmin=2)
+        irr = irregularity_from_samples(data[:, 0], data[:, 1] * 1e-3)
+        track = Track(ns.length, params=params, support_stiffness=track.k, irregularity=irr)
+    speed: float | object = ns.speed
+    if ns.speed_end is not None:
+        if ns.duration is None:
+            raise EngineError("--speed-end needs --duration (s)")
+        v0, v1, T = ns.speed, ns.speed_end, ns.duration
+
+        def speed(t: np.ndarray) -> np.ndarray:
+            return v0 + (v1 - v0) * np.clip(t / T, 0.0, 1.0)
+
+    sim = simulate(
+        track,
+        vehicle=_vehicle(ns),
+        speed=speed,  # type: ignore[arg-type]
+        duration=ns.duration,
+        start_chainage_m=ns.start_chainage,
+        dt=ns.dt,
+        direction=ns.direction,
+    )
+    sensor = SensorModel(
+        accel_noise=ns.accel_noise,
+        gyro_noise=ns.gyro_noise,
+        accel_bias=ns.accel_bias,
+        gyro_bias=ns.gyro_bias,
+        sample_rate_hz=ns.rate,
+        digits=ns.digits,
+    )
+    log = sim.to_runlog(sensor, seed=ns.seed, chainage=ns.with_chainage)
+    write_run_csv(log, Path(ns.out))
+    if ns.truth:
+        step = max(1, int(round(log.dt / sim.dt)))
+        idx = np.arange(0, sim.t.size, step)
+        table = np.column_stack(
+            [sim.t[idx], sim.x_front[idx], sim.y_front[idx] * 1e3, sim.x_rear[idx],
+             sim.y_rear[idx] * 1e3]
+        )  # fmt: skip
+        np.savetxt(
+            ns.truth,
+            table,
+            delimiter=",",
+            fmt="%.10g",
+            header="time_s,front_chainage_m,front_level_mm,rear_chainage_m,rear_level_mm",
+            comments="",
+        )
+    print(f"wrote {log.n} samples ({log.duration_s:.2f} s) to {ns.out}", file=sys.stderr)
+    return 0
+
+
+def _cmd_invert(ns: argparse.Namespace) -> int:
+    from .chainage import axle_positions
+
+    log = _read_log(ns)
+    vehicle = _vehicle(ns)
+    pos = axle_positions(log, vehicle, ns.start_chainage, ns.direction)
+    if ns.method == "direct":
+        res = direct_inverse(
+            log.accel_z_mps2, log.pitch_rate_radps, log.dt, vehicle, gamma=ns.gamma, beta=ns.beta
+        )
+        y1, y2 = res.y_front, res.y_rear
+    else:
+        from .spectral import spectral_inverse
+
+        cfg = ProcessConfig(lambda_min_m=ns.lambda_min, lambda_max_m=ns.lambda_max)
+        v = log.speed()
+        tp = 1.0 + cfg.taper
+        inv = spectral_inverse(
+            log.accel_z_mps2,
+            log.pitch_rate_radps,
+            log.dt,
+            vehicle,
+            float(v.min()) / (cfg.lambda_max_m * tp),
+            float(v.max()) * tp / cfg.lambda_min_m,
+        )
+        y1, y2 = inv.y_front - inv.y_front[0], inv.y_rear - inv.y_rear[0]
+    table = np.column_stack([log.time_s, pos.front, y1 * 1e3, pos.rear, y2 * 1e3])
+    np.savetxt(
+        ns.out,
+        table,
+        delimiter=",",
+        fmt="%.12g",
+        header="time_s,front_chainage_m,front_level_mm,rear_chainage_m,rear_level_mm",
+        comments="",
+    )
+    print(f"wrote {log.n} rows to {ns.out}", file=sys.stderr)
+    return 0
+
+
+def _cmd_process(ns: argparse.Namespace) -> int:
+    log = _read_log(ns)
+    det = DetectionConfig(
+        baseline_window_m=ns.baseline_window,
+        min_depth_mm=ns.min_depth,
+        noise_factor=ns.noise_factor,
+        min_length_m=ns.min_length,
+    )
+    cfg = ProcessConfig(
+        method=ns.method,
+        lambda_min_m=ns.lambda_min,
+        lambda_max_m=ns.lambda_max,
+        grid_step_m=ns.grid_step,
+        detection=det,
+    )
+    res = process_run(
+        log,
+        start_chainage_m=ns.start_chainage,
+        direction=ns.direction,
+        vehicle=_vehicle(ns),
+        track=_track_params(ns),
+        config=cfg,
+    )
+    out = Path(ns.out)
+    out.mkdir(parents=True, exist_ok=True)
+    ok = np.isfinite(res.level_mm)
+    np.savetxt(
+        out / "profile.csv",
+        np.column_stack([res.chainage_m[ok], res.level_mm[ok]]),
+        delimiter=",",
+        fmt=["%.3f", "%.6f"],
+        header="chainage_m,level_mm",
+        comments="",
+    )
+    (out / "soft_spots.json").write_text(
+        json.dumps([s.to_dict() for s in res.soft_spots], indent=1) + "\n"
+    )
+    (out / "quality.json").write_text(json.dumps(res.quality.to_dict(), indent=1) + "\n")
+    print(
+        f"{ok.sum()} profile points, {len(res.soft_spots)} soft spot(s) written to {out}",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``python -m engine``."""
+    p = argparse.ArgumentParser(
+        prog="python -m engine",
+        description="Drive-by track monitoring engine: simulate runs, invert logs to loaded "
+        "track profiles, find soft spots.",
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser(
+        "simulate",
+        help="forward-simulate a run and write its log CSV",
+        description="Coupled vehicle-track simulation (Newmark-beta) written as a canonical "
+        "run CSV (time_s, accel_z_mps2, pitch_rate_radps, speed_mps).",
+    )
+    s.add_argument("--length", type=float, default=200.0, help="track length, m (default 200)")
+    s.add_argument("--speed", type=float, default=20.0, help="speed, m/s (default 20)")
+    s.add_argument(
+        "--speed-end", type=float, default=None, help="speed at the end, m/s: linear ramp"
+    )
+    s.add_argument(
+        "--start-chainage",
+        type=float,
+        default=24.13,
+        help="chainage of the body centre at t=0, m (default 24.13)",
+    )
+    s.add_argument(
+        "--duration", type=float, default=None, help="duration, s (default: to the track end)"
+    )
+    s.add_argument("--direction", choices=["increasing", "decreasing"], default="increasing")
+    s.add_argument(
+        "--zone",
+        action="append",
+        default=[],
+        metavar="START:END:LOSS",
+        help="soft zone: first and last support chainage (m) and stiffness loss (fraction), "
+        "e.g. 60:65:0.5; repeatable",
+    )
+    s.add_argument(
+        "--jitter",
+        type=float,
+        default=0.0,
+        help="support stiffness scatter, standard deviation as a fraction (e.g. 0.05)",
+    )
+    s.add_argument(
+        "--irregularity",
+        help="CSV with header and columns chainage_m,level_mm: unloaded rail irregularity",
+    )
+    s.add_argument("--dt", type=float, default=1e-3, help="simulation time step, s (0.001)")
+    s.add_argument("--rate", type=float, default=None, help="output sample rate, Hz")
+    s.add_argument("--accel-noise", type=float, default=0.0, help="accel noise sigma, m/s^2")
+    s.add_argument("--gyro-noise", type=float, default=0.0, help="gyro noise sigma, rad/s")
+    s.add_argument("--accel-bias", type=float, default=0.0, help="accel bias, m/s^2")
+    s.add_argument("--gyro-bias", type=float, default=0.0, help="gyro bias, rad/s")
+    s.add_argument("--digits", type=int, default=None, help="significant digits written")
+    s.add_argument("--seed", type=int, default=None, help="random seed (noise, jitter)")
+    s.add_argument("--with-chainage", action="store_true", help="also write a chainage_m column, m")
+    s.add_argument("--out", required=True, help="output run CSV")
+    s.add_argument(
+        "--truth",
+        help="also write the true loaded levels (mm, absolute, positive up) under each axle",
+    )
+    _add_track(s)
+    _add_vehicle(s)
+    s.set_defaults(func=_cmd_simulate)
+
+    inv = sub.add_parser(
+        "invert",
+        help="levels under each axle against time",
+        description="Invert a run log to the loaded level under each axle; writes time_s, "
+        "front_chainage_m, front_level_mm, rear_chainage_m, rear_level_mm (mm relative to the "
+        "first sample, positive up).",
+    )
+    inv.add_argument("run", help="run CSV")
+    inv.add_argument(
+        "--method",
+        choices=list(METHODS),
+        default="spectral",
+        help="direct: the paper's integration (exact on noise-free Newmark data only); "
+        "spectral: band-limited inversion (default)",
+    )
+    inv.add_argument(
+        "--start-chainage", type=float, default=None, help="body-centre chainage at start, m"
+    )
+    inv.add_argument("--direction", choices=["increasing", "decreasing"], default="increasing")
+    inv.add_argument("--gamma", type=float, default=0.5, help="Newmark gamma (direct)")
+    inv.add_argument("--beta", type=float, default=0.25, help="Newmark beta (direct)")
+    inv.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
+    inv.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")
+    inv.add_argument("--out", required=True, help="output levels CSV")
+    _add_columns(inv)
+    _add_vehicle(inv)
+    inv.set_defaults(func=_cmd_invert)
+
+    pr = sub.add_parser(
+        "process",
+        help="fused profile on chainage and soft spots",
+        description="Invert, fuse both axles on a chainage grid, detect soft spots and "
+        "estimate stiffness loss. Writes DIR/profile.csv (chainage_m,level_mm), "
+        "DIR/soft_spots.json and DIR/quality.json.",
+    )
+    pr.add_argument("run", help="run CSV")
+    pr.add_argument(
+        "--start-chainage", type=float, default=None, help="body-centre chainage at start, m"
+    )
+    pr.add_argument("--direction", choices=["increasing", "decreasing"], default="increasing")
+    pr.add_argument("--method", choices=list(METHODS), default="spectral")
+    pr.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
+    pr.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")
+    pr.add_argument("--grid-step", type=float, default=0.25, help="chainage grid step, m")
+    d = DetectionConfig()
+    pr.add_argument(
+        "--baseline-window", type=float, default=d.baseline_window_m, help="baseline median, m"
+    )
+    pr.add_argument(
+        "--min-depth", type=float, default=d.min_depth_mm, help="smallest dip reported, mm"
+    )
+    pr.add_argument(
+        "--noise-factor", type=float, default=d.noise_factor, help="threshold in noise sigmas"
+    )
+    pr.add_argument(
+        "--min-length", type=float, default=d.min_length_m, help="shortest dip reported, m"
+    )
+    pr.add_argument("--out", required=True, help="output directory")
+    _add_columns(pr)
+    _add_track(pr)
+    _add_vehicle(pr)
+    pr.set_defaults(func=_cmd_process)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``python -m engine``; returns the exit code."""
+    parser = build_parser()
+    ns = parser.parse_args(argv)
+    try:
+        return int(ns.func(ns))
+    except EngineError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
