@@ -254,7 +254,7 @@ def simulate(
     gamma: float = 0.5,
     beta: float = 0.25,
     store_rail: bool = False,
-    window_m: float | None = 30.0,
+    window_m: float | None = 60.0,
 ) -> SimulationResult:
     """Simulate the vehicle running over the track (coupled, Newmark-beta).
 
@@ -281,9 +281,11 @@ def simulate(
         Keep the rail deflection at every node and step (memory: n_steps x n_nodes floats).
     window_m : float or None
         Rail solved only within this distance (m) of the axles, the rest held at rest; the
-        load's influence decays like ``exp(-beta x)`` (beta ~ 1.5 /m), so 30 m changes results
-        by less than 1e-12 relative while making the cost per step independent of track
-        length. ``None`` solves the whole rail every step.
+        load's influence decays like ``exp(-beta x)`` (beta ~ 1.5 /m). What is lost is the
+        undamped high-frequency ringing that the average-acceleration rule leaves in rail
+        the vehicle has passed: with 60 m, loaded levels differ from the whole-rail solution
+        by about 1e-6 of their range (1e-10 m), and the cost per step does not grow with the
+        track length. ``None`` solves the whole rail every step.
 
     Returns
     -------
