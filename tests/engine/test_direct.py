@@ -8,7 +8,6 @@ from engine.errors import InversionError
 from engine.simulate import simulate
 from engine.track import SoftZone, Track
 from engine.vehicle import VehicleParams
-
 from support.samples import sample
 
 

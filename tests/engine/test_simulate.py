@@ -7,7 +7,6 @@ from engine.errors import ParameterError
 from engine.simulate import simulate
 from engine.track import SoftZone, Track, TrackParams
 from engine.vehicle import TABLE1
-
 from support.samples import sample
 
 
