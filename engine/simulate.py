@@ -136,10 +136,17 @@ def _static_state(
     """Static equilibrium of the coupled system with the wheels at ``x1``, ``x2``."""
     _, _, Kv = vehicle.matrices()
     nr = rail.n_dof
-    Kr = rail.to_sparse(rail.K).tolil()
-    K = sp.lil_matrix((4 + nr, 4 + nr))
-    K[:4, :4] = Kv
-    K[4:, 4:] = Kr
+    rows: list[NDArray[np.intp]] = []
+    cols: list[NDArray[np.intp]] = []
+    vals: list[NDArray[np.float64]] = []
+    kr = rail.to_sparse(rail.K).tocoo()
+    rows.append(kr.row + 4)
+    cols.append(kr.col + 4)
+    vals.append(kr.data)
+    iv, jv = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    rows.append(iv.ravel())
+    cols.append(jv.ravel())
+    vals.append(Kv.ravel())
     F = np.zeros(4 + nr)
     F[:4] = -GRAVITY * np.array([vehicle.ms, 0.0, vehicle.mu1, vehicle.mu2])
     for axle, x, kt in ((2, x1, vehicle.kt1), (3, x2, vehicle.kt2)):
@@ -147,11 +154,16 @@ def _static_state(
         dofs = 4 + d0[0] + np.arange(4)
         nvec = shape[0]
         r = float(track.rail_irregularity(np.array([x]))[0])
-        K[np.ix_(dofs, dofs)] = K[np.ix_(dofs, dofs)].toarray() + kt * np.outer(nvec, nvec)
-        K[axle, dofs] = -kt * nvec
-        K[dofs, axle] = (-kt * nvec)[:, None]
+        ii, jj = np.meshgrid(dofs, dofs, indexing="ij")
+        rows += [ii.ravel(), np.full(4, axle), dofs]
+        cols += [jj.ravel(), dofs, np.full(4, axle)]
+        vals += [kt * np.outer(nvec, nvec).ravel(), -kt * nvec, -kt * nvec]
         F[axle] += kt * r
         F[dofs] -= kt * nvec * r
+    K = sp.coo_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(4 + nr, 4 + nr),
+    )
     q = spla.spsolve(K.tocsc(), F)
     return q[:4], q[4:]
 
