@@ -1,0 +1,1 @@
+"""HTTP API: routers by resource under ``app.api.routes``."""

@@ -1,0 +1,77 @@
+"""ORM rows to public schemas (aligned chainage: stored chainage + the run's offset)."""
+
+from __future__ import annotations
+
+from app.db.models import Run, Track, Vehicle
+from app.schemas.runs import RunError, RunPublic
+from app.schemas.tracks import TrackPublic
+from app.schemas.vehicles import VehicleParamsSchema, VehiclePublic
+
+_PROGRESS = {"queued": 0.05, "inverting": 0.35, "storing": 0.85}
+
+
+def run_public(run: Run) -> RunPublic:
+    """The public view of a run."""
+    off = run.chainage_offset_m or 0.0
+    progress = 1.0 if run.status != "processing" else _PROGRESS.get(run.stage or "queued", 0.05)
+    return RunPublic(
+        id=run.id,
+        name=run.name,
+        track_id=run.track_id,
+        track=run.track.name,
+        vehicle_id=run.vehicle_id,
+        vehicle=run.vehicle.name,
+        source=run.source,
+        original_filename=run.original_filename,
+        recorded_at=run.recorded_at,
+        created_at=run.created_at,
+        processed_at=run.processed_at,
+        start_chainage_m=run.start_chainage_m,
+        direction=run.direction,  # type: ignore[arg-type]
+        sample_rate_hz=run.sample_rate_hz,
+        n_samples=run.n_samples,
+        duration_s=run.duration_s,
+        speed_min_mps=run.speed_min_mps,
+        speed_max_mps=run.speed_max_mps,
+        chainage_min_m=None if run.chainage_min_m is None else run.chainage_min_m + off,
+        chainage_max_m=None if run.chainage_max_m is None else run.chainage_max_m + off,
+        chainage_offset_m=off,
+        status=run.status,  # type: ignore[arg-type]
+        stage=run.stage if run.status == "processing" else None,  # type: ignore[arg-type]
+        progress=progress,
+        error=RunError.model_validate(run.error) if run.error else None,
+        quality=run.quality,
+        method=run.method,
+        n_soft_spots=run.n_soft_spots,
+        processing_s=run.processing_s,
+        content_hash=run.content_hash,
+        options=run.options or {},
+    )
+
+
+def track_public(track: Track, n_runs: int = 0) -> TrackPublic:
+    """The public view of a track."""
+    return TrackPublic(
+        id=track.id,
+        name=track.name,
+        description=track.description,
+        rail=track.rail,
+        k_nominal=track.k_nominal,
+        spacing=track.spacing,
+        EI=track.EI,
+        mass_per_m=track.mass_per_m,
+        c_support=track.c_support,
+        created_at=track.created_at,
+        n_runs=n_runs,
+    )
+
+
+def vehicle_public(vehicle: Vehicle) -> VehiclePublic:
+    """The public view of a vehicle."""
+    return VehiclePublic(
+        id=vehicle.id,
+        name=vehicle.name,
+        description=vehicle.description,
+        params=VehicleParamsSchema(**vehicle.params_dict()),
+        created_at=vehicle.created_at,
+    )

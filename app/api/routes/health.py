@@ -1,0 +1,53 @@
+"""Liveness and readiness: ``GET /healthz``."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel
+from sqlalchemy import func, select, text
+
+from app import __version__
+from app.api.deps import CtxDep
+from app.db.models import Run
+
+router = APIRouter(tags=["health"])
+
+
+class HealthPublic(BaseModel):
+    """Service health."""
+
+    status: Literal["ok", "degraded", "error"]
+    version: str
+    database: Literal["ok", "error"]
+    worker: Literal["running", "stopped", "disabled"]
+    runs_processing: int | None
+
+
+@router.get("/healthz", response_model=HealthPublic, responses={503: {"model": HealthPublic}})
+def healthz(ctx: CtxDep) -> HealthPublic | JSONResponse:
+    """200 when the database answers (and the worker runs), 503 otherwise."""
+    processing: int | None = None
+    try:
+        with ctx.db.session() as s:
+            s.execute(text("SELECT 1"))
+            processing = s.scalar(select(func.count()).where(Run.status == "processing"))
+        database: Literal["ok", "error"] = "ok"
+    except Exception:
+        database = "error"
+    if not ctx.settings.start_worker:
+        worker: Literal["running", "stopped", "disabled"] = "disabled"
+    else:
+        worker = "running" if ctx.worker is not None and ctx.worker.alive else "stopped"
+    status: Literal["ok", "degraded", "error"] = (
+        "error" if database == "error" else ("degraded" if worker == "stopped" else "ok")
+    )
+    body = HealthPublic(
+        status=status, version=__version__, database=database, worker=worker,
+        runs_processing=processing,
+    )  # fmt: skip
+    if status == "error":
+        return JSONResponse(status_code=503, content=body.model_dump())
+    return body

@@ -1,0 +1,29 @@
+"""Finding a track or vehicle by id or by name (path parameters accept both)."""
+
+from __future__ import annotations
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.core.errors import ApiError
+from app.db.models import Track, Vehicle
+
+
+def get_track(session: Session, ref: str) -> Track:
+    """The track whose id (digits) or name is ``ref``; 404 when none."""
+    track = session.get(Track, int(ref)) if ref.isdigit() else None
+    if track is None:
+        track = session.scalar(select(Track).where(Track.name == ref))
+    if track is None:
+        raise ApiError(404, f"track {ref!r} not found (give its id or its name)", field="track")
+    return track
+
+
+def get_vehicle(session: Session, ref: str) -> Vehicle:
+    """The vehicle whose id (digits) or name is ``ref``; 404 when none."""
+    vehicle = session.get(Vehicle, int(ref)) if ref.isdigit() else None
+    if vehicle is None:
+        vehicle = session.scalar(select(Vehicle).where(Vehicle.name == ref))
+    if vehicle is None:
+        raise ApiError(404, f"vehicle {ref!r} not found (give its id or its name)", field="vehicle")
+    return vehicle

@@ -1,0 +1,1 @@
+"""Configuration, errors, security and middleware of the web service."""

@@ -1,0 +1,111 @@
+"""Service settings, read from the environment (pydantic-settings).
+
+Every setting has an environment variable ``TRACKPROFILE_<NAME>`` (e.g.
+``TRACKPROFILE_MAX_UPLOAD_MB=200``); the database URL is also read from ``DATABASE_URL``.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+from typing import Annotated
+
+from pydantic import AliasChoices, Field, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+"""The project checkout (``app/`` and ``static/``, ``migrations/`` beside it)."""
+
+
+class Settings(BaseSettings):
+    """Configuration of one service instance.
+
+    Attributes
+    ----------
+    data_dir : Path
+        Where the embedded SQLite database lives (``./data`` unless ``TRACKPROFILE_DATA_DIR``).
+    database_url : str or None
+        SQLAlchemy URL (``DATABASE_URL``); default ``sqlite:///<data_dir>/trackprofile.db``.
+    max_upload_mb : float
+        Largest accepted request body, MB (10^6 bytes); larger uploads get 413 and store nothing.
+    require_api_key : bool
+        When true, every write (POST/DELETE under ``/api/v1``) needs a valid API key.
+    require_api_key_for_reads : bool
+        When true (and keys are required), reads need a key too; by default the dashboard
+        reads without one.
+    read_only : bool
+        Refuse every write with 403 (a read-only replica or a public dashboard).
+    cors_origins : list of str
+        Origins allowed by CORS; empty (the default) turns CORS off. Comma-separated in the env.
+    workers : int
+        Background processing threads per app process (also caps concurrent inversions).
+    inline_max_samples : int
+        Logs with at most this many samples are processed inside the upload request (the
+        answer already carries the result); longer ones go to the background worker.
+    poll_interval_s : float
+        How often an idle worker looks for queued runs in the database, s.
+    lease_s : float
+        A run claimed by a worker whose heartbeat is older than this is taken over, s.
+    max_attempts : int
+        A run whose processing was interrupted this many times is marked failed.
+    wait_timeout_s : float
+        Longest time ``POST /api/v1/runs?wait=true`` waits for the result, s.
+    simulate_max_duration_s : float
+        Longest simulated run ``POST /api/v1/simulate`` accepts, s of travel.
+    static_dir : Path
+        The dashboard's files, served at ``/static`` (``index.html`` at ``/``).
+    run_migrations : bool
+        Apply the Alembic migrations when the app starts.
+    start_worker : bool
+        Start the background worker threads with the app.
+    """
+
+    model_config = SettingsConfigDict(
+        env_prefix="TRACKPROFILE_", populate_by_name=True, extra="ignore"
+    )
+
+    data_dir: Path = Path("data")
+    database_url: str | None = Field(
+        default=None,
+        validation_alias=AliasChoices("DATABASE_URL", "TRACKPROFILE_DATABASE_URL", "database_url"),
+    )
+    max_upload_mb: float = Field(default=512.0, gt=0)
+    require_api_key: bool = False
+    require_api_key_for_reads: bool = False
+    read_only: bool = False
+    cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)
+    workers: int = Field(default=1, ge=1, le=16)
+    inline_max_samples: int = Field(default=300_000, ge=0)
+    poll_interval_s: float = Field(default=1.0, gt=0)
+    lease_s: float = Field(default=60.0, gt=0)
+    max_attempts: int = Field(default=3, ge=1)
+    wait_timeout_s: float = Field(default=300.0, gt=0)
+    simulate_max_duration_s: float = Field(default=120.0, gt=0)
+    static_dir: Path = REPO_ROOT / "static"
+    run_migrations: bool = True
+    start_worker: bool = True
+
+    @field_validator("cors_origins", mode="before")
+    @classmethod
+    def _split_origins(cls, value: object) -> object:
+        if isinstance(value, str):
+            return [v.strip() for v in value.split(",") if v.strip()]
+        return value
+
+    @property
+    def sqlalchemy_url(self) -> str:
+        """The database URL in force (``database_url`` or the SQLite file under ``data_dir``)."""
+        if self.database_url:
+            return self.database_url
+        return f"sqlite:///{(self.data_dir / 'trackprofile.db').resolve()}"
+
+    @property
+    def max_upload_bytes(self) -> int:
+        """Upload size limit, bytes."""
+        return int(self.max_upload_mb * 1_000_000)
+
+
+@lru_cache
+def get_settings() -> Settings:
+    """Settings from the environment, read once per process."""
+    return Settings()

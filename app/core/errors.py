@@ -1,0 +1,144 @@
+"""One error shape for every 4xx/5xx answer: ``{"detail": {"message": ..., <facts>}}``.
+
+The facts name what is wrong: ``field`` (request field), ``column`` and ``row`` (the uploaded
+file: the column name and the 1-based line number, header = line 1), ``unit``, and for request
+validation ``errors`` (each ``{"loc", "msg", "type"}``).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from engine.errors import EngineError, LogFormatError
+
+log = logging.getLogger(__name__)
+
+
+class ApiError(Exception):
+    """An error answered to the client with ``status_code`` and a structured detail."""
+
+    def __init__(
+        self,
+        status_code: int,
+        message: str,
+        *,
+        field: str | None = None,
+        column: str | None = None,
+        row: int | None = None,
+        unit: str | None = None,
+        headers: dict[str, str] | None = None,
+        **extra: Any,
+    ) -> None:
+        super().__init__(message)
+        self.status_code = status_code
+        self.message = message
+        self.headers = headers
+        self.facts: dict[str, Any] = {
+            "field": field, "column": column, "row": row, "unit": unit, **extra
+        }  # fmt: skip
+
+    def detail(self) -> dict[str, Any]:
+        """The ``detail`` object of the answer (facts that are None left out)."""
+        return {"message": self.message} | {k: v for k, v in self.facts.items() if v is not None}
+
+
+class BodyTooLarge(Exception):
+    """The request body went over the upload size limit while it was being read."""
+
+    def __init__(self, limit_bytes: int) -> None:
+        super().__init__(limit_bytes)
+        self.limit_bytes = limit_bytes
+
+
+def engine_error_detail(exc: EngineError) -> dict[str, Any]:
+    """The structured detail of an engine input error (message, column, row)."""
+    detail: dict[str, Any] = {"message": str(exc)}
+    if isinstance(exc, LogFormatError):
+        if exc.column is not None:
+            detail["column"] = exc.column
+        if exc.row is not None:
+            detail["row"] = exc.row
+    detail["kind"] = type(exc).__name__
+    return detail
+
+
+def too_large_detail(limit_bytes: int) -> dict[str, Any]:
+    """Detail of a 413 answer."""
+    return {
+        "message": f"the request body is larger than the upload limit of "
+        f"{limit_bytes / 1e6:g} MB (TRACKPROFILE_MAX_UPLOAD_MB)",
+        "limit_bytes": limit_bytes,
+    }
+
+
+def _loc_name(loc: tuple[Any, ...] | list[Any]) -> str:
+    parts = [str(p) for p in loc if p not in ("body", "query", "path", "header", "form")]
+    return ".".join(parts)
+
+
+def validation_detail(errors: list[Any]) -> dict[str, Any]:
+    """Detail of a 422 for pydantic/FastAPI validation errors, naming the first bad field."""
+    cleaned = [
+        {
+            "loc": list(e.get("loc", ())),
+            "msg": str(e.get("msg", "")),
+            "type": str(e.get("type", "")),
+        }
+        for e in errors
+    ]
+    if not cleaned:
+        return {"message": "the request is not valid", "errors": []}
+    first = cleaned[0]
+    field = _loc_name(first["loc"])
+    message = f"{field}: {first['msg']}" if field else first["msg"]
+    if len(cleaned) > 1:
+        message += f" (and {len(cleaned) - 1} more problem{'s' if len(cleaned) > 2 else ''})"
+    detail: dict[str, Any] = {"message": message, "errors": cleaned}
+    if field:
+        detail["field"] = field
+    return detail
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Register the handlers that give every error the ``{"detail": {...}}`` shape."""
+
+    @app.exception_handler(ApiError)
+    async def _api_error(_request: Request, exc: ApiError) -> JSONResponse:
+        return JSONResponse(
+            status_code=exc.status_code, content={"detail": exc.detail()}, headers=exc.headers
+        )
+
+    @app.exception_handler(EngineError)
+    async def _engine_error(_request: Request, exc: EngineError) -> JSONResponse:
+        return JSONResponse(status_code=422, content={"detail": engine_error_detail(exc)})
+
+    @app.exception_handler(BodyTooLarge)
+    async def _too_large(_request: Request, exc: BodyTooLarge) -> JSONResponse:
+        return JSONResponse(status_code=413, content={"detail": too_large_detail(exc.limit_bytes)})
+
+    @app.exception_handler(RequestValidationError)
+    async def _validation(_request: Request, exc: RequestValidationError) -> JSONResponse:
+        return JSONResponse(status_code=422, content={"detail": validation_detail(exc.errors())})
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        detail = exc.detail if isinstance(exc.detail, dict) else {"message": str(exc.detail)}
+        return JSONResponse(
+            status_code=exc.status_code,
+            content={"detail": detail},
+            headers=getattr(exc, "headers", None),
+        )
+
+    @app.exception_handler(Exception)
+    async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+        log.exception("unhandled error on %s %s", request.method, request.url.path)
+        return JSONResponse(
+            status_code=500,
+            content={"detail": {"message": "internal error: the request was not completed"}},
+        )

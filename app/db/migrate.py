@@ -1,0 +1,63 @@
+"""Apply the Alembic migrations (the app does it on start; ``python -m app.cli migrate`` too).
+
+Several app processes may start at once against one database, so the upgrade runs under a
+lock: an exclusive file lock beside a SQLite file, an advisory lock on PostgreSQL.
+"""
+
+from __future__ import annotations
+
+import fcntl
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from alembic import command
+from alembic.config import Config
+from sqlalchemy import Connection, text
+
+from app.core.config import REPO_ROOT
+
+from .session import Database, sqlite_path
+
+MIGRATIONS_DIR = REPO_ROOT / "migrations"
+_PG_LOCK_ID = 7_243_001
+
+
+def alembic_config() -> Config:
+    """An Alembic config pointing at the project's migrations (no ini file needed)."""
+    cfg = Config()
+    cfg.set_main_option("script_location", str(MIGRATIONS_DIR))
+    return cfg
+
+
+@contextmanager
+def _migration_lock(db: Database, conn: Connection) -> Iterator[None]:
+    path = sqlite_path(db.url)
+    if path is not None:
+        lock_path = path.with_name(path.name + ".migrate.lock")
+        with open(lock_path, "a+b") as fh:
+            fcntl.flock(fh, fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(fh, fcntl.LOCK_UN)
+    elif conn.dialect.name == "postgresql":
+        conn.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _PG_LOCK_ID})
+        yield
+    else:
+        yield
+
+
+def upgrade(db: Database, revision: str = "head") -> None:
+    """Bring the database schema up to ``revision`` (idempotent)."""
+    cfg = alembic_config()
+    with db.engine.begin() as conn, _migration_lock(db, conn):
+        cfg.attributes["connection"] = conn
+        command.upgrade(cfg, revision)
+
+
+def current_revision(db: Database) -> str | None:
+    """The revision the database is at, or None before the first migration."""
+    from alembic.runtime.migration import MigrationContext
+
+    with db.engine.connect() as conn:
+        return MigrationContext.configure(conn).get_current_revision()

@@ -1,0 +1,233 @@
+"""ORM models: tracks, vehicles, runs, their per-chainage profile, soft spots and API keys.
+
+Units: SI throughout (N/m, m, kg, s), levels in mm. Profiles are stored one row per grid point
+of the run's chainage grid, keyed ``(run_id, chainage_m)`` so that "run R between chainage a and
+b" is one range scan of the primary key. Chainage is stored as the engine computed it from the
+run's own start chainage; ``Run.chainage_offset_m`` (0 until runs are aligned) is added when the
+profile and soft spots are served.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import (
+    JSON,
+    Boolean,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    LargeBinary,
+    String,
+    Text,
+    UniqueConstraint,
+)
+from sqlalchemy.orm import Mapped, mapped_column, relationship
+
+from .base import Base, UTCDateTime, utcnow
+
+RUN_STATUSES = ("processing", "done", "failed")
+"""Public run states: ``processing`` until the inversion is stored (``done``) or gave up."""
+
+RUN_STAGES = ("queued", "inverting", "storing")
+"""What a ``processing`` run is doing: waiting for a worker, in the engine, being written."""
+
+
+class Track(Base):
+    """A line (or a stretch of one) that runs are recorded on, with its nominal properties."""
+
+    __tablename__ = "tracks"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), unique=True)
+    description: Mapped[str | None] = mapped_column(Text)
+    rail: Mapped[str] = mapped_column(String(50), default="UIC60")
+    k_nominal: Mapped[float] = mapped_column(Float)  # N/m per support
+    spacing: Mapped[float] = mapped_column(Float)  # m, sleeper spacing
+    EI: Mapped[float] = mapped_column("ei", Float)  # N m², rail bending stiffness
+    mass_per_m: Mapped[float] = mapped_column(Float)  # kg/m
+    c_support: Mapped[float] = mapped_column(Float)  # N s/m per support
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+    runs: Mapped[list[Run]] = relationship(back_populates="track", passive_deletes=True)
+
+    def params_dict(self) -> dict[str, float]:
+        """The engine's ``TrackParams`` fields of this track (SI)."""
+        return {
+            "spacing": self.spacing,
+            "EI": self.EI,
+            "mass_per_m": self.mass_per_m,
+            "k_nominal": self.k_nominal,
+            "c_support": self.c_support,
+        }
+
+
+VEHICLE_PARAM_NAMES = (
+    "ms",
+    "Is",
+    "mu1",
+    "mu2",
+    "ks1",
+    "ks2",
+    "cs1",
+    "cs2",
+    "kt1",
+    "kt2",
+    "d1",
+    "d2",
+)
+"""The engine's ``VehicleParams`` fields, stored one column each."""
+
+
+class Vehicle(Base):
+    """A logging vehicle: the half-car parameter set the inversion needs (SI units)."""
+
+    __tablename__ = "vehicles"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), unique=True)
+    description: Mapped[str | None] = mapped_column(Text)
+    ms: Mapped[float] = mapped_column(Float)  # kg
+    Is: Mapped[float] = mapped_column("pitch_inertia", Float)  # kg m²
+    mu1: Mapped[float] = mapped_column(Float)  # kg
+    mu2: Mapped[float] = mapped_column(Float)  # kg
+    ks1: Mapped[float] = mapped_column(Float)  # N/m
+    ks2: Mapped[float] = mapped_column(Float)  # N/m
+    cs1: Mapped[float] = mapped_column(Float)  # N s/m
+    cs2: Mapped[float] = mapped_column(Float)  # N s/m
+    kt1: Mapped[float] = mapped_column(Float)  # N/m
+    kt2: Mapped[float] = mapped_column(Float)  # N/m
+    d1: Mapped[float] = mapped_column(Float)  # m
+    d2: Mapped[float] = mapped_column(Float)  # m
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+    def params_dict(self) -> dict[str, float]:
+        """The engine's ``VehicleParams`` fields of this vehicle (SI)."""
+        return {name: float(getattr(self, name)) for name in VEHICLE_PARAM_NAMES}
+
+
+class Run(Base):
+    """One uploaded (or simulated) pass of a vehicle over a track, and its processing state."""
+
+    __tablename__ = "runs"
+    __table_args__ = (
+        UniqueConstraint("track_id", "content_hash"),
+        Index("ix_runs_track_id_recorded_at", "track_id", "recorded_at"),
+        Index("ix_runs_status_heartbeat_at", "status", "heartbeat_at"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str | None] = mapped_column(String(200))
+    track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="RESTRICT"))
+    vehicle_id: Mapped[int] = mapped_column(ForeignKey("vehicles.id", ondelete="RESTRICT"))
+    source: Mapped[str] = mapped_column(String(20))  # upload | json | simulate
+    original_filename: Mapped[str | None] = mapped_column(String(255))  # data only, never a path
+    recorded_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    processed_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+    start_chainage_m: Mapped[float | None] = mapped_column(Float)
+    direction: Mapped[str] = mapped_column(String(12))
+    sample_rate_hz: Mapped[float] = mapped_column(Float)
+    n_samples: Mapped[int] = mapped_column(Integer)
+    duration_s: Mapped[float] = mapped_column(Float)
+    speed_min_mps: Mapped[float] = mapped_column(Float)
+    speed_max_mps: Mapped[float] = mapped_column(Float)
+    chainage_min_m: Mapped[float | None] = mapped_column(Float)
+    chainage_max_m: Mapped[float | None] = mapped_column(Float)
+    chainage_offset_m: Mapped[float] = mapped_column(Float, default=0.0)
+
+    status: Mapped[str] = mapped_column(String(12), default="processing")
+    stage: Mapped[str | None] = mapped_column(String(12))
+    error: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    quality: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    method: Mapped[str | None] = mapped_column(String(20))
+    options: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
+    n_soft_spots: Mapped[int | None] = mapped_column(Integer)
+    processing_s: Mapped[float | None] = mapped_column(Float)
+
+    content_hash: Mapped[str] = mapped_column(String(64))
+    idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
+
+    # Work claim of the background worker (see app.services.worker).
+    claimed_by: Mapped[str | None] = mapped_column(String(120))
+    heartbeat_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+
+    track: Mapped[Track] = relationship(back_populates="runs", lazy="joined")
+    vehicle: Mapped[Vehicle] = relationship(lazy="joined")
+    soft_spots: Mapped[list[SoftSpot]] = relationship(
+        order_by="SoftSpot.start_m", passive_deletes=True, cascade="all, delete-orphan"
+    )
+
+
+class RunInput(Base):
+    """The parsed log of a run waiting for the worker (deleted once the run is done or failed).
+
+    ``data`` is an uncompressed ``.npz`` of the canonical SI columns; keeping it in the database
+    (not on a local disk) lets any app process sharing the database pick the run up.
+    """
+
+    __tablename__ = "run_inputs"
+
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
+    data: Mapped[bytes] = mapped_column(LargeBinary, deferred=True)
+
+
+class ProfilePoint(Base):
+    """The loaded level of one run at one chainage grid point (mm, positive up; NULL = no data)."""
+
+    __tablename__ = "profile_points"
+    __table_args__ = {"sqlite_with_rowid": False}
+
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
+    chainage_m: Mapped[float] = mapped_column(Float, primary_key=True)
+    level_mm: Mapped[float | None] = mapped_column(Float)
+    front_level_mm: Mapped[float | None] = mapped_column(Float)
+    rear_level_mm: Mapped[float | None] = mapped_column(Float)
+    baseline_mm: Mapped[float | None] = mapped_column(Float)
+
+
+class SoftSpot(Base):
+    """A detected soft spot of one run (chainage in m as processed, depth in mm)."""
+
+    __tablename__ = "soft_spots"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), index=True)
+    start_m: Mapped[float] = mapped_column(Float)
+    end_m: Mapped[float] = mapped_column(Float)
+    peak_m: Mapped[float] = mapped_column(Float)
+    depth_mm: Mapped[float] = mapped_column(Float)
+    stiffness_loss_pct: Mapped[float | None] = mapped_column(Float)
+
+
+class RunSignals(Base):
+    """The run's raw signals against time, decimated for display (min/max envelope).
+
+    ``data`` holds ``time_s`` (from the first sample), ``accel_z_mps2``, ``pitch_rate_radps``
+    and ``speed_mps`` as equal-length lists of at most a few thousand points.
+    """
+
+    __tablename__ = "run_signals"
+
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
+    n_points: Mapped[int] = mapped_column(Integer)
+    decimated: Mapped[bool] = mapped_column(Boolean)
+    data: Mapped[dict[str, Any]] = mapped_column(JSON, deferred=True)
+
+
+class ApiKey(Base):
+    """A key a pipeline sends in ``X-API-Key``; only its SHA-256 is stored."""
+
+    __tablename__ = "api_keys"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(200))
+    prefix: Mapped[str] = mapped_column(String(16))
+    key_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    revoked_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    last_used_at: Mapped[datetime | None] = mapped_column(UTCDateTime)

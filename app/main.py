@@ -1,0 +1,110 @@
+"""The ASGI application: ``uvicorn app.main:app`` serves the API, the dashboard and the docs.
+
+``create_app(settings)`` builds an independent instance (tests point it at their own database);
+on start it applies the migrations and starts the background worker.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from typing import Any
+
+from fastapi import FastAPI
+from fastapi.concurrency import run_in_threadpool
+from fastapi.middleware.cors import CORSMiddleware
+from fastapi.openapi.utils import get_openapi
+from pydantic.json_schema import models_json_schema
+
+from app import __version__
+from app.api.main import api_router
+from app.api.routes import health
+from app.core.config import Settings, get_settings
+from app.core.errors import install_error_handlers
+from app.core.middleware import BodySizeLimitMiddleware, SecurityHeadersMiddleware
+from app.db.migrate import upgrade
+from app.db.session import Database
+from app.schemas.runs import RunCreateJson
+from app.services.context import AppContext
+from app.services.worker import Worker
+from app.web import install_web
+
+log = logging.getLogger("app")
+
+DESCRIPTION = """
+Drive-by track monitoring. Upload run logs of an instrumented vehicle (vertical body
+acceleration and pitch rate); the service back-calculates the loaded track profile along
+chainage and finds soft spots (weak track support).
+
+Units: chainage in m, levels and depths in mm (positive up: a soft spot is a dip), stiffness
+loss in %, everything else SI. Errors answer `{"detail": {"message": ..., "field" | "column" |
+"row" | "unit": ...}}`.
+"""
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the app for ``settings`` (default: from the environment)."""
+    settings = settings or get_settings()
+    db = Database(settings.sqlalchemy_url)
+    ctx = AppContext(settings=settings, db=db)
+
+    @asynccontextmanager
+    async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
+        if settings.run_migrations:
+            await run_in_threadpool(upgrade, db)
+        if settings.start_worker:
+            ctx.worker = Worker(ctx)
+            await run_in_threadpool(ctx.worker.start)
+        try:
+            yield
+        finally:
+            if ctx.worker is not None:
+                await run_in_threadpool(ctx.worker.stop)
+                ctx.worker = None
+            db.dispose()
+
+    app = FastAPI(
+        title="TrackProfile",
+        version=__version__,
+        description=DESCRIPTION,
+        lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
+    )
+    app.state.ctx = ctx
+    install_error_handlers(app)
+    app.include_router(health.router)
+    app.include_router(api_router)
+    install_web(app, settings)
+
+    app.add_middleware(BodySizeLimitMiddleware, limit_bytes=settings.max_upload_bytes)
+    if settings.cors_origins:
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=settings.cors_origins,
+            allow_methods=["GET", "POST", "DELETE"],
+            allow_headers=["Content-Type", "X-API-Key", "Authorization", "Idempotency-Key"],
+        )
+    app.add_middleware(SecurityHeadersMiddleware)
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            schema = get_openapi(
+                title=app.title, version=app.version, description=app.description,
+                routes=app.routes,
+            )  # fmt: skip
+            # The JSON upload body is documented by hand on POST /api/v1/runs (which also
+            # takes multipart), so its schemas are added to the components here.
+            _, defs = models_json_schema(
+                [(RunCreateJson, "validation")], ref_template="#/components/schemas/{model}"
+            )
+            schema.setdefault("components", {}).setdefault("schemas", {}).update(defs["$defs"])
+            app.openapi_schema = schema
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
+    return app
+
+
+app = create_app()

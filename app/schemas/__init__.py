@@ -1,0 +1,1 @@
+"""Pydantic request and response models (schema families: Create / Public / List)."""

@@ -1,0 +1,65 @@
+"""Shared schema pieces: names, the error body."""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Any
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+
+_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+
+
+def _clean_name(value: str) -> str:
+    value = value.strip()
+    if not value:
+        raise ValueError("must not be empty")
+    if _CONTROL.search(value):
+        raise ValueError("must not contain control characters (newlines, tabs, NUL)")
+    return value
+
+
+Name = Annotated[str, Field(min_length=1, max_length=200), AfterValidator(_clean_name)]
+"""A user-given name: 1-200 characters, trimmed, no control characters (any other text,
+markup included, is kept as typed and must be shown as text)."""
+
+
+class StrictModel(BaseModel):
+    """A request body: unknown keys are an error rather than silently ignored."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class ErrorDetail(BaseModel):
+    """What went wrong, with the facts that locate it."""
+
+    message: str = Field(description="Human-readable description of the problem")
+    field: str | None = Field(default=None, description="Request field concerned")
+    column: str | None = Field(default=None, description="Column of the uploaded file")
+    row: int | None = Field(default=None, description="1-based line of the file (header = 1)")
+    unit: str | None = Field(default=None, description="Unit concerned")
+    errors: list[dict[str, Any]] | None = Field(
+        default=None, description="Every validation error: {loc, msg, type}"
+    )
+
+
+class ErrorResponse(BaseModel):
+    """The body of every error answer."""
+
+    detail: ErrorDetail
+
+
+ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    code: {"model": ErrorResponse, "description": text}
+    for code, text in (
+        (400, "Malformed request"),
+        (401, "API key missing or not valid"),
+        (403, "Writes are disabled (read-only mode)"),
+        (404, "Not found"),
+        (409, "Conflict with stored data"),
+        (413, "Upload larger than the limit"),
+        (415, "Unsupported content type"),
+        (422, "The input is not valid: the detail names the field, column, row or unit"),
+    )
+}
+"""Error answers documented on every API route."""

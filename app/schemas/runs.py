@@ -1,0 +1,221 @@
+"""Run schemas: upload metadata and column/unit options, stored runs, profiles, soft spots."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from .common import Name, StrictModel
+
+Direction = Literal["increasing", "decreasing"]
+RunStatus = Literal["processing", "done", "failed"]
+RunStage = Literal["queued", "inverting", "storing"]
+TimeUnit = Literal["s", "ms", "epoch_s"]
+AccelUnit = Literal["m/s2", "g"]
+PitchRateUnit = Literal["rad/s", "deg/s"]
+SpeedUnit = Literal["m/s", "km/h"]
+Gravity = Literal["auto", "included", "removed"]
+
+_Column = Field(default=None, min_length=1, max_length=200)
+
+
+class CsvOptionsFields(StrictModel):
+    """Which column is which and in what unit (unset: recognised from the header)."""
+
+    time_column: str | None = _Column
+    accel_column: str | None = _Column
+    pitch_rate_column: str | None = _Column
+    speed_column: str | None = _Column
+    chainage_column: str | None = _Column
+    time_unit: TimeUnit | None = Field(default=None, description="s, ms or epoch_s")
+    accel_unit: AccelUnit | None = Field(default=None, description="m/s2 or g")
+    pitch_rate_unit: PitchRateUnit | None = Field(default=None, description="rad/s or deg/s")
+    speed_unit: SpeedUnit | None = Field(default=None, description="m/s or km/h")
+    gravity: Gravity = Field(
+        default="auto", description="Whether the acceleration includes gravity (auto: detect)"
+    )
+
+
+class RunMetadata(StrictModel):
+    """What comes with a run log: where, with what vehicle, when."""
+
+    track: Name | None = Field(
+        default=None, description="Track name; a new name creates the track (UIC60, 80 kN/mm)"
+    )
+    track_id: int | None = Field(default=None, description="Existing track id (instead of track)")
+    vehicle: Name | None = Field(
+        default=None, description="Vehicle name (default: table1, the paper's Table 1 vehicle)"
+    )
+    vehicle_id: int | None = Field(default=None, description="Existing vehicle id")
+    name: Name | None = Field(default=None, description="Optional label of the run")
+    start_chainage_m: float | None = Field(
+        default=None,
+        allow_inf_nan=False,
+        description="Chainage of the body centre at the first sample, m (required without a "
+        "chainage column)",
+    )
+    direction: Direction = "increasing"
+    recorded_at: datetime | None = Field(
+        default=None, description="When the run was recorded (ISO 8601; UTC if no offset)"
+    )
+
+    @model_validator(mode="after")
+    def _one_track_one_vehicle(self) -> RunMetadata:
+        if self.track is None and self.track_id is None:
+            raise ValueError("give the track (its name; a new name creates it) or track_id")
+        if self.track is not None and self.track_id is not None:
+            raise ValueError("give either track (name) or track_id, not both")
+        if self.vehicle is not None and self.vehicle_id is not None:
+            raise ValueError("give either vehicle (name) or vehicle_id, not both")
+        return self
+
+
+class RunUploadForm(CsvOptionsFields, RunMetadata):
+    """Form fields of a multipart upload (besides ``file``). Empty fields count as unset."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _blank_is_unset(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            return {k: v for k, v in data.items() if not (isinstance(v, str) and not v.strip())}
+        return data
+
+    def csv_options(self) -> dict[str, Any]:
+        """The column/unit options that were set."""
+        return {
+            k: getattr(self, k)
+            for k in CsvOptionsFields.model_fields
+            if getattr(self, k) is not None
+        }
+
+
+class RunColumns(StrictModel):
+    """A log as canonical SI columns of equal length."""
+
+    time_s: list[float] = Field(description="Sample times, s, strictly increasing")
+    accel_z_mps2: list[float] = Field(description="Vertical body acceleration, m/s², no gravity")
+    pitch_rate_radps: list[float] = Field(description="Body pitch rate, rad/s, nose-up positive")
+    speed_mps: list[float] | None = Field(default=None, description="Speed, m/s")
+    chainage_m: list[float] | None = Field(default=None, description="Body-centre chainage, m")
+
+
+class RunCreateJson(RunUploadForm):
+    """JSON body of ``POST /api/v1/runs``: the metadata and either ``csv`` or ``columns``.
+
+    ``csv`` carries the file's text and is read exactly like an upload (the column/unit
+    options apply); ``columns`` carries canonical SI arrays and takes no options.
+    """
+
+    csv: str | None = Field(default=None, description="The run log as CSV text")
+    columns: RunColumns | None = None
+    filename: str | None = Field(default=None, max_length=255, description="Kept as data only")
+
+    @model_validator(mode="after")
+    def _one_payload(self) -> RunCreateJson:
+        if (self.csv is None) == (self.columns is None):
+            raise ValueError("give exactly one of csv (CSV text) or columns (SI arrays)")
+        if self.columns is not None and self.csv_options() != {"gravity": "auto"}:
+            raise ValueError("column/unit options apply to csv only; columns are canonical SI")
+        return self
+
+
+class RunError(BaseModel):
+    """Why a run failed."""
+
+    model_config = ConfigDict(extra="allow")
+
+    message: str
+    column: str | None = None
+    row: int | None = None
+    kind: str | None = None
+
+
+class RunPublic(BaseModel):
+    """A stored run: metadata, processing state, quality indicators."""
+
+    id: int
+    name: str | None
+    track_id: int
+    track: str = Field(description="Track name")
+    vehicle_id: int
+    vehicle: str = Field(description="Vehicle name")
+    source: str = Field(description="upload, json or simulate")
+    original_filename: str | None
+    recorded_at: datetime | None
+    created_at: datetime
+    processed_at: datetime | None
+    start_chainage_m: float | None
+    direction: Direction
+    sample_rate_hz: float
+    n_samples: int
+    duration_s: float
+    speed_min_mps: float
+    speed_max_mps: float
+    chainage_min_m: float | None = Field(description="Start of the stored profile, m (aligned)")
+    chainage_max_m: float | None = Field(description="End of the stored profile, m (aligned)")
+    chainage_offset_m: float = Field(
+        description="Offset added to the run's own chainage to align it with the track, m"
+    )
+    status: RunStatus
+    stage: RunStage | None = Field(description="While processing: queued, inverting, storing")
+    progress: float = Field(ge=0, le=1, description="Rough processing progress, 0-1")
+    error: RunError | None
+    quality: dict[str, float | None] | None
+    method: str | None
+    n_soft_spots: int | None
+    processing_s: float | None = Field(description="Inversion + detection time, s")
+    content_hash: str
+    options: dict[str, Any]
+
+
+class RunCreated(RunPublic):
+    """Answer of an upload: the run, and whether it was already stored."""
+
+    duplicate: bool = Field(
+        default=False,
+        description="True when the same content (or Idempotency-Key) was stored before",
+    )
+
+
+class RunsPublic(BaseModel):
+    """A page of runs, newest first."""
+
+    data: list[RunPublic]
+    count: int = Field(description="Runs matching the filter (all pages)")
+
+
+class ProfilePublic(BaseModel):
+    """A run's loaded profile on its chainage grid (mm, positive up; null = no data)."""
+
+    run_id: int
+    chainage_offset_m: float
+    n: int
+    chainage_m: list[float]
+    level_mm: list[float | None] = Field(description="Fused loaded level, mm")
+    front_level_mm: list[float | None] = Field(description="Front-axle level, mm")
+    rear_level_mm: list[float | None] = Field(description="Rear-axle level, mm")
+    baseline_mm: list[float | None] = Field(description="Baseline the dips are measured from, mm")
+
+
+class SoftSpotPublic(BaseModel):
+    """A soft spot: extent and peak chainage (m), depth (mm), stiffness loss (%)."""
+
+    start_m: float
+    end_m: float
+    peak_m: float
+    depth_mm: float
+    stiffness_loss_pct: float | None
+
+
+class SignalsPublic(BaseModel):
+    """The run's raw signals against time, decimated to a few thousand points."""
+
+    run_id: int
+    n_samples: int
+    decimated: bool
+    time_s: list[float | None] = Field(description="Time from the first sample, s")
+    accel_z_mps2: list[float | None]
+    pitch_rate_radps: list[float | None]
+    speed_mps: list[float | None]

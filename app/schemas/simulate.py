@@ -1,0 +1,101 @@
+"""Simulation schemas: a synthetic run from the engine's forward model, processed like an upload."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, Field, field_validator, model_validator
+
+from .common import Name, StrictModel
+from .runs import Direction, RunCreated
+
+
+class ZoneSpec(StrictModel):
+    """A soft zone: supports from ``start_m`` to ``end_m`` lose ``loss`` of their stiffness."""
+
+    start_m: float = Field(ge=0, allow_inf_nan=False, description="First affected support, m")
+    end_m: float = Field(ge=0, allow_inf_nan=False, description="Last affected support, m")
+    loss: float = Field(ge=0, lt=1, description="Fraction of stiffness lost (0.4 = 40 %)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_text(cls, data: Any) -> Any:
+        # "60:65:0.5", as the engine's CLI takes it
+        if isinstance(data, str):
+            parts = data.split(":")
+            if len(parts) != 3:
+                raise ValueError("a zone text must be 'start_m:end_m:loss', e.g. '60:65:0.5'")
+            return dict(zip(("start_m", "end_m", "loss"), parts, strict=True))
+        return data
+
+    @model_validator(mode="after")
+    def _ordered(self) -> ZoneSpec:
+        if self.end_m < self.start_m:
+            raise ValueError(f"zone end {self.end_m} m is before its start {self.start_m} m")
+        return self
+
+
+class SensorSpec(StrictModel):
+    """Sensor imperfections (white noise, constant bias, rounding)."""
+
+    accel_noise: float = Field(default=0.005, ge=0, le=1, description="m/s² RMS")
+    gyro_noise: float = Field(default=1e-4, ge=0, le=0.1, description="rad/s RMS")
+    accel_bias: float = Field(default=0.02, ge=-1, le=1, description="m/s²")
+    gyro_bias: float = Field(default=2e-4, ge=-0.1, le=0.1, description="rad/s")
+    digits: int | None = Field(default=8, ge=3, le=17, description="Significant digits kept")
+
+
+class SimulateRequest(StrictModel):
+    """A synthetic run: a straight track with soft zones, the vehicle at constant speed."""
+
+    track: Name = Field(default="simulated", description="Track to store the run on")
+    vehicle: Name | None = Field(default=None, description="Vehicle name (default table1)")
+    name: Name | None = None
+    length_m: float = Field(default=500.0, ge=80, le=5000, description="Track length, m")
+    speed_mps: float = Field(default=22.0, ge=5, le=80, description="Speed, m/s")
+    zones: list[ZoneSpec] = Field(
+        default_factory=lambda: [
+            ZoneSpec(start_m=140, end_m=146, loss=0.5),
+            ZoneSpec(start_m=333, end_m=337, loss=0.35),
+        ],
+        max_length=50,
+        description="Soft zones; also accepts 'start:end:loss' strings",
+    )
+    start_chainage_m: float = Field(
+        default=24.13, ge=0, allow_inf_nan=False, description="Body-centre start chainage, m"
+    )
+    direction: Direction = "increasing"
+    sensor: SensorSpec | Literal["ideal", "realistic"] = Field(
+        default="realistic",
+        description="'ideal' (exact signals), 'realistic' (the accuracy requirement's noise) "
+        "or explicit noise figures",
+    )
+    jitter: float = Field(
+        default=0.05, ge=0, le=0.3, description="Support stiffness scatter (0.05 = ±5 %)"
+    )
+    seed: int = Field(default=0, ge=0, le=2**31 - 1)
+    recorded_at: datetime | None = None
+
+    @field_validator("zones")
+    @classmethod
+    def _zones_sorted(cls, zones: list[ZoneSpec]) -> list[ZoneSpec]:
+        return sorted(zones, key=lambda z: z.start_m)
+
+
+class TruthPublic(BaseModel):
+    """What was simulated: the zones and the true loaded level (mm, static deflection included)."""
+
+    zones: list[ZoneSpec]
+    chainage_m: list[float]
+    level_mm: list[float | None] = Field(
+        description="True fused loaded level, mm, positive up (compare after removing a "
+        "baseline: the engine's profile is band-limited)"
+    )
+
+
+class SimulatePublic(BaseModel):
+    """The stored synthetic run and its truth."""
+
+    run: RunCreated
+    truth: TruthPublic

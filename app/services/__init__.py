@@ -1,0 +1,1 @@
+"""Application services: reading uploads, processing and storing runs, the background worker."""

@@ -1,0 +1,126 @@
+"""Run logs in and out of the service: parsing uploads, hashing, packing for the worker.
+
+Units: the :class:`engine.runlog.RunLog` is canonical SI (s, m/s², rad/s, m/s, m).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from app.core.errors import ApiError
+from engine.errors import LogFormatError
+from engine.runlog import RunLog
+
+CSV_OPTION_NAMES = (
+    "time_column", "accel_column", "pitch_rate_column", "speed_column", "chainage_column",
+    "time_unit", "accel_unit", "pitch_rate_unit", "speed_unit", "gravity",
+)  # fmt: skip
+"""Form/JSON fields passed to :class:`engine.logio.CsvOptions` unchanged."""
+
+LOG_COLUMNS = ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps", "chainage_m")
+
+
+def sha256_hex(*chunks: bytes) -> str:
+    """Hex SHA-256 of the concatenated chunks."""
+    h = hashlib.sha256()
+    for c in chunks:
+        h.update(c)
+    return h.hexdigest()
+
+
+def log_format_error(exc: LogFormatError, field: str = "file") -> ApiError:
+    """A 422 naming the column and row of a file that cannot be read."""
+    return ApiError(
+        422, str(exc), field=field, column=exc.column, row=exc.row, kind="LogFormatError"
+    )
+
+
+def parse_csv(data: bytes, options: dict[str, Any], field: str = "file") -> RunLog:
+    """Read an uploaded CSV (plain or gzip) into a RunLog with the given column/unit options.
+
+    Raises
+    ------
+    ApiError
+        422 naming the column, row or unit when the file cannot be read.
+    """
+    # The CSV reader is a separate engine module; imported here so the service starts
+    # even while it is being replaced.
+    from engine.logio import CsvOptions, read_run_csv
+
+    opts = CsvOptions(**{k: options.get(k) for k in CSV_OPTION_NAMES if options.get(k) is not None})
+    if not data:
+        raise ApiError(422, "the uploaded file is empty", field=field)
+    try:
+        return read_run_csv(data, opts)
+    except LogFormatError as exc:
+        raise log_format_error(exc, field) from None
+
+
+def log_from_columns(columns: dict[str, list[float] | None]) -> RunLog:
+    """A RunLog from canonical SI columns (JSON arrays).
+
+    Raises
+    ------
+    ApiError
+        422 naming the column and row (line 2 = first sample, as in a CSV) on bad values.
+    """
+    arrays = {
+        k: (None if v is None else np.asarray(v, dtype=np.float64)) for k, v in columns.items()
+    }
+    try:
+        return RunLog(**arrays)  # type: ignore[arg-type]
+    except LogFormatError as exc:
+        raise log_format_error(exc, "columns") from None
+
+
+def hash_columns(log: RunLog) -> str:
+    """Content hash of a log given as columns: its SI arrays, column by column."""
+    h = hashlib.sha256()
+    for name in LOG_COLUMNS:
+        arr = getattr(log, name)
+        h.update(name.encode())
+        h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())
+    return h.hexdigest()
+
+
+def pack_log(log: RunLog) -> bytes:
+    """The log as an uncompressed ``.npz`` (what the worker reads back)."""
+    buf = io.BytesIO()
+    arrays = {name: getattr(log, name) for name in LOG_COLUMNS if getattr(log, name) is not None}
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def unpack_log(data: bytes) -> RunLog:
+    """Inverse of :func:`pack_log`."""
+    with np.load(io.BytesIO(data), allow_pickle=False) as z:
+        arrays = {name: z[name] for name in LOG_COLUMNS if name in z.files}
+    return RunLog(**arrays)
+
+
+@dataclass(frozen=True)
+class LogSummary:
+    """Metadata of a log known before processing (SI)."""
+
+    n_samples: int
+    sample_rate_hz: float
+    duration_s: float
+    speed_min_mps: float
+    speed_max_mps: float
+
+
+def summarize(log: RunLog) -> LogSummary:
+    """Sample count, rate, duration and speed range of a log."""
+    v = log.speed()
+    return LogSummary(
+        n_samples=log.n,
+        sample_rate_hz=float(log.sample_rate_hz),
+        duration_s=float(log.duration_s),
+        speed_min_mps=float(np.min(v)),
+        speed_max_mps=float(np.max(v)),
+    )

@@ -1,0 +1,95 @@
+"""Running the engine on a log and storing what it gives, in one transaction per run."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from sqlalchemy import delete
+from sqlalchemy.orm import Session
+
+from app.db.base import utcnow
+from app.db.models import Run, RunInput, SoftSpot
+from engine.pipeline import process_run
+from engine.results import ProcessResult
+from engine.runlog import RunLog
+from engine.track import TrackParams
+from engine.vehicle import VehicleParams
+
+from .profiles import insert_profile
+
+
+@dataclass(frozen=True)
+class Processed:
+    """An engine result and how long it took, s."""
+
+    result: ProcessResult
+    seconds: float
+
+
+def invert(
+    log: RunLog,
+    *,
+    start_chainage_m: float | None,
+    direction: str,
+    vehicle: VehicleParams,
+    track: TrackParams,
+) -> Processed:
+    """Invert and detect (engine pipeline); raises the engine's errors unchanged."""
+    t0 = time.perf_counter()
+    result = process_run(
+        log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle, track=track
+    )
+    return Processed(result, time.perf_counter() - t0)
+
+
+def finite_or_none(value: Any) -> float | None:
+    """A JSON-safe number: NaN and infinities become None."""
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
+
+
+def store_result(session: Session, run: Run, processed: Processed) -> None:
+    """Write a run's profile and soft spots and mark it done (caller commits).
+
+    Chainage in m, levels in mm; the run's chainage extent is where the fused level exists.
+    """
+    res = processed.result
+    insert_profile(
+        session,
+        run.id,
+        res.chainage_m,
+        res.level_mm,
+        res.front_level_mm,
+        res.rear_level_mm,
+        res.baseline_mm,
+    )
+    for spot in res.soft_spots:
+        session.add(
+            SoftSpot(
+                run_id=run.id,
+                start_m=float(spot.start_m),
+                end_m=float(spot.end_m),
+                peak_m=float(spot.peak_m),
+                depth_mm=float(spot.depth_mm),
+                stiffness_loss_pct=finite_or_none(spot.stiffness_loss_pct),
+            )
+        )
+    covered = res.chainage_m[np.isfinite(res.level_mm)]
+    run.chainage_min_m = float(covered[0]) if covered.size else None
+    run.chainage_max_m = float(covered[-1]) if covered.size else None
+    run.quality = {k: finite_or_none(v) for k, v in res.quality.to_dict().items()}
+    run.method = res.method
+    run.n_soft_spots = len(res.soft_spots)
+    run.processing_s = processed.seconds
+    run.status = "done"
+    run.stage = None
+    run.error = None
+    run.processed_at = utcnow()
+    session.execute(delete(RunInput).where(RunInput.run_id == run.id))

@@ -1,0 +1,251 @@
+"""Accepting a run: resolve track and vehicle, de-duplicate, check, then process or queue.
+
+Everything a client can get wrong is checked before anything is written, and the write is
+one transaction: the track (if new), the run, its display signals, and either its full result
+(short logs, processed inline) or its parsed input for the background worker.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from app.core.errors import ApiError, engine_error_detail
+from app.db.models import Run, RunInput, RunSignals, Track, Vehicle
+from app.schemas.tracks import TrackParamsFields
+from engine.chainage import axle_positions
+from engine.errors import EngineError
+from engine.runlog import RunLog
+from engine.track import TrackParams
+from engine.vehicle import VehicleParams
+
+from .context import AppContext
+from .logs import pack_log, summarize
+from .processing import Processed, invert, store_result
+from .signals import log_signals
+
+DEFAULT_VEHICLE = "table1"
+_UNSAFE_FILENAME = re.compile(r"[\x00-\x1f\x7f]")
+
+
+@dataclass
+class Submission:
+    """A parsed run log and everything that came with it."""
+
+    log: RunLog
+    source: str
+    content_hash: str
+    track: str | None = None
+    track_id: int | None = None
+    vehicle: str | None = None
+    vehicle_id: int | None = None
+    name: str | None = None
+    start_chainage_m: float | None = None
+    direction: str = "increasing"
+    recorded_at: datetime | None = None
+    filename: str | None = None
+    idempotency_key: str | None = None
+    options: dict[str, Any] = field(default_factory=dict)
+    extra_signals: dict[str, Any] = field(default_factory=dict)
+
+
+def clean_filename(name: str | None) -> str | None:
+    """The client's file name as data: last path component, printable, at most 255 chars."""
+    if not name:
+        return None
+    base = re.split(r"[\\/]", name)[-1]
+    base = _UNSAFE_FILENAME.sub("", base).strip()
+    return base[:255] or None
+
+
+def resolve_vehicle(session: Session, name: str | None, vehicle_id: int | None) -> Vehicle:
+    """The vehicle named or numbered (default: the Table 1 vehicle); 422 when unknown."""
+    if vehicle_id is not None:
+        v = session.get(Vehicle, vehicle_id)
+        if v is None:
+            raise ApiError(422, f"vehicle_id {vehicle_id} does not exist", field="vehicle_id")
+        return v
+    wanted = name or DEFAULT_VEHICLE
+    v = session.scalar(select(Vehicle).where(Vehicle.name == wanted))
+    if v is None:
+        known = session.scalars(select(Vehicle.name).order_by(Vehicle.name).limit(20)).all()
+        raise ApiError(
+            422,
+            f"vehicle {wanted!r} does not exist; known vehicles: {', '.join(known)} "
+            "(create it with POST /api/v1/vehicles)",
+            field="vehicle",
+        )
+    return v
+
+
+def resolve_track(session: Session, name: str | None, track_id: int | None) -> Track | None:
+    """The track numbered (422 when unknown) or named (None: a new track of that name)."""
+    if track_id is not None:
+        t = session.get(Track, track_id)
+        if t is None:
+            raise ApiError(422, f"track_id {track_id} does not exist", field="track_id")
+        return t
+    return session.scalar(select(Track).where(Track.name == name))
+
+
+def _existing(session: Session, sub: Submission, track: Track | None) -> Run | None:
+    """A stored run this submission repeats (same Idempotency-Key, or same content on the track)."""
+    if sub.idempotency_key:
+        prev = session.scalar(select(Run).where(Run.idempotency_key == sub.idempotency_key))
+        if prev is not None:
+            same_track = track is not None and prev.track_id == track.id
+            if prev.content_hash != sub.content_hash or not same_track:
+                raise ApiError(
+                    409,
+                    f"Idempotency-Key {sub.idempotency_key!r} was already used for run {prev.id} "
+                    "with different content or track; use a new key for a new run",
+                    field="Idempotency-Key",
+                    run_id=prev.id,
+                )
+            return prev
+    if track is not None:
+        return session.scalar(
+            select(Run).where(Run.track_id == track.id, Run.content_hash == sub.content_hash)
+        )
+    return None
+
+
+def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
+    # What can be known about a long log without inverting it, so that a queued run does not
+    # fail later for a reason the client could have been told now.
+    if sub.log.chainage_m is None and sub.start_chainage_m is None:
+        raise ApiError(
+            422,
+            "start_chainage_m is required when the log has no chainage column: give the "
+            "chainage of the body centre at the first sample, m",
+            field="start_chainage_m",
+        )
+    try:
+        axle_positions(sub.log, vehicle, sub.start_chainage_m, sub.direction)
+    except EngineError as exc:
+        raise ApiError(422, **_engine_kwargs(exc)) from None
+
+
+def _engine_kwargs(exc: EngineError) -> dict[str, Any]:
+    detail = engine_error_detail(exc)
+    return {"message": detail.pop("message"), **detail}
+
+
+def submit(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
+    """Store a run (processed now if short, else queued); returns ``(run_id, created)``.
+
+    ``created`` is False when the same run was stored before (same Idempotency-Key, or same
+    content on the same track): nothing new is written then.
+
+    Raises
+    ------
+    ApiError
+        422 for unknown vehicles/tracks, missing start chainage and logs the engine rejects;
+        409 for a reused Idempotency-Key. Nothing is stored in either case.
+    """
+    for attempt in range(3):
+        try:
+            return _submit_once(ctx, sub)
+        except IntegrityError:
+            # A concurrent request stored the same track name or content first: look again.
+            if attempt == 2:
+                raise ApiError(
+                    409, "the run conflicts with one being stored at the same time; retry"
+                ) from None
+    raise AssertionError("unreachable")
+
+
+def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
+    settings = ctx.settings
+    with ctx.db.session() as s:
+        vehicle = resolve_vehicle(s, sub.vehicle, sub.vehicle_id)
+        track = resolve_track(s, sub.track, sub.track_id)
+        prev = _existing(s, sub, track)
+        if prev is not None and prev.status != "failed":
+            return prev.id, False
+        failed_id = prev.id if prev is not None else None
+        vehicle_id = vehicle.id
+        vp = VehicleParams.from_dict(vehicle.params_dict())
+        track_fields = track.params_dict() if track is not None else None
+        track_name = track.name if track is not None else sub.track
+    tp = TrackParams.from_dict(track_fields) if track_fields else TrackParams()
+
+    _preflight(sub, vp)
+    summary = summarize(sub.log)
+    signals, decimated = log_signals(sub.log)
+    signals |= sub.extra_signals
+
+    processed: Processed | None = None
+    if sub.log.n <= settings.inline_max_samples:
+        with ctx.slots:
+            try:
+                processed = invert(
+                    sub.log,
+                    start_chainage_m=sub.start_chainage_m,
+                    direction=sub.direction,
+                    vehicle=vp,
+                    track=tp,
+                )
+            except EngineError as exc:
+                raise ApiError(422, **_engine_kwargs(exc)) from None
+        packed = None
+    else:
+        packed = pack_log(sub.log)
+
+    with ctx.db.session() as s:
+        if failed_id is not None:
+            # A failed run of the same content is replaced by the new attempt.
+            old = s.get(Run, failed_id)
+            if old is not None:
+                s.delete(old)
+                s.flush()
+        track_row = s.scalar(select(Track).where(Track.name == track_name))
+        if track_row is None:
+            track_row = Track(name=track_name, rail="UIC60", **TrackParamsFields().model_dump())
+            s.add(track_row)
+            s.flush()
+        run = Run(
+            name=sub.name,
+            track_id=track_row.id,
+            vehicle_id=vehicle_id,
+            source=sub.source,
+            original_filename=clean_filename(sub.filename),
+            recorded_at=sub.recorded_at,
+            start_chainage_m=sub.start_chainage_m,
+            direction=sub.direction,
+            sample_rate_hz=summary.sample_rate_hz,
+            n_samples=summary.n_samples,
+            duration_s=summary.duration_s,
+            speed_min_mps=summary.speed_min_mps,
+            speed_max_mps=summary.speed_max_mps,
+            chainage_offset_m=0.0,
+            status="processing",
+            stage="queued",
+            options=sub.options,
+            content_hash=sub.content_hash,
+            idempotency_key=sub.idempotency_key,
+            attempts=0,
+        )
+        s.add(run)
+        s.flush()
+        s.add(
+            RunSignals(
+                run_id=run.id, n_points=len(signals["time_s"]), decimated=decimated, data=signals
+            )
+        )
+        if processed is not None:
+            store_result(s, run, processed)
+        else:
+            assert packed is not None
+            s.add(RunInput(run_id=run.id, data=packed))
+        s.commit()
+        run_id = run.id
+    if processed is None:
+        ctx.wake_worker()
+    return run_id, True

@@ -1,0 +1,274 @@
+"""Background processing of queued runs, safe with several app processes on one database.
+
+A queued run is a ``runs`` row with ``status='processing'`` and a ``run_inputs`` row. A worker
+claims it with one atomic ``UPDATE ... WHERE claimed_by IS NULL OR heartbeat_at < stale``
+(only one process can win), keeps the claim alive with a heartbeat while the engine runs, and
+stores the result in one transaction that first re-checks it still owns the claim. A process
+that dies leaves a claim whose heartbeat stops: another worker (or this host after a restart)
+takes the run over; after ``max_attempts`` interruptions the run is marked failed.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import threading
+import uuid
+from datetime import timedelta
+from typing import Any
+
+from sqlalchemy import delete, or_, select, update
+from sqlalchemy.orm import Session
+
+from app.core.errors import engine_error_detail
+from app.db.base import utcnow
+from app.db.models import Run, RunInput
+from engine.errors import EngineError
+from engine.track import TrackParams
+from engine.vehicle import VehicleParams
+
+from .context import AppContext
+from .logs import unpack_log
+from .processing import invert, store_result
+
+log = logging.getLogger(__name__)
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+class Heartbeat:
+    """Refreshes a run's claim every ``interval`` seconds until stopped."""
+
+    def __init__(self, ctx: AppContext, run_id: int, owner: str, interval: float) -> None:
+        self.ctx, self.run_id, self.owner, self.interval = ctx, run_id, owner, interval
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._beat, name=f"heartbeat-{run_id}", daemon=True)
+
+    def __enter__(self) -> Heartbeat:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def _beat(self) -> None:
+        while not self._stop.wait(self.interval):
+            try:
+                with self.ctx.db.engine.begin() as conn:
+                    conn.execute(
+                        update(Run)
+                        .where(Run.id == self.run_id, Run.claimed_by == self.owner)
+                        .values(heartbeat_at=utcnow())
+                    )
+            except Exception:  # a missed beat only shortens the lease
+                log.warning("heartbeat of run %s failed", self.run_id, exc_info=True)
+
+
+class Worker:
+    """Processing threads of one app process."""
+
+    def __init__(self, ctx: AppContext) -> None:
+        self.ctx = ctx
+        self.id = f"{socket.gethostname()}:{os.getpid()}:{uuid.uuid4().hex[:8]}"
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def start(self) -> None:
+        """Release claims of dead local processes, then start the processing threads."""
+        self.recover()
+        for i in range(self.ctx.settings.workers):
+            t = threading.Thread(target=self._loop, name=f"run-worker-{i}", daemon=True)
+            t.start()
+            self._threads.append(t)
+
+    def stop(self, timeout: float = 30.0) -> None:
+        """Stop after the runs in hand are finished (or ``timeout`` s)."""
+        self._stop.set()
+        self._wake.set()
+        for t in self._threads:
+            t.join(timeout)
+        self._threads.clear()
+
+    def wake(self) -> None:
+        """Look for queued runs now instead of at the next poll."""
+        self._wake.set()
+
+    @property
+    def alive(self) -> bool:
+        """True while every processing thread runs."""
+        return bool(self._threads) and all(t.is_alive() for t in self._threads)
+
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                worked = self.run_once()
+            except Exception:
+                log.exception("run worker iteration failed")
+                worked = False
+            if not worked:
+                self._wake.wait(self.ctx.settings.poll_interval_s)
+                self._wake.clear()
+
+    # -- claiming --------------------------------------------------------------------------
+    def recover(self) -> int:
+        """Free the claims of processes on this host that no longer run; returns how many.
+
+        Their runs are then taken by the next free worker and processed from their stored
+        input. Claims of other hosts are left to expire (``lease_s``).
+        """
+        host = socket.gethostname()
+        freed = 0
+        with self.ctx.db.engine.begin() as conn:
+            rows = conn.execute(
+                select(Run.id, Run.claimed_by).where(
+                    Run.status == "processing", Run.claimed_by.is_not(None)
+                )
+            ).all()
+            for run_id, owner in rows:
+                parts = str(owner).split(":")
+                if len(parts) != 3 or parts[0] != host or owner == self.id:
+                    continue
+                try:
+                    pid = int(parts[1])
+                except ValueError:
+                    continue
+                if pid == os.getpid() or not _pid_alive(pid):
+                    res = conn.execute(
+                        update(Run)
+                        .where(Run.id == run_id, Run.claimed_by == owner)
+                        .values(claimed_by=None, stage="queued")
+                    )
+                    freed += res.rowcount
+        if freed:
+            log.warning("resuming %d run(s) interrupted by a stopped process", freed)
+        return freed
+
+    def claim(self) -> int | None:
+        """Claim the oldest queued (or abandoned) run; None when there is none."""
+        now = utcnow()
+        stale = now - timedelta(seconds=self.ctx.settings.lease_s)
+        free = or_(Run.claimed_by.is_(None), Run.heartbeat_at < stale)
+        with self.ctx.db.engine.connect() as conn:
+            candidates = (
+                conn.execute(
+                    select(Run.id).where(Run.status == "processing", free).order_by(Run.id).limit(8)
+                )
+                .scalars()
+                .all()
+            )
+        for run_id in candidates:
+            with self.ctx.db.engine.begin() as conn:
+                res = conn.execute(
+                    update(Run)
+                    .where(Run.id == run_id, Run.status == "processing", free)
+                    .values(
+                        claimed_by=self.id,
+                        heartbeat_at=now,
+                        attempts=Run.attempts + 1,
+                        stage="inverting",
+                    )
+                )
+            if res.rowcount == 1:
+                return int(run_id)
+        return None
+
+    def run_once(self) -> bool:
+        """Claim and process one run; False when nothing was waiting."""
+        run_id = self.claim()
+        if run_id is None:
+            return False
+        with self.ctx.slots:
+            self.process(run_id)
+        return True
+
+    # -- processing ------------------------------------------------------------------------
+    def process(self, run_id: int) -> None:
+        """Process a run this worker has claimed and store the outcome."""
+        settings = self.ctx.settings
+        with self.ctx.db.session() as s:
+            run = s.get(Run, run_id)
+            if run is None or run.claimed_by != self.id:
+                return
+            if run.attempts > settings.max_attempts:
+                self._fail(
+                    s,
+                    run_id,
+                    {
+                        "message": f"processing was interrupted {run.attempts - 1} times (the "
+                        "service stopped while working on it); upload the run again to retry",
+                        "kind": "Interrupted",
+                    },
+                )
+                return
+            data = s.scalar(select(RunInput.data).where(RunInput.run_id == run_id))
+            vp = VehicleParams.from_dict(run.vehicle.params_dict())
+            tp = TrackParams.from_dict(run.track.params_dict())
+            start, direction = run.start_chainage_m, run.direction
+        if data is None:
+            with self.ctx.db.session() as s:
+                self._fail(
+                    s, run_id, {"message": "the run's stored input is missing", "kind": "Lost"}
+                )
+            return
+        try:
+            with Heartbeat(self.ctx, run_id, self.id, max(0.5, settings.lease_s / 4)):
+                runlog = unpack_log(data)
+                del data
+                processed = invert(
+                    runlog, start_chainage_m=start, direction=direction, vehicle=vp, track=tp
+                )
+                del runlog
+        except EngineError as exc:
+            with self.ctx.db.session() as s:
+                self._fail(s, run_id, engine_error_detail(exc))
+            return
+        except Exception as exc:
+            log.exception("processing run %s failed", run_id)
+            with self.ctx.db.session() as s:
+                self._fail(
+                    s,
+                    run_id,
+                    {"message": f"internal error while processing ({type(exc).__name__})",
+                     "kind": "InternalError"},
+                )  # fmt: skip
+            return
+        with self.ctx.db.session() as s:
+            # The UPDATE takes the write lock first and proves the claim is still ours (the run
+            # may have been deleted or taken over meanwhile): then everything is written at once.
+            owned = s.execute(
+                update(Run)
+                .where(Run.id == run_id, Run.claimed_by == self.id, Run.status == "processing")
+                .values(stage="storing", heartbeat_at=utcnow())
+            ).rowcount
+            if owned != 1:
+                s.rollback()
+                log.info(
+                    "run %s was deleted or taken over while processing; result dropped", run_id
+                )
+                return
+            run = s.get(Run, run_id)
+            assert run is not None
+            store_result(s, run, processed)
+            s.commit()
+
+    def _fail(self, s: Session, run_id: int, detail: dict[str, Any]) -> None:
+        res = s.execute(
+            update(Run)
+            .where(Run.id == run_id, Run.claimed_by == self.id, Run.status == "processing")
+            .values(status="failed", stage=None, error=detail, processed_at=utcnow())
+        )
+        if res.rowcount == 1:
+            s.execute(delete(RunInput).where(RunInput.run_id == run_id))
+        s.commit()
