@@ -123,11 +123,8 @@ class _Role:
     units: Mapping[str, str]  # compact unit spelling -> canonical unit
     unsupported: frozenset[str]  # compact unit spellings we recognise but do not convert
     factors: Mapping[str, float]  # canonical unit -> factor to SI
+    examples: str  # for error messages: names that are recognised
     alias_units: Mapping[str, str] = field(default_factory=dict)  # names that imply a unit
-
-    def examples(self) -> str:
-        names = [self.canonical, *sorted(self.aliases, key=lambda s: (len(s), s))[:7]]
-        return ", ".join(dict.fromkeys(names))
 
 
 def _words(text: str) -> list[str]:
@@ -158,6 +155,7 @@ _ROLES: dict[str, _Role] = {
         ),
         unsupported=frozenset(_words("us usec micros ns nsec min mins h hr")),
         factors={"s": 1.0, "ms": 1e-3, "epoch_s": 1.0},
+        examples="time_s, time_ms, timestamp, time, t",
         alias_units={"epoch": "epoch_s", "unix_time": "epoch_s", "unixtime": "epoch_s"},
     ),
     "accel": _Role(
@@ -174,6 +172,7 @@ _ROLES: dict[str, _Role] = {
         units=_units({"m/s2": _words("ms2 mps2 mss mpss msec2 mpersec2"), "g": ["g", "gs"]}),
         unsupported=frozenset(_words("mg millig mms2 cms2 gal ftps2 fts2 counts lsb")),
         factors={"m/s2": 1.0, "g": G_UNIT_MPS2},
+        examples="accel_z_mps2, az_g, acc_z_ms2, accel_z, acc_z, az",
     ),
     "pitch_rate": _Role(
         key="pitch_rate",
@@ -193,6 +192,7 @@ _ROLES: dict[str, _Role] = {
         ),
         unsupported=frozenset(_words("rpm mrads mdps counts lsb")),
         factors={"rad/s": 1.0, "deg/s": math.pi / 180.0},
+        examples="pitch_rate_radps, gyro_y_dps, gyro_y_rads, gyro_y, pitch_rate, gy",
     ),
     "speed": _Role(
         key="speed",
@@ -209,6 +209,7 @@ _ROLES: dict[str, _Role] = {
         ),
         unsupported=frozenset(_words("mph kn kt knots kts fts fps")),
         factors={"m/s": 1.0, "km/h": 1.0 / 3.6},
+        examples="speed_mps, speed_kmh, speed_kph, speed, v",
     ),
     "chainage": _Role(
         key="chainage",
@@ -223,6 +224,7 @@ _ROLES: dict[str, _Role] = {
         units=_units({"m": _words("m metre meter metres meters"), "km": ["km"]}),
         unsupported=frozenset(_words("mi mile miles ft feet yd")),
         factors={"m": 1.0, "km": 1000.0},
+        examples="chainage_m, odometer_m, position, chainage, km",
         alias_units={"km": "km", "kilometrage": "km"},
     ),
 }
@@ -757,17 +759,23 @@ def _map_columns(names: list[str], options: CsvOptions, header_line: int) -> _Ma
 
     def missing(roles: tuple[str, ...]) -> None:
         labels = " or ".join(_ROLES[r].label for r in roles)
-        expected = "; ".join(f"{_ROLES[r].label}: {_ROLES[r].examples()}" for r in roles)
+        expected = "; ".join(f"{_ROLES[r].label}: {_ROLES[r].examples}" for r in roles)
         opts = " or ".join(f"{r}_column" for r in roles)
-        extra = " ".join(m + "." for r in roles for m in near_misses[r])
-        numeric = [n for n in names if re.fullmatch(r"[+-]?[\d.eE+-]+", n)]
-        if numeric and len(numeric) == len(names):
-            extra += " The first line holds numbers: the file needs a header line naming columns."
+        extra = [m + "." for r in roles for m in near_misses[r]]
+        if all(re.fullmatch(r"[+-]?[\d.eE+-]+", n) for n in names):
+            extra.append(
+                "The first line holds numbers: the file needs a header line naming columns."
+            )
         problems.append(
             LogFormatError(
-                f"no {labels} column: columns found (line {header_line}): "
-                f"{_columns_found(names)}; expected names such as {expected} "
-                f"(with a unit suffix like _s, _g, _dps, _kmh), or set {opts}. {extra}".rstrip(),
+                " ".join(
+                    [
+                        f"no {labels} column: columns found (line {header_line}): "
+                        f"{_columns_found(names)}; expected names such as {expected}, "
+                        f"or set {opts}.",
+                        *extra,
+                    ]
+                ),
                 column=_ROLES[roles[0]].canonical,
                 row=header_line,
             )
@@ -1033,8 +1041,8 @@ def _time(table: _Table, j: int, name: str, unit: str, explicit: bool) -> NDArra
         what = "is the same as" if dt[i] == 0 else "comes before"
         kind = "duplicated time" if dt[i] == 0 else "time goes backwards"
         raise LogFormatError(
-            f"{kind} in column {name!r} at line {ln}: {raw[i + 1]!r} {what} {raw[i]!r} at line "
-            f"{prev}; time must be strictly increasing",
+            f"{kind} in column {name!r} at line {ln}: {float(raw[i + 1])!r} {what} "
+            f"{float(raw[i])!r} at line {prev}; time must be strictly increasing",
             column=name,
             row=ln,
         )
@@ -1072,8 +1080,9 @@ def _limit_error(
     table: _Table, i: int, name: str, raw: float, unit: str, si: float, si_unit: str, what: str
 ) -> LogFormatError:
     ln = table.line(i)
+    conv = "" if si == raw else f" ({si:.4g} {si_unit})"
     return LogFormatError(
-        f"column {name!r} at line {ln} is {raw:g} {_label(unit)} ({si:.4g} {si_unit}): {what}",
+        f"column {name!r} at line {ln} is {raw:g} {_label(unit)}{conv}: {what}",
         column=name,
         row=ln,
     )
@@ -1195,8 +1204,9 @@ def _chainage(
     if i is not None:
         ln = table.line(i + 1)
         raise LogFormatError(
-            f"column {name!r} at line {ln} is {table.columns[j][i + 1]!r}, not beyond "
-            f"{table.columns[j][i]!r} at line {table.line(i)}: the chainage must move steadily "
+            f"column {name!r} at line {ln} is {float(table.columns[j][i + 1])!r}, not beyond "
+            f"{float(table.columns[j][i])!r} at line {table.line(i)}: the chainage must move "
+            "steadily "
             f"{'up' if sign > 0 else 'down'} through the run",
             column=name,
             row=ln,
@@ -1277,7 +1287,8 @@ def parse_run_csv(source: Source, options: CsvOptions | None = None) -> ParsedRu
     jt = idx["time"]
     t_unit = units["time"] or _auto_time_unit(float(table.columns[jt][0]))
     if units["time"] is None and t_unit != "s":
-        notes.append(f"time column {names[jt]!r} read as {_label(t_unit)} (from its values)")
+        what = "epoch milliseconds" if t_unit == "ms" else "epoch seconds"
+        notes.append(f"time column {names[jt]!r} read as {what} (from its values)")
     units["time"] = t_unit
     t = _time(table, jt, names[jt], t_unit, opts.time_unit is not None)
 
@@ -1489,8 +1500,8 @@ def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None
         warns.append(str(e))
     names, d = header.names, header.delimiter
     rows: list[list[str]] = []
-    parsed: list[list[str]] = []
-    for raw_line in lines[header.line :]:
+    parsed: list[tuple[int, list[str]]] = []
+    for ln, raw_line in enumerate(lines[header.line :], header.line + 1):
         s = raw_line.strip()
         if _is_skipped(s):
             continue
@@ -1498,7 +1509,7 @@ def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None
         if len(rows) < n_rows:
             rows.append(fields_)
         if len(parsed) < _GUESS_ROWS:
-            parsed.append(fields_)
+            parsed.append((ln, fields_))
         elif len(rows) >= n_rows:
             break
     mapping = _map_columns(names, opts, header.line)
@@ -1510,11 +1521,11 @@ def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None
     values: dict[str, NDArray[np.float64]] = {}
     for role, j in chosen.items():
         vals = []
-        for k, f in enumerate(parsed):
+        for ln, f in parsed:
             if len(f) <= j:
                 continue
             try:
-                vals.append(_to_float(f[j], names[j], header.line + 1 + k))
+                vals.append(_to_float(f[j], names[j], ln))
             except LogFormatError as e:
                 if len(warns) < 20:
                     warns.append(str(e))

@@ -15,13 +15,15 @@ irregularity there (a geometric dip of the unloaded rail would be read as softne
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
+import scipy.fft as sfft
 from numpy.typing import NDArray
 from scipy.linalg import solveh_banded
 
 from .beam import BANDWIDTH, element_matrices, hermite_shape
-from .chainage import bandpass_distance
+from .spectral import band_window
 from .track import TrackParams
 
 MAX_LOSS = 0.95
@@ -100,6 +102,13 @@ class QuasiStaticModel:
         W = solveh_banded(band, self.rhs, lower=False, check_finite=False)
         return -self.load * self._at_load(W)
 
+    def factors(self, start_m: float, end_m: float, loss: float) -> NDArray[np.float64]:
+        """Stiffness factor of each modelled support for a zone (inclusive bounds, m)."""
+        f = np.ones(self.node_x.size)
+        tol = 1e-6
+        f[(self.node_x >= start_m - tol) & (self.node_x <= end_m + tol)] = 1.0 - loss
+        return f
+
     def _at_load(self, W: NDArray[np.float64]) -> NDArray[np.float64]:
         cols = np.arange(self.grid.size)
         defl = np.zeros(self.grid.size)
@@ -107,41 +116,63 @@ class QuasiStaticModel:
             defl += self.shape[:, j] * W[self.first_dof + j, cols]
         return defl
 
-    def prepare_zone_updates(self, x_min: float, x_max: float) -> None:
-        """Precompute what :meth:`zone_level` needs for zones within ``[x_min, x_max]`` m.
 
-        Softening ``m`` supports is a rank-``m`` change of the nominal stiffness matrix, so
-        the loaded level of any zone follows from the nominal solution by a Woodbury update.
-        """
-        band = self.band_beam.copy()
-        band[BANDWIDTH, 0::2] += self.params.k_nominal
-        self._W0 = solveh_banded(band, self.rhs, lower=False, check_finite=False)
-        self._ref = self._at_load(self._W0)
-        sup = np.flatnonzero((self.node_x >= x_min - 1e-6) & (self.node_x <= x_max + 1e-6))
-        self._sup = sup
-        E = np.zeros((self.n_dof, sup.size))
-        E[2 * sup, np.arange(sup.size)] = 1.0
-        K0E = solveh_banded(band, E, lower=False, check_finite=False)
-        self._EtK0E = K0E[2 * sup, :]  # (m, m)
-        cols = np.arange(self.grid.size)
-        # E^T K0^-1 n(x) for every grid point: the deflection at support j due to load at x
-        self._EtW0 = self._W0[2 * sup, :][:, cols]
+@lru_cache(maxsize=16)
+def _influence_nodal(params: TrackParams, half_nodes: int) -> NDArray[np.float64]:
+    """Nodal displacements of a long uniform rail under a unit load on its middle support."""
+    s = params.spacing
+    n_nodes = 2 * half_nodes + 1
+    n_dof = 2 * n_nodes
+    Ke, _ = element_matrices(params.EI, 1.0, s)
+    band = np.zeros((BANDWIDTH + 1, n_dof))
+    for a in range(4):
+        for b in range(a, 4):
+            band[BANDWIDTH + a - b, 2 * np.arange(n_nodes - 1) + b] += Ke[a, b]
+    band[BANDWIDTH, 0::2] += params.k_nominal
+    rhs = np.zeros(n_dof)
+    rhs[2 * half_nodes] = 1.0
+    return solveh_banded(band, rhs, lower=False, check_finite=False)
 
-    def zone_dip(self, start_m: float, end_m: float, loss: float) -> NDArray[np.float64]:
-        """Loaded level on a soft zone minus that on sound track, m (negative = deeper).
 
-        Needs :meth:`prepare_zone_updates` over a range containing the zone.
-        """
-        xs = self.node_x[self._sup]
-        pick = np.flatnonzero((xs >= start_m - 1e-6) & (xs <= end_m + 1e-6))
-        if pick.size == 0 or loss <= 0:
-            return np.zeros(self.grid.size)
-        d = -loss * self.params.k_nominal
-        B = self._EtW0[pick]  # (m, g)
-        Kinv = np.linalg.inv(np.eye(pick.size) / d + self._EtK0E[np.ix_(pick, pick)])
-        corr = np.einsum("ig,ij,jg->g", B, Kinv, B)
-        # n^T K^-1 n = n^T K0^-1 n - B^T (D^-1 + E^T K0^-1 E)^-1 B
-        return self.load * corr
+class InfluenceLine:
+    """Deflection of a support of the nominal (uniform) rail under a unit load at offset r.
+
+    By reciprocity this is also the deflection at offset ``r`` (m) from a support under a
+    unit load on that support, m/N: one banded solve, evaluated anywhere exactly with the
+    Hermite shape functions. Zero beyond ``reach_m`` (the response has decayed to ~1e-12).
+    """
+
+    def __init__(self, params: TrackParams, reach_m: float = 30.0) -> None:
+        self.params = params
+        self.half = int(np.ceil(reach_m / params.spacing))
+        self.nodal = _influence_nodal(params, self.half)
+        self.reach = self.half * params.spacing
+
+    def __call__(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
+        s = self.params.spacing
+        ra = np.asarray(r, dtype=float)
+        u = ra / s + self.half
+        e = np.clip(np.floor(u).astype(np.intp), 0, 2 * self.half - 1)
+        sh = hermite_shape(u - e, s)
+        out = np.zeros(ra.shape)
+        for j in range(4):
+            out += sh[..., j] * self.nodal[2 * e + j]
+        out[np.abs(ra) >= self.reach] = 0.0
+        return out
+
+
+def _bandpass_rows(
+    y: NDArray[np.float64], step_m: float, lambda_min: float, lambda_max: float, taper: float
+) -> NDArray[np.float64]:
+    """:func:`engine.chainage.bandpass_distance` for the rows of a NaN-free 2-D array."""
+    n = y.shape[-1]
+    pad = min(n - 1, int(np.ceil(lambda_max * (1 + taper) / step_m)))
+    ext = np.concatenate([y[:, pad:0:-1], y, y[:, -2 : -pad - 2 : -1]], axis=1)
+    ext = ext - ext.mean(axis=1, keepdims=True)
+    nfft = sfft.next_fast_len(ext.shape[1], real=True)
+    F = sfft.rfft(ext, nfft, axis=1)
+    F *= band_window(sfft.rfftfreq(nfft, step_m), 1.0 / lambda_max, 1.0 / lambda_min, taper)
+    return sfft.irfft(F, nfft, axis=1)[:, pad : pad + n]
 
 
 def fit_zone(
@@ -154,6 +185,7 @@ def fit_zone(
     lambda_min: float,
     lambda_max: float,
     *,
+    taper: float = 0.3,
     refine_extent: bool = True,
 ) -> ZoneFit:
     """Fit start, end and stiffness loss of one soft zone to the measured profile.
@@ -172,72 +204,87 @@ def fit_zone(
         Static wheel load the profile corresponds to, N.
     lambda_min, lambda_max : float
         Wavelength band the measured profile was limited to, m.
+    taper : float
+        Relative width of that band's edges.
     refine_extent : bool
-        Also move the zone's ends (sleeper by sleeper); otherwise only the loss is fitted.
+        Also move the zone's ends (support by support); otherwise only the loss is fitted.
+
+    Notes
+    -----
+    Softening the supports ``j`` in the zone by ``D = -loss k_nominal`` is a low-rank change
+    of the nominal stiffness matrix ``K0``, so the loaded level changes by
+    ``P b(x)^T (D^-1 I + F)^-1 b(x)`` with ``b_j(x) = f(x - x_j)`` and ``F_ij = f(x_i - x_j)``,
+    ``f`` the nominal influence line (:class:`InfluenceLine`). Losses are scanned in batches.
     """
     step = float(grid[1] - grid[0])
     s = params.spacing
-    lo = start_m - max(lambda_max, 15.0)
-    hi = end_m + max(lambda_max, 15.0)
-    sel = (grid >= lo) & (grid <= hi) & np.isfinite(residual_mm)
-    if sel.sum() < 8:
+    span = lambda_max * (1 + taper) + 5.0
+    lo, hi = start_m - span, end_m + span
+    i0 = max(0, int(np.searchsorted(grid, lo)))
+    i1 = min(grid.size, int(np.searchsorted(grid, hi)) + 1)
+    g = grid[i0:i1]
+    meas = residual_mm[i0:i1]
+    ok = np.isfinite(meas)
+    if ok.sum() < 8:
         return ZoneFit(start_m, end_m, 0.0, float("nan"))
-    g = grid[sel]
-    meas = residual_mm[sel]
-    # model on a wider window so that the band-pass sees the same surroundings
-    pad = 2 * lambda_max
-    wide = np.arange(g[0] - pad, g[-1] + pad + step / 2, step)
-    model = QuasiStaticModel(params, wide[0], wide[-1], wide, load)
-    model.prepare_zone_updates(start_m - 8 * s, end_m + 8 * s)
-    inner = slice(int(round(pad / step)), int(round(pad / step)) + g.size)
-    fit_w = np.abs(g - 0.5 * (start_m + end_m)) <= 0.5 * (end_m - start_m) + 2 * lambda_min + 2.0
+    infl = InfluenceLine(params)
+    # candidate supports: the first guess widened by a few spacings
+    j0 = int(np.floor((start_m - 6 * s) / s))
+    j1 = int(np.ceil((end_m + 6 * s) / s))
+    sup_x = np.arange(j0, j1 + 1) * s
+    B = infl(g[None, :] - sup_x[:, None])  # (m, g)
+    Fss = infl(sup_x[None, :] - sup_x[:, None])
+    fit_w = ok & (
+        np.abs(g - 0.5 * (start_m + end_m)) <= 0.5 * (end_m - start_m) + 2 * lambda_min + 2
+    )
+    kn = params.k_nominal
 
-    def dip(a: float, b: float, loss: float) -> NDArray[np.float64]:
-        y = model.zone_dip(a, b, loss)
-        yb = bandpass_distance(y * 1e3, step, lambda_min, lambda_max)
-        return yb[inner]
-
-    def misfit(a: float, b: float, loss: float) -> float:
-        d = dip(a, b, loss) - meas
-        return float(np.sqrt(np.mean(d[fit_w] ** 2)))
+    def dips(a: float, b: float, losses: NDArray[np.float64]) -> NDArray[np.float64]:
+        pick = np.flatnonzero((sup_x >= a - 1e-6) & (sup_x <= b + 1e-6))
+        if pick.size == 0:
+            return np.zeros((losses.size, g.size))
+        Bp = B[pick]
+        eye = np.eye(pick.size)
+        mats = eye[None] / (-losses[:, None, None] * kn) + Fss[np.ix_(pick, pick)][None]
+        inv = np.linalg.inv(mats)
+        corr = np.einsum("lig,ig->lg", inv @ Bp, Bp)
+        # n^T K^-1 n - n^T K0^-1 n = -b^T (D^-1 + F)^-1 b; the level is -P times that
+        return _bandpass_rows(load * corr * 1e3, step, lambda_min, lambda_max, taper)
 
     def best_loss(a: float, b: float) -> tuple[float, float]:
-        # the dip grows monotonically with the loss: golden-section search on [0, MAX_LOSS]
-        lo_, hi_ = 0.0, MAX_LOSS
-        gr = (np.sqrt(5) - 1) / 2
-        c = hi_ - gr * (hi_ - lo_)
-        d = lo_ + gr * (hi_ - lo_)
-        fc, fd = misfit(a, b, c), misfit(a, b, d)
-        for _ in range(13):
-            if fc < fd:
-                hi_, d, fd = d, c, fc
-                c = hi_ - gr * (hi_ - lo_)
-                fc = misfit(a, b, c)
-            else:
-                lo_, c, fc = c, d, fd
-                d = lo_ + gr * (hi_ - lo_)
-                fd = misfit(a, b, d)
-        loss = 0.5 * (lo_ + hi_)
-        return loss, misfit(a, b, loss)
+        losses = np.linspace(0.02, MAX_LOSS, 32)
+        for _ in range(2):
+            d = dips(a, b, losses)
+            err = np.sqrt(np.mean((d[:, fit_w] - meas[fit_w]) ** 2, axis=1))
+            k = int(np.argmin(err))
+            best_l, best_e = float(losses[k]), float(err[k])
+            width = losses[1] - losses[0]
+            losses = np.clip(np.linspace(best_l - width, best_l + width, 9), 0.0, MAX_LOSS)
+        if 0 < k < err.size - 1:
+            # vertex of the parabola through the best point and its neighbours
+            e0, e1, e2 = err[k - 1] ** 2, err[k] ** 2, err[k + 1] ** 2
+            den = e0 - 2 * e1 + e2
+            if den > 0:
+                h = losses[1] - losses[0]
+                best_l = float(np.clip(best_l + 0.5 * h * (e0 - e2) / den, 0.0, MAX_LOSS))
+        return best_l, best_e
 
-    # snap to supports
     a = np.ceil(start_m / s - 1e-9) * s
     b = np.floor(end_m / s + 1e-9) * s
     if b < a:
         a = b = round(0.5 * (start_m + end_m) / s) * s
     loss, err = best_loss(a, b)
     if refine_extent:
-        improved = True
-        it = 0
-        while improved and it < 12:
-            improved = False
-            it += 1
+        for _ in range(12):
+            best = (err, a, b, loss)
             for da, db in ((-s, 0.0), (s, 0.0), (0.0, -s), (0.0, s), (-s, s), (s, -s)):
                 na, nb = a + da, b + db
-                if nb < na:
+                if nb < na or na < sup_x[0] or nb > sup_x[-1]:
                     continue
                 nl, ne = best_loss(na, nb)
-                if ne < err - 1e-6:
-                    a, b, loss, err = na, nb, nl, ne
-                    improved = True
-    return ZoneFit(float(a), float(b), float(loss), err)
+                if ne < best[0] - 1e-6:
+                    best = (ne, na, nb, nl)
+            if best[1] == a and best[2] == b:
+                break
+            err, a, b, loss = best
+    return ZoneFit(float(a), float(b), float(loss), float(err))
