@@ -288,7 +288,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument(
         "--duration", type=float, default=None, help="duration, s (default: to the track end)"
     )
-    s.add_argument("--direction", choices=["increasing", "decreasing"], default="increasing")
+    s.add_argument(
+        "--direction",
+        choices=["increasing", "decreasing"],
+        default="increasing",
+        help="direction of travel along chainage (default increasing)",
+    )
     s.add_argument(
         "--zone",
         action="append",
@@ -343,7 +348,12 @@ def build_parser() -> argparse.ArgumentParser:
     inv.add_argument(
         "--start-chainage", type=float, default=None, help="body-centre chainage at start, m"
     )
-    inv.add_argument("--direction", choices=["increasing", "decreasing"], default="increasing")
+    inv.add_argument(
+        "--direction",
+        choices=["increasing", "decreasing"],
+        default="increasing",
+        help="direction of travel along chainage (default increasing)",
+    )
     inv.add_argument("--gamma", type=float, default=0.5, help="Newmark gamma (direct)")
     inv.add_argument("--beta", type=float, default=0.25, help="Newmark beta (direct)")
     inv.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
@@ -364,8 +374,18 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument(
         "--start-chainage", type=float, default=None, help="body-centre chainage at start, m"
     )
-    pr.add_argument("--direction", choices=["increasing", "decreasing"], default="increasing")
-    pr.add_argument("--method", choices=list(METHODS), default="spectral")
+    pr.add_argument(
+        "--direction",
+        choices=["increasing", "decreasing"],
+        default="increasing",
+        help="direction of travel along chainage (default increasing)",
+    )
+    pr.add_argument(
+        "--method",
+        choices=list(METHODS),
+        default="spectral",
+        help="inversion method (default spectral; see docs/method.md)",
+    )
     pr.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
     pr.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")
     pr.add_argument("--grid-step", type=float, default=0.25, help="chainage grid step, m")
