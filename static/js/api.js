@@ -1,0 +1,178 @@
+// Thin client of the REST API (/api/v1) and the readable form of its errors.
+
+export const API = "/api/v1";
+
+/** An error answered by the API, with the parsed detail kept for display. */
+export class ApiError extends Error {
+  constructor(status, detail, url) {
+    const described = describeDetail(detail);
+    super(described.message || `HTTP ${status}`);
+    this.status = status;
+    this.detail = detail;
+    this.url = url;
+    this.items = described.items;
+    this.fields = described.fields;
+  }
+}
+
+function locName(loc) {
+  if (!Array.isArray(loc)) return "";
+  // FastAPI prefixes with "body"/"query"/"path"; the last part is the field name.
+  const parts = loc.filter((p) => !["body", "query", "path", "form"].includes(p));
+  return parts.join(".");
+}
+
+/**
+ * Turn an API error detail into {message, items, fields}: a one-line message, a list of
+ * specific facts (column, row, unit, field) to show, and the form fields concerned.
+ * Accepts the shapes FastAPI produces: a string, an object ({message, column, row, unit, ...})
+ * or a list of validation errors ({loc, msg}).
+ */
+export function describeDetail(detail) {
+  const items = [];
+  const fields = [];
+  if (detail === null || detail === undefined) return { message: "", items, fields };
+  if (typeof detail === "string") return { message: detail, items, fields };
+  if (Array.isArray(detail)) {
+    for (const err of detail) {
+      const name = locName(err.loc);
+      if (name) fields.push(name);
+      items.push(name ? `${name}: ${err.msg}` : String(err.msg ?? JSON.stringify(err)));
+    }
+    return { message: "Some fields are not valid.", items, fields };
+  }
+  if (typeof detail === "object") {
+    const message = detail.message || detail.msg || detail.error || detail.detail || "";
+    const labels = {
+      column: "Column", row: "Row", unit: "Unit", field: "Field", expected: "Expected",
+      value: "Value", line: "Line",
+    };
+    for (const [key, label] of Object.entries(labels)) {
+      if (detail[key] !== undefined && detail[key] !== null && detail[key] !== "") {
+        items.push(`${label}: ${detail[key]}`);
+      }
+    }
+    if (detail.field) fields.push(String(detail.field));
+    // The message already names the first invalid field; list them all only when several.
+    if (Array.isArray(detail.errors) && detail.errors.length > 1) {
+      const nested = describeDetail(detail.errors);
+      items.push(...nested.items);
+      fields.push(...nested.fields);
+    }
+    return { message: typeof message === "string" ? message : JSON.stringify(message), items, fields, column: detail.column };
+  }
+  return { message: String(detail), items, fields };
+}
+
+async function parseBody(response) {
+  const type = response.headers.get("content-type") || "";
+  if (type.includes("application/json")) {
+    try {
+      return await response.json();
+    } catch {
+      return null;
+    }
+  }
+  return await response.text();
+}
+
+/** Fetch JSON from the API; throws ApiError with the server's detail on HTTP errors. */
+export async function apiFetch(path, options = {}) {
+  const url = path.startsWith("http") || path.startsWith("/") ? path : `${API}/${path}`;
+  let response;
+  try {
+    response = await fetch(url, { headers: { Accept: "application/json" }, ...options });
+  } catch (err) {
+    throw new ApiError(0, `The service cannot be reached (${err.message}).`, url);
+  }
+  const body = await parseBody(response);
+  if (!response.ok) {
+    const detail = body && typeof body === "object" && "detail" in body ? body.detail : body;
+    throw new ApiError(response.status, detail || response.statusText, url);
+  }
+  return body;
+}
+
+/** GET JSON; resolves to null instead of throwing when the endpoint answers 404/405. */
+export async function apiGetOptional(path) {
+  try {
+    return await apiFetch(path);
+  } catch (err) {
+    if (err instanceof ApiError && (err.status === 404 || err.status === 405)) return null;
+    throw err;
+  }
+}
+
+/** POST a JSON body. */
+export function apiPostJson(path, body) {
+  return apiFetch(path, {
+    method: "POST",
+    headers: { "Content-Type": "application/json", Accept: "application/json" },
+    body: JSON.stringify(body),
+  });
+}
+
+/** Items of a list answer, whether the API returns a bare list or {items|data: [...]}. */
+export function listItems(answer) {
+  if (Array.isArray(answer)) return answer;
+  if (answer && typeof answer === "object") {
+    for (const key of ["items", "data", "results", "runs", "tracks", "vehicles"]) {
+      if (Array.isArray(answer[key])) return answer[key];
+    }
+  }
+  return [];
+}
+
+/**
+ * POST multipart form data with upload progress (fetch has no upload progress events).
+ * onProgress(fraction) is called with 0..1 while the body is sent. Resolves with the parsed
+ * JSON answer; rejects with ApiError carrying the server's detail.
+ */
+export function uploadWithProgress(path, formData, onProgress) {
+  return new Promise((resolve, reject) => {
+    const xhr = new XMLHttpRequest();
+    xhr.open("POST", `${API}/${path}`);
+    xhr.setRequestHeader("Accept", "application/json");
+    xhr.responseType = "text";
+    xhr.upload.addEventListener("progress", (ev) => {
+      if (ev.lengthComputable && onProgress) onProgress(ev.loaded / ev.total);
+    });
+    xhr.upload.addEventListener("load", () => onProgress && onProgress(1));
+    xhr.addEventListener("load", () => {
+      let body = xhr.responseText;
+      try {
+        body = JSON.parse(xhr.responseText);
+      } catch {
+        /* not JSON: keep the text */
+      }
+      if (xhr.status >= 200 && xhr.status < 300) {
+        resolve(body);
+      } else {
+        const detail = body && typeof body === "object" && "detail" in body ? body.detail : body;
+        reject(new ApiError(xhr.status, detail || xhr.statusText, path));
+      }
+    });
+    xhr.addEventListener("error", () => reject(new ApiError(0, "The upload failed: the service cannot be reached.", path)));
+    xhr.addEventListener("abort", () => reject(new ApiError(0, "The upload was cancelled.", path)));
+    xhr.send(formData);
+  });
+}
+
+/** A run's id, whichever key the API uses. */
+export function runId(run) {
+  return run.id ?? run.run_id;
+}
+
+/** The track name of a run (object or plain string, depending on the API shape). */
+export function trackName(run) {
+  const t = run.track ?? run.track_name;
+  if (t && typeof t === "object") return t.name ?? String(t.id ?? "");
+  return t ?? "";
+}
+
+/** The vehicle name of a run (object or plain string). */
+export function vehicleName(run) {
+  const v = run.vehicle ?? run.vehicle_name;
+  if (v && typeof v === "object") return v.name ?? String(v.id ?? "");
+  return v ?? "";
+}

@@ -1,0 +1,71 @@
+// Hash router of the dashboard: #/ (runs & tracks), #/upload, #/runs/{id}, #/tracks/{name},
+// #/simulate. Each page module exports render(main, params) and may return a cleanup function.
+
+import { h, clear, announce } from "./dom.js";
+import * as home from "./pages/home.js";
+import * as upload from "./pages/upload.js";
+import * as run from "./pages/run.js";
+import * as track from "./pages/track.js";
+import * as simulate from "./pages/simulate.js";
+
+const routes = [
+  { pattern: /^\/?$/, page: home, nav: "home", title: "Runs & tracks" },
+  { pattern: /^\/upload\/?$/, page: upload, nav: "upload", title: "Upload a run" },
+  { pattern: /^\/runs\/([^/]+)\/?$/, page: run, nav: "home", title: "Run" },
+  { pattern: /^\/tracks\/([^/]+)\/?$/, page: track, nav: "home", title: "Track" },
+  { pattern: /^\/simulate\/?$/, page: simulate, nav: "simulate", title: "Simulate" },
+];
+
+let cleanup = null;
+let firstRender = true;
+
+function parseHash() {
+  const raw = window.location.hash.replace(/^#/, "") || "/";
+  const [path, query = ""] = raw.split("?");
+  return { path, query: new URLSearchParams(query) };
+}
+
+async function render() {
+  const main = document.getElementById("main");
+  const { path, query } = parseHash();
+  if (typeof cleanup === "function") {
+    try {
+      cleanup();
+    } catch (err) {
+      console.error(err);
+    }
+  }
+  cleanup = null;
+  clear(main);
+  const route = routes.find((r) => r.pattern.test(path));
+  for (const link of document.querySelectorAll("[data-nav]")) {
+    if (route && link.dataset.nav === route.nav) link.setAttribute("aria-current", "page");
+    else link.removeAttribute("aria-current");
+  }
+  if (!route) {
+    main.appendChild(h("h1", {}, "Page not found"));
+    main.appendChild(h("p", {}, h("a", { href: "#/" }, "Back to runs and tracks")));
+    return;
+  }
+  const params = path.match(route.pattern).slice(1).map((p) => decodeURIComponent(p));
+  document.title = `${route.title} — TrackProfile`;
+  try {
+    cleanup = await route.page.render(main, params, query);
+  } catch (err) {
+    console.error(err);
+    main.appendChild(h("div", { class: "message error", role: "alert" }, `This page failed to load: ${err.message}`));
+  }
+  if (!firstRender) {
+    // Move focus to the new page so keyboard and screen-reader users start at its top.
+    main.focus({ preventScroll: false });
+    announce(document.title);
+  }
+  firstRender = false;
+}
+
+window.addEventListener("hashchange", render);
+if (document.readyState === "loading") {
+  document.addEventListener("DOMContentLoaded", render);
+} else {
+  render();
+}

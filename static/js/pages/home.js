@@ -1,0 +1,88 @@
+// Home: the tracks (each opens its chainage map) and the latest runs (each opens its run view).
+
+import { h, clear, announce, fmt, fmtDate, messageBox } from "../dom.js";
+import { apiFetch, listItems, runId, trackName, vehicleName } from "../api.js";
+
+const PAGE = 50;
+
+export async function render(main) {
+  main.appendChild(h("h1", {}, "Runs and tracks"));
+  const status = messageBox("info");
+  main.appendChild(status.el);
+
+  const tracksSection = h("section", { class: "card", "aria-labelledby": "tracks-h" }, h("h2", { id: "tracks-h" }, "Tracks"));
+  const runsSection = h("section", { class: "card", "aria-labelledby": "runs-h" },
+    h("div", { class: "section-head" }, h("h2", { id: "runs-h" }, "Latest runs"), h("a", { class: "button primary", href: "#/upload" }, "Upload a run")));
+  main.append(h("div", { class: "home-grid" }, tracksSection, runsSection));
+
+  let tracks = [];
+  let runs = [];
+  try {
+    [tracks, runs] = await Promise.all([
+      apiFetch("tracks").then(listItems),
+      apiFetch(`runs?limit=${PAGE}`).then(listItems),
+    ]);
+  } catch (err) {
+    status.show(`Cannot load the data: ${err.message}`, "error");
+    return null;
+  }
+
+  if (tracks.length === 0) {
+    tracksSection.appendChild(h("p", {}, "No track yet. ", h("a", { href: "#/upload" }, "Upload a run"), " or ", h("a", { href: "#/simulate" }, "simulate one"), " to start."));
+  } else {
+    const list = h("ul", { class: "track-list", id: "track-list" });
+    for (const t of tracks) {
+      const count = t.run_count ?? t.n_runs ?? t.runs_count;
+      list.appendChild(h("li", {},
+        h("a", { href: `#/tracks/${encodeURIComponent(t.name)}`, class: "track-link" }, t.name),
+        count !== undefined ? h("span", { class: "muted" }, ` · ${count} run${count === 1 ? "" : "s"}`) : null,
+        t.description ? h("p", { class: "muted small" }, t.description) : null));
+    }
+    tracksSection.appendChild(list);
+  }
+
+  const tbody = h("tbody", {});
+  const table = h("div", { class: "table-scroll" }, h("table", { class: "data", id: "runs-table" },
+    h("caption", { class: "visually-hidden" }, "Latest runs"),
+    h("thead", {}, h("tr", {},
+      h("th", { scope: "col" }, "Run"), h("th", { scope: "col" }, "Track"), h("th", { scope: "col" }, "Vehicle"),
+      h("th", { scope: "col" }, "Recorded"), h("th", { scope: "col", class: "num" }, "Start (m)"),
+      h("th", { scope: "col" }, "Status"), h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")))),
+    tbody));
+  const fill = (items) => {
+    clear(tbody);
+    for (const r of items) {
+      const id = runId(r);
+      const del = h("button", {
+        type: "button", class: "button small danger", "aria-label": `Delete run ${id}`,
+        onclick: async () => {
+          // eslint-disable-next-line no-alert
+          if (!window.confirm(`Delete run ${id} and its profile? This cannot be undone.`)) return;
+          try {
+            await apiFetch(`runs/${encodeURIComponent(id)}`, { method: "DELETE" });
+            runs = runs.filter((x) => runId(x) !== id);
+            fill(runs);
+            announce(`Run ${id} deleted.`);
+          } catch (err) {
+            status.show(`Cannot delete run ${id}: ${err.message}`, "error");
+          }
+        },
+      }, "Delete");
+      tbody.appendChild(h("tr", {},
+        h("th", { scope: "row" }, h("a", { href: `#/runs/${encodeURIComponent(id)}` }, `Run ${id}`)),
+        h("td", {}, h("a", { href: `#/tracks/${encodeURIComponent(trackName(r))}` }, trackName(r))),
+        h("td", {}, vehicleName(r)),
+        h("td", {}, fmtDate(r.recorded_at)),
+        h("td", { class: "num" }, fmt(r.start_chainage_m, 1)),
+        h("td", {}, h("span", { class: `status status-${r.status}`, title: r.status === "failed" && r.error ? String(r.error.message || r.error) : "" }, r.status)),
+        h("td", {}, del)));
+    }
+  };
+  if (runs.length === 0) {
+    runsSection.appendChild(h("p", { class: "muted" }, "No run yet."));
+  } else {
+    fill(runs);
+    runsSection.appendChild(table);
+  }
+  return null;
+}

@@ -1,0 +1,287 @@
+// Simulate page: a synthetic run from the forward model (speed, soft zones, sensor noise), its
+// signals, and the profile the engine recovers from them next to the true one. Uses the
+// service's POST /api/v1/simulate, which stores the run (track "simulated") and returns the truth.
+
+import { h, clear, append, announce, field, fmt, messageBox } from "../dom.js";
+import { ApiError, apiFetch, apiPostJson, listItems, runId } from "../api.js";
+import { COLORS, CONFIG, baseLayout, plotly, softSpotShapes, softSpotLabels, zoomControls } from "../plots.js";
+
+const NOISE_PRESETS = {
+  none: { accel_noise: 0, gyro_noise: 0, accel_bias: 0, gyro_bias: 0 },
+  typical: { accel_noise: 0.005, gyro_noise: 1e-4, accel_bias: 0.02, gyro_bias: 2e-4 },
+  poor: { accel_noise: 0.02, gyro_noise: 5e-4, accel_bias: 0.05, gyro_bias: 5e-4 },
+};
+
+const BASELINE_WINDOW_M = 40;
+
+export async function render(main) {
+  let stopped = false;
+  main.appendChild(h("h1", {}, "Simulate a run"));
+  main.appendChild(h("p", { class: "lead" },
+    "Drive the half-car model over a track with soft zones you choose, add sensor noise, and see what the engine recovers. The true loaded level under the wheels is drawn next to the recovered profile."));
+
+  const form = h("form", { class: "sim-form card", id: "simulate-form", novalidate: true });
+  const lengthInput = h("input", { type: "number", id: "sim-length", value: "300", min: "80", max: "5000", step: "any", required: true });
+  const speedInput = h("input", { type: "number", id: "sim-speed", value: "80", min: "18", max: "288", step: "any", required: true });
+  const seedInput = h("input", { type: "number", id: "sim-seed", value: "1", min: "0", step: "1" });
+  const zonesBody = h("tbody", {});
+  const addZone = (start, end, loss) => {
+    const s = h("input", { type: "number", step: "any", value: String(start), "aria-label": "Zone start (m)", class: "zone-start" });
+    const e = h("input", { type: "number", step: "any", value: String(end), "aria-label": "Zone end (m)", class: "zone-end" });
+    const l = h("input", { type: "number", step: "any", min: "0", max: "95", value: String(loss), "aria-label": "Stiffness loss (%)", class: "zone-loss" });
+    const row = h("tr", {}, h("td", {}, s), h("td", {}, e), h("td", {}, l),
+      h("td", {}, h("button", { type: "button", class: "button small", "aria-label": "Remove this zone", onclick: () => row.remove() }, "Remove")));
+    zonesBody.appendChild(row);
+    return s;
+  };
+  addZone(100, 106, 50);
+  addZone(200, 204, 35);
+  const noiseInputs = {
+    accel_noise: h("input", { type: "number", id: "sim-accel-noise", step: "any", min: "0" }),
+    gyro_noise: h("input", { type: "number", id: "sim-gyro-noise", step: "any", min: "0" }),
+    accel_bias: h("input", { type: "number", id: "sim-accel-bias", step: "any" }),
+    gyro_bias: h("input", { type: "number", id: "sim-gyro-bias", step: "any" }),
+  };
+  const presetSel = h("select", { id: "sim-noise-preset" },
+    h("option", { value: "typical" }, "Typical logger"),
+    h("option", { value: "none" }, "Noise-free"),
+    h("option", { value: "poor" }, "Poor sensor"),
+    h("option", { value: "custom" }, "Custom"));
+  const applyPreset = (key) => {
+    const p = NOISE_PRESETS[key];
+    if (!p) return;
+    for (const [k, input] of Object.entries(noiseInputs)) input.value = String(p[k]);
+  };
+  applyPreset("typical");
+  presetSel.addEventListener("change", () => applyPreset(presetSel.value));
+  for (const input of Object.values(noiseInputs)) {
+    input.addEventListener("input", () => {
+      presetSel.value = "custom";
+    });
+  }
+
+  const runBtn = h("button", { type: "submit", class: "button primary", id: "simulate-button" }, "Simulate and recover");
+  const bar = h("progress", { max: "1", hidden: true, "aria-label": "Simulation progress" });
+  const status = messageBox("info");
+  status.el.id = "sim-status";
+
+  append(form, [
+    h("div", { class: "sim-grid" },
+      h("fieldset", {},
+        h("legend", {}, "Track and speed"),
+        field("Track length (m)", lengthInput, "80 to 5000 m; at most 120 s of travel."),
+        field("Speed (km/h)", speedInput),
+        field("Random seed", seedInput, "Same seed, same noise.")),
+      h("fieldset", {},
+        h("legend", {}, "Soft zones"),
+        h("table", { class: "data compact", id: "sim-zones" },
+          h("thead", {}, h("tr", {},
+            h("th", { scope: "col" }, "Start (m)"), h("th", { scope: "col" }, "End (m)"), h("th", { scope: "col" }, "Loss (%)"),
+            h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")))),
+          zonesBody),
+        h("button", { type: "button", class: "button small", onclick: () => addZone(150, 154, 40).focus() }, "Add a zone")),
+      h("fieldset", {},
+        h("legend", {}, "Sensor noise"),
+        field("Preset", presetSel),
+        h("div", { class: "grid-2" },
+          field("Accel noise σ (m/s²)", noiseInputs.accel_noise),
+          field("Gyro noise σ (rad/s)", noiseInputs.gyro_noise),
+          field("Accel bias (m/s²)", noiseInputs.accel_bias),
+          field("Gyro bias (rad/s)", noiseInputs.gyro_bias)))),
+    h("div", { class: "actions" }, runBtn, bar, status.el),
+  ]);
+  main.appendChild(form);
+
+  const results = h("div", { class: "sim-results", id: "sim-results", hidden: true });
+  main.appendChild(results);
+
+  function readForm() {
+    const length = Number(lengthInput.value);
+    const speedKmh = Number(speedInput.value);
+    const errors = [];
+    if (!(length >= 80 && length <= 5000)) errors.push([lengthInput, "The track length must be between 80 and 5000 m."]);
+    if (!(speedKmh >= 18 && speedKmh <= 288)) errors.push([speedInput, "The speed must be between 18 and 288 km/h (5 to 80 m/s)."]);
+    const zones = [];
+    for (const row of zonesBody.querySelectorAll("tr")) {
+      const s = Number(row.querySelector(".zone-start").value);
+      const e = Number(row.querySelector(".zone-end").value);
+      const l = Number(row.querySelector(".zone-loss").value);
+      if (!(Number.isFinite(s) && Number.isFinite(e) && e > s)) errors.push([row.querySelector(".zone-end"), `A zone must end after it starts (${s}–${e} m).`]);
+      else if (!(l > 0 && l < 100)) errors.push([row.querySelector(".zone-loss"), `A stiffness loss must be between 0 and 100 % (got ${l}).`]);
+      else if (s < 0 || e > length) errors.push([row.querySelector(".zone-start"), `Zone ${s}–${e} m is outside the track (0–${length} m).`]);
+      else zones.push({ start_m: s, end_m: e, loss: l / 100 });
+    }
+    const noise = {};
+    for (const [k, input] of Object.entries(noiseInputs)) {
+      const v = Number(input.value || 0);
+      if (!Number.isFinite(v) || (k.endsWith("noise") && v < 0)) errors.push([input, `${k.replace("_", " ")} must be a number${k.endsWith("noise") ? " ≥ 0" : ""}.`]);
+      noise[k] = v;
+    }
+    const seed = seedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(seedInput.value)));
+    return { errors, request: { length_m: length, speed_mps: speedKmh / 3.6, zones, ...noise, seed } };
+  }
+
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    for (const el of form.querySelectorAll("[aria-invalid]")) el.removeAttribute("aria-invalid");
+    const { errors, request } = readForm();
+    if (errors.length) {
+      for (const [el] of errors) el.setAttribute("aria-invalid", "true");
+      status.show("Please correct the form:", "error", [h("ul", { class: "error-facts" }, errors.map(([, m]) => h("li", {}, m)))]);
+      errors[0][0].focus();
+      return;
+    }
+    runBtn.disabled = true;
+    bar.hidden = false;
+    bar.removeAttribute("value");
+    status.show("Simulating the run, then recovering the profile from its signals…", "info");
+    const t0 = performance.now();
+    try {
+      const answer = await apiPostJson("simulate?wait=true", simulateBody(request));
+      const id = runId(answer.run);
+      if (answer.run.status === "failed") throw new Error(answer.run.error ? answer.run.error.message : "processing failed");
+      const enc = encodeURIComponent(id);
+      const [profile, spots, signals] = await Promise.all([
+        apiFetch(`/api/v1/views/runs/${enc}/profile?max_points=6000`),
+        apiFetch(`runs/${enc}/soft-spots`),
+        apiFetch(`runs/${enc}/signals`).catch(() => null),
+      ]);
+      if (stopped) return;
+      const result = { truth: answer.truth, zones: answer.truth.zones, profile, soft_spots: listItems(spots), signals };
+      await showResults(result);
+      const n = result.soft_spots.length;
+      const link = h("a", { href: `#/runs/${enc}`, id: "sim-run-link" }, `open it as run ${id}`);
+      status.show(`Done in ${((performance.now() - t0) / 1000).toFixed(1)} s: ${n} soft spot${n === 1 ? "" : "s"} recovered for ${request.zones.length} true zone${request.zones.length === 1 ? "" : "s"}. The run is stored on the track “simulated”; `, "success", [link, "."]);
+      announce("Simulation done.");
+    } catch (err) {
+      status.show(`The simulation failed: ${err.message}`, "error",
+        err instanceof ApiError && err.items.length ? [h("ul", { class: "error-facts" }, err.items.map((i) => h("li", {}, i)))] : []);
+    } finally {
+      runBtn.disabled = false;
+      bar.hidden = true;
+    }
+  });
+
+  async function showResults(r) {
+    clear(results);
+    results.hidden = false;
+    const P = plotly();
+    const profileDiv = h("div", { class: "plot plot-profile", id: "sim-profile-plot", role: "img", "aria-label": "Recovered profile and true profile against chainage" });
+    const signalsDiv = h("div", { class: "plot plot-signals", id: "sim-signals-plot", role: "img", "aria-label": "Synthetic signals against time" });
+    const profileSection = h("section", { class: "card", "aria-labelledby": "sim-profile-h" },
+      h("h2", { id: "sim-profile-h" }, "Recovered profile and truth"),
+      h("p", { class: "hint" }, `Blue: the profile the engine recovers from the noisy signals. Black dashed: the true loaded level under the wheels (mean of both axles). Both are drawn about their own ${BASELINE_WINDOW_M} m running median, the kind of baseline soft spots are measured from. Blue bands: the true soft zones; orange bands: the soft spots detected.`),
+      profileDiv);
+    results.append(profileSection);
+
+    const rec = detrend(r.profile.chainage_m, r.profile.level_mm, BASELINE_WINDOW_M);
+    const traces = [{
+      type: "scatter", mode: "lines", name: "Recovered", x: r.profile.chainage_m, y: rec,
+      line: { color: COLORS.fused, width: 1.8 }, hovertemplate: "%{y:.3f} mm<extra>recovered</extra>",
+    }];
+    if (r.truth && r.truth.chainage_m) {
+      traces.push({
+        type: "scatter", mode: "lines", name: "Truth", x: r.truth.chainage_m,
+        y: detrend(r.truth.chainage_m, r.truth.level_mm, BASELINE_WINDOW_M),
+        line: { color: COLORS.truth, width: 1.4, dash: "dash" }, hovertemplate: "%{y:.3f} mm<extra>truth</extra>",
+      });
+    }
+    const trueShapes = softSpotShapes(r.zones || [], { fill: COLORS.truthFill, line: COLORS.truthLine, name: "true-zone" });
+    const layout = baseLayout({
+      height: 420,
+      shapes: [...trueShapes, ...softSpotShapes(r.soft_spots)],
+      annotations: softSpotLabels(r.soft_spots),
+      margin: { l: 64, r: 24, t: 60, b: 96 },
+      yaxis: { title: { text: `Level about ${BASELINE_WINDOW_M} m median (mm)` }, gridcolor: "#e3e6ea", zerolinecolor: "#9aa3ad" },
+    });
+    await P.newPlot(profileDiv, traces, layout, CONFIG);
+    profileSection.appendChild(zoomControls(profileDiv, { label: "Simulated profile view" }));
+
+    results.append(comparisonTable(r));
+
+    const s = r.signals;
+    if (!s || !s.time_s) return;
+    results.append(h("section", { class: "card", "aria-labelledby": "sim-signals-h" },
+      h("h2", { id: "sim-signals-h" }, "Synthetic signals"),
+      h("p", { class: "hint" }, s.decimated
+        ? `What the simulated sensor wrote (noise and bias included), drawn as ${s.time_s.length.toLocaleString()} points (lowest and highest per bucket) of ${Number(s.n_samples).toLocaleString()} samples.`
+        : `What the simulated sensor wrote (noise and bias included): ${Number(s.n_samples).toLocaleString()} samples.`),
+      signalsDiv));
+    await P.newPlot(signalsDiv, [
+      { type: "scatter", mode: "lines", name: "Vertical acceleration", x: s.time_s, y: s.accel_z_mps2, line: { color: COLORS.accel, width: 1 }, hovertemplate: "%{y:.4f} m/s²<extra>accel</extra>" },
+      { type: "scatter", mode: "lines", name: "Pitch rate", x: s.time_s, y: s.pitch_rate_radps, yaxis: "y2", line: { color: COLORS.pitch, width: 1 }, hovertemplate: "%{y:.6f} rad/s<extra>pitch rate</extra>" },
+    ], baseLayout({
+      height: 360,
+      xaxis: { title: { text: "Time (s)" }, gridcolor: "#e3e6ea", anchor: "y2" },
+      yaxis: { title: { text: "Accel (m/s²)" }, domain: [0.55, 1], gridcolor: "#e3e6ea" },
+      yaxis2: { title: { text: "Pitch rate (rad/s)" }, domain: [0, 0.45], gridcolor: "#e3e6ea" },
+    }), CONFIG);
+  }
+
+  return () => {
+    stopped = true;
+  };
+}
+
+/** The service's POST /api/v1/simulate body for the form's request. */
+function simulateBody(req) {
+  const quiet = req.accel_noise === 0 && req.gyro_noise === 0 && req.accel_bias === 0 && req.gyro_bias === 0;
+  return {
+    track: "simulated",
+    length_m: req.length_m,
+    speed_mps: req.speed_mps,
+    zones: req.zones,
+    sensor: quiet ? "ideal" : {
+      accel_noise: req.accel_noise, gyro_noise: req.gyro_noise, accel_bias: req.accel_bias, gyro_bias: req.gyro_bias,
+    },
+    seed: req.seed,
+  };
+}
+
+/** Level minus its running median over windowM (m): the kind of baseline dips are measured from. */
+export function detrend(x, y, windowM) {
+  const n = x.length;
+  if (n < 3) return y.slice();
+  const step = (x[n - 1] - x[0]) / (n - 1);
+  const half = Math.max(1, Math.round(windowM / step / 2));
+  const out = new Array(n);
+  for (let i = 0; i < n; i += 1) {
+    if (y[i] === null || y[i] === undefined) {
+      out[i] = null;
+      continue;
+    }
+    const win = [];
+    for (let j = Math.max(0, i - half); j <= Math.min(n - 1, i + half); j += 1) {
+      if (y[j] !== null && y[j] !== undefined) win.push(y[j]);
+    }
+    win.sort((a, b) => a - b);
+    const m = win.length % 2 ? win[(win.length - 1) / 2] : 0.5 * (win[win.length / 2 - 1] + win[win.length / 2]);
+    out[i] = y[i] - m;
+  }
+  return out;
+}
+
+function comparisonTable(r) {
+  const overlaps = (s, z) => s.end_m >= z.start_m - 3 && s.start_m <= z.end_m + 3;
+  const rows = (r.zones || []).map((z, i) => {
+    const match = r.soft_spots.find((s) => overlaps(s, z));
+    return h("tr", {},
+      h("th", { scope: "row" }, `Z${i + 1}`),
+      h("td", { class: "num" }, `${fmt(z.start_m, 1)}–${fmt(z.end_m, 1)}`),
+      h("td", { class: "num" }, fmt(z.loss * 100, 0)),
+      h("td", {}, match ? h("span", { class: "status status-done" }, "found") : h("span", { class: "status status-failed" }, "missed")),
+      h("td", { class: "num" }, match ? `${fmt(match.start_m, 1)}–${fmt(match.end_m, 1)}` : "—"),
+      h("td", { class: "num" }, match ? fmt(match.depth_mm, 2) : "—"),
+      h("td", { class: "num" }, match ? fmt(match.stiffness_loss_pct, 0) : "—"));
+  });
+  const extra = r.soft_spots.filter((s) => !(r.zones || []).some((z) => overlaps(s, z)));
+  return h("section", { class: "card", "aria-labelledby": "sim-compare-h" },
+    h("h2", { id: "sim-compare-h" }, "True zones and what was found"),
+    h("div", { class: "table-scroll" }, h("table", { class: "data", id: "sim-compare" },
+      h("thead", {}, h("tr", {},
+        h("th", { scope: "col" }, "#"), h("th", { scope: "col" }, "True zone (m)"), h("th", { scope: "col" }, "True loss (%)"),
+        h("th", { scope: "col" }, "Result"), h("th", { scope: "col" }, "Detected (m)"), h("th", { scope: "col" }, "Depth (mm)"),
+        h("th", { scope: "col" }, "Estimated loss (%)"))),
+      h("tbody", {}, rows))),
+    extra.length ? h("p", { class: "hint" }, `${extra.length} detection${extra.length === 1 ? "" : "s"} away from any true zone (false alarm${extra.length === 1 ? "" : "s"}).`) : null);
+}

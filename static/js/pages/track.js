@@ -1,0 +1,375 @@
+// Track view (the chainage map): every run of a track along chainage, soft spots as a map
+// (x chainage, y run, colour + size + symbol = severity), the zones ranked by severity with how
+// often each was seen, and the profiles of all runs around a chosen zone.
+
+import { h, clear, append, announce, fmt, fmtDate, fmtDay, messageBox } from "../dom.js";
+import { ApiError, apiFetch, apiGetOptional, listItems } from "../api.js";
+import { COLORS, CONFIG, baseLayout, plotly, softSpotShapes, viridis, zoomControls } from "../plots.js";
+
+// Severity classes by depth (mm): the symbol and size repeat what the colour says, so the map
+// reads without colour vision.
+const CLASSES = [
+  { max: 0.15, symbol: "circle", label: "< 0.15 mm" },
+  { max: 0.3, symbol: "square", label: "0.15–0.3 mm" },
+  { max: 0.5, symbol: "diamond", label: "0.3–0.5 mm" },
+  { max: Infinity, symbol: "x", label: "≥ 0.5 mm" },
+];
+
+function severityClass(depth) {
+  return CLASSES.findIndex((c) => depth < c.max);
+}
+
+const ZONE_COLUMNS = [
+  { key: "rank", label: "Rank", num: true, get: (z) => z.rank },
+  { key: "start_m", label: "Zone (m)", num: true, get: (z) => z.start_m, show: (z) => `${fmt(z.start_m, 1)}–${fmt(z.end_m, 1)}` },
+  { key: "peak_m", label: "Peak (m)", num: true, get: (z) => z.peak_m, show: (z) => fmt(z.peak_m, 1) },
+  { key: "runs_seen", label: "Seen", num: true, get: (z) => z.runs_seen, show: (z) => (z.runs_total ? `${z.runs_seen} of ${z.runs_total}` : String(z.runs_seen)) },
+  { key: "depth_mm", label: "Depth (mm)", num: true, get: (z) => z.depth_mm, show: (z) => fmt(z.depth_mm, 2) },
+  { key: "depth_max_mm", label: "Max (mm)", num: true, get: (z) => z.depth_max_mm ?? z.depth_mm, show: (z) => fmt(z.depth_max_mm ?? z.depth_mm, 2) },
+  { key: "stiffness_loss_pct", label: "Loss (%)", num: true, get: (z) => z.stiffness_loss_pct, show: (z) => fmt(z.stiffness_loss_pct, 0) },
+  { key: "trend_mm_per_month", label: "Trend (mm/month)", num: true, optional: true, get: (z) => z.trend_mm_per_month, show: (z) => fmt(z.trend_mm_per_month, 3) },
+  { key: "status", label: "Status", optional: true, get: (z) => z.status, show: (z) => z.status ?? "—" },
+  { key: "priority", label: "Priority", optional: true, get: (z) => z.priority, show: (z) => z.priority ?? "—" },
+  { key: "first_seen", label: "First seen", get: (z) => z.first_seen || "", show: (z) => fmtDay(z.first_seen) },
+  { key: "last_seen", label: "Last seen", get: (z) => z.last_seen || "", show: (z) => fmtDay(z.last_seen) },
+];
+
+export async function render(main, [name]) {
+  let stopped = false;
+  const enc = encodeURIComponent(name);
+  const heading = h("h1", { id: "track-title" }, "Track ", h("span", { class: "track-name" }, name));
+  const lead = h("p", { class: "lead", id: "track-lead" });
+  const status = messageBox("info");
+  main.append(heading, lead, status.el);
+
+  const t0 = performance.now();
+  let map;
+  try {
+    map = await apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200`);
+  } catch (err) {
+    status.show(err instanceof ApiError && err.status === 404 ? `There is no track named “${name}”.` : `Cannot load the chainage map: ${err.message}`, "error");
+    return null;
+  }
+  // A register of tracked defects (issue 6), when the service has one, replaces the zones this
+  // view clusters itself.
+  let register = null;
+  try {
+    const defects = await apiGetOptional(`/api/v1/tracks/${enc}/defects`);
+    if (defects) register = listItems(defects);
+  } catch {
+    register = null;
+  }
+
+  const runs = map.runs || [];
+  const doneRuns = runs.filter((r) => r.status === undefined || r.status === "done");
+  const trackInfo = map.track || {};
+  append(lead, [
+    `${doneRuns.length} processed run${doneRuns.length === 1 ? "" : "s"}`,
+    map.chainage_min_m !== null && map.chainage_min_m !== undefined ? ` covering ${fmt(map.chainage_min_m, 0)}–${fmt(map.chainage_max_m, 0)} m` : "",
+    trackInfo.description ? ` · ${trackInfo.description}` : "",
+    " · ",
+    h("a", { href: "#/upload" }, "Upload another run"),
+  ]);
+  if (runs.length === 0) {
+    main.appendChild(h("p", { class: "muted" }, "No runs on this track yet."));
+    return null;
+  }
+
+  // ---- chainage map --------------------------------------------------------------------------
+  const mapDiv = h("div", { class: "plot plot-map", id: "chainage-map", role: "img", "aria-label": "Chainage map of soft spots: chainage across, runs down, severity as colour, size and symbol" });
+  const heatToggle = h("input", { type: "checkbox", id: "toggle-heatmap", checked: true });
+  const mapNote = h("p", { class: "hint", id: "map-note" });
+  const mapSection = h("section", { class: "card", "aria-labelledby": "map-h" },
+    h("div", { class: "section-head" },
+      h("h2", { id: "map-h" }, "Chainage map"),
+      h("label", { class: "check" }, heatToggle, " Profile level as background")),
+    h("p", { class: "hint" }, "Each row is a run (newest at the top). Markers are soft spots at their deepest point; the bar shows their extent. Darker, larger and more angular markers are deeper. Drag to zoom; the background is recomputed for the zoomed window."),
+    mapDiv,
+    legendBox(),
+    mapNote,
+  );
+  main.appendChild(mapSection);
+
+  const labels = runs.map((r) => r.label || `${fmtDate(r.recorded_at)} · run ${r.id}`);
+  const P = plotly();
+  await P.newPlot(mapDiv, mapTraces(map, labels, heatToggle.checked), mapLayout(labels, map), { ...CONFIG, scrollZoom: false });
+  mapSection.insertBefore(zoomControls(mapDiv, { label: "Chainage map view" }), legendBoxOf(mapSection));
+  const elapsed = performance.now() - t0;
+  mapNote.textContent = `${(map.spots ? map.spots.peak_m.length : 0).toLocaleString()} soft spots from ${runs.length} runs, loaded in ${(elapsed / 1000).toFixed(2)} s. `
+    + (map.heatmap ? `Background: lowest level per ${fmt(map.heatmap.bin_m, map.heatmap.bin_m < 10 ? 2 : 0)} m cell.` : `No background: ${map.heatmap_note || "no profile stored"}.`)
+    + (map.runs_omitted ? ` ${map.runs_omitted} older runs not shown.` : "")
+    + (map.runs_pending ? ` ${map.runs_pending} runs still processing or failed are not shown.` : "");
+
+  let relayoutTimer = null;
+  let lastRange = null;
+  mapDiv.on("plotly_relayout", (ev) => {
+    if (!heatToggle.checked) return;
+    let range = null;
+    if (ev["xaxis.range[0]"] !== undefined) range = [ev["xaxis.range[0]"], ev["xaxis.range[1]"]];
+    else if (Array.isArray(ev["xaxis.range"])) range = ev["xaxis.range"];
+    else if (ev["xaxis.autorange"]) range = "full";
+    if (!range) return;
+    clearTimeout(relayoutTimer);
+    relayoutTimer = setTimeout(() => refreshHeatmap(range), 250);
+  });
+
+  async function refreshHeatmap(range) {
+    const key = JSON.stringify(range);
+    if (key === lastRange || stopped) return;
+    lastRange = key;
+    const q = range === "full" ? "" : `&from_m=${encodeURIComponent(range[0])}&to_m=${encodeURIComponent(range[1])}`;
+    try {
+      const part = await apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200&spots=false${q}`);
+      if (stopped || JSON.stringify(range) !== lastRange) return;
+      const idx = mapDiv.data.findIndex((t) => t.meta === "heatmap");
+      if (!part.heatmap) {
+        if (idx >= 0) P.deleteTraces(mapDiv, [idx]);
+        mapNote.textContent = `No background: ${part.heatmap_note || "no profile in this window"}.`;
+        return;
+      }
+      if (idx >= 0) P.restyle(mapDiv, { x: [part.heatmap.x], z: [part.heatmap.z] }, [idx]);
+      else P.addTraces(mapDiv, heatmapTrace(part.heatmap, labels, heatToggle.checked), 0);
+      mapNote.textContent = `Background: lowest level per ${fmt(part.heatmap.bin_m, part.heatmap.bin_m < 10 ? 2 : 0)} m cell, ${fmt(part.heatmap.x[0], 0)}–${fmt(part.heatmap.x[part.heatmap.x.length - 1], 0)} m.`;
+    } catch (err) {
+      mapNote.textContent = `Cannot refresh the background: ${err.message}`;
+    }
+  }
+
+  heatToggle.addEventListener("change", () => {
+    const idx = mapDiv.data.findIndex((t) => t.meta === "heatmap");
+    if (idx >= 0) P.restyle(mapDiv, { visible: heatToggle.checked }, [idx]);
+    else if (heatToggle.checked) {
+      const r = mapDiv.layout.xaxis.range;
+      lastRange = null;
+      refreshHeatmap([Number(r[0]), Number(r[1])]);
+    }
+  });
+
+  // ---- zones ---------------------------------------------------------------------------------
+  const zones = normaliseZones(register || map.zones || [], runs.length);
+  const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "img", "aria-label": "Profiles of all runs around the selected zone" });
+  const zoneInfo = h("p", { class: "hint", id: "zone-info" }, "Choose a zone in the table to see its profile across runs.");
+  const table = zoneTable(zones, (zone) => showZone(zone));
+  main.appendChild(h("div", { class: "track-lower" },
+    h("section", { class: "card", "aria-labelledby": "zones-h" },
+      h("h2", { id: "zones-h" }, register ? "Defect register" : "Zones ranked by severity"),
+      h("p", { class: "hint" }, register
+        ? "Tracked defects from the service's soft-spot register."
+        : "Soft spots of all runs merged where they overlap. Seen: runs that detected the zone, of the runs covering it. Depth and loss: medians over those runs. Rank: median depth × share of runs that saw it, so a dip seen on every pass ranks above a one-off. Click a column title to sort; choose a zone to see its profile across runs."),
+      zones.length ? table : h("p", { class: "muted" }, "No soft spot on this track.")),
+    h("section", { class: "card", "aria-labelledby": "zoneplot-h" },
+      h("h2", { id: "zoneplot-h" }, "Zone across runs"),
+      zoneInfo,
+      zonePlotDiv),
+  ));
+
+  async function showZone(zone) {
+    const width = Math.max(zone.end_m - zone.start_m, 2);
+    const from = zone.start_m - Math.max(20, 2 * width);
+    const to = zone.end_m + Math.max(20, 2 * width);
+    zoneInfo.textContent = `Loading the profiles of ${fmt(from, 0)}–${fmt(to, 0)} m…`;
+    try {
+      const [win, aggregate] = await Promise.all([
+        apiFetch(`/api/v1/views/tracks/${enc}/window?from_m=${from}&to_m=${to}`),
+        apiGetOptional(`/api/v1/tracks/${enc}/profile?from_m=${from}&to_m=${to}`).catch(() => null),
+      ]);
+      if (stopped) return;
+      const traces = [];
+      const wr = win.runs || [];
+      wr.forEach((r, i) => {
+        traces.push({
+          type: "scatter", mode: "lines", name: r.label || `run ${r.id}`,
+          x: r.chainage_m, y: r.level_mm, meta: `run-${r.id}`,
+          line: { color: viridis(wr.length > 1 ? i / (wr.length - 1) : 0), width: 1.3 },
+          hovertemplate: `%{y:.3f} mm<extra>${escapeExtra(r.label || `run ${r.id}`)}</extra>`,
+        });
+      });
+      if (aggregate && Array.isArray(aggregate.chainage_m)) {
+        const y = aggregate.level_mm || aggregate.median_mm || aggregate.mean_mm;
+        if (y) {
+          traces.push({
+            type: "scatter", mode: "lines", name: "Aggregated profile", x: aggregate.chainage_m, y,
+            line: { color: COLORS.truth, width: 2.5 }, hovertemplate: "%{y:.3f} mm<extra>aggregate</extra>",
+          });
+        }
+      }
+      const layout = baseLayout({
+        height: 380,
+        shapes: softSpotShapes([zone]),
+        xaxis: { title: { text: "Chainage (m)" }, range: [from, to], gridcolor: "#e3e6ea" },
+        legend: { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
+        margin: { l: 64, r: 12, t: 24, b: 52 },
+      });
+      await P.react(zonePlotDiv, traces, layout, CONFIG);
+      zoneInfo.textContent = `Zone ${fmt(zone.start_m, 1)}–${fmt(zone.end_m, 1)} m (shaded): ${wr.length} runs cover it, ${zone.runs_seen} detected a soft spot there. Lines run from dark (oldest) to light (newest).`;
+      announce(`Showing zone at ${fmt(zone.peak_m, 1)} m across ${wr.length} runs.`);
+    } catch (err) {
+      zoneInfo.textContent = `Cannot load the zone's profiles: ${err.message}`;
+    }
+  }
+
+  if (zones.length) showZone(zones[0]);
+  announce(`Track ${name}: ${runs.length} runs, ${zones.length} zones.`);
+  return () => {
+    stopped = true;
+    clearTimeout(relayoutTimer);
+  };
+}
+
+function escapeExtra(text) {
+  // Plotly renders <extra> content as pseudo-HTML: keep user text literal.
+  return String(text).replace(/&/g, "&amp;").replace(/</g, "&lt;").replace(/>/g, "&gt;");
+}
+
+function legendBoxOf(section) {
+  return section.querySelector(".severity-legend");
+}
+
+function legendBox() {
+  return h("ul", { class: "severity-legend", "aria-label": "Severity classes by depth" },
+    CLASSES.map((c, i) => h("li", {}, h("span", { class: `sym sym-${c.symbol}`, "aria-hidden": "true", style: `--c:${viridis(1 - (i + 0.5) / CLASSES.length)}` }), c.label)));
+}
+
+function heatmapTrace(heat, labels, visible) {
+  return {
+    type: "heatmap", meta: "heatmap", name: "Level", x: heat.x, y: labels, z: heat.z,
+    colorscale: [[0, "#4b5563"], [0.5, "#d1d5db"], [1, "#f9fafb"]],
+    zmid: 0, showscale: false, visible, hoverongaps: false,
+    hovertemplate: "%{x:.0f} m · %{y}<br>lowest level %{z:.2f} mm<extra></extra>",
+  };
+}
+
+function mapTraces(map, labels, heat) {
+  const traces = [];
+  if (map.heatmap) traces.push(heatmapTrace(map.heatmap, labels, heat));
+  const s = map.spots || { run_index: [], start_m: [], end_m: [], peak_m: [], depth_mm: [], stiffness_loss_pct: [] };
+  const n = s.peak_m.length;
+  if (n) {
+    const segX = [];
+    const segY = [];
+    for (let i = 0; i < n; i += 1) {
+      segX.push(s.start_m[i], s.end_m[i], null);
+      const y = labels[s.run_index[i]];
+      segY.push(y, y, null);
+    }
+    traces.push({
+      type: "scatter", mode: "lines", name: "Extent", x: segX, y: segY, hoverinfo: "skip", showlegend: false,
+      line: { color: "#1b1f24", width: 3 },
+    });
+    const depthMax = Math.max(0.5, ...s.depth_mm);
+    traces.push({
+      type: "scatter", mode: "markers", name: "Soft spots", meta: "spots",
+      x: s.peak_m, y: s.run_index.map((i) => labels[i]),
+      marker: {
+        color: s.depth_mm, colorscale: "Viridis", reversescale: true, cmin: 0, cmax: depthMax,
+        size: s.depth_mm.map((d) => 8 + 14 * Math.min(d / depthMax, 1)),
+        symbol: s.depth_mm.map((d) => CLASSES[severityClass(d)].symbol),
+        line: { color: "#1b1f24", width: 1 },
+        colorbar: { title: { text: "Depth (mm)" }, thickness: 14, len: 0.9 },
+      },
+      customdata: s.peak_m.map((_, i) => [s.start_m[i], s.end_m[i], s.depth_mm[i], s.stiffness_loss_pct[i]]),
+      hovertemplate: "%{y}<br>%{customdata[0]:.1f}–%{customdata[1]:.1f} m, depth %{customdata[2]:.2f} mm, stiffness −%{customdata[3]:.0f} %<extra></extra>",
+    });
+  }
+  return traces;
+}
+
+function mapLayout(labels, map) {
+  const rowHeight = labels.length > 30 ? 14 : 34;
+  return baseLayout({
+    height: Math.min(900, Math.max(320, 140 + rowHeight * labels.length)),
+    hovermode: "closest",
+    showlegend: false,
+    margin: { l: 190, r: 24, t: 16, b: 52 },
+    xaxis: {
+      title: { text: "Chainage (m)" }, gridcolor: "#e3e6ea", zeroline: false,
+      range: map.chainage_min_m !== null && map.chainage_min_m !== undefined ? [map.chainage_min_m, map.chainage_max_m] : undefined,
+    },
+    yaxis: { type: "category", categoryorder: "array", categoryarray: labels.slice().reverse(), automargin: true, gridcolor: "#eef0f3", fixedrange: true },
+  });
+}
+
+/** Zones from either this view's clustering or the service's defect register, ranked. */
+function normaliseZones(list, nRuns) {
+  const zones = list.map((z) => ({
+    ...z,
+    runs_seen: z.runs_seen ?? z.n_runs ?? 1,
+    runs_total: z.runs_total ?? nRuns,
+    depth_mm: z.depth_mm ?? z.depth_median_mm ?? z.depth_max_mm,
+  }));
+  zones.sort((a, b) => (b.severity ?? b.depth_mm) - (a.severity ?? a.depth_mm) || b.runs_seen - a.runs_seen);
+  zones.forEach((z, i) => {
+    z.rank = i + 1;
+  });
+  return zones;
+}
+
+function zoneTable(zones, onSelect) {
+  const cols = ZONE_COLUMNS.filter((c) => !c.optional || zones.some((z) => z[c.key] !== undefined && z[c.key] !== null));
+  let sortKey = "rank";
+  let sortDir = 1;
+  const tbody = h("tbody", {});
+  const headers = {};
+  const headRow = h("tr", {});
+  for (const c of cols) {
+    const btn = h("button", { type: "button", class: "sort", onclick: () => sortBy(c.key) }, c.label);
+    const th = h("th", { scope: "col", class: c.num ? "num" : "" }, btn);
+    headers[c.key] = th;
+    headRow.appendChild(th);
+  }
+  headRow.appendChild(h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")));
+  let selected = null;
+
+  function sortBy(key) {
+    if (sortKey === key) sortDir = -sortDir;
+    else {
+      sortKey = key;
+      sortDir = ["depth_mm", "depth_max_mm", "stiffness_loss_pct", "runs_seen", "trend_mm_per_month"].includes(key) ? -1 : 1;
+    }
+    draw();
+    announce(`Zones sorted by ${cols.find((c) => c.key === key).label}, ${sortDir > 0 ? "ascending" : "descending"}.`);
+  }
+
+  function draw() {
+    const col = cols.find((c) => c.key === sortKey);
+    const sorted = zones.slice().sort((a, b) => {
+      const va = col.get(a);
+      const vb = col.get(b);
+      if (va === vb) return a.rank - b.rank;
+      if (va === null || va === undefined) return 1;
+      if (vb === null || vb === undefined) return -1;
+      return (va < vb ? -1 : 1) * sortDir;
+    });
+    for (const [key, th] of Object.entries(headers)) {
+      if (key === sortKey) th.setAttribute("aria-sort", sortDir > 0 ? "ascending" : "descending");
+      else th.removeAttribute("aria-sort");
+    }
+    clear(tbody);
+    for (const z of sorted) {
+      const btn = h("button", {
+        type: "button", class: "button small", "aria-label": `Show the profiles around zone ${fmt(z.start_m, 1)} to ${fmt(z.end_m, 1)} m`,
+        onclick: () => {
+          selected = z;
+          for (const tr of tbody.querySelectorAll("tr")) tr.classList.remove("selected");
+          row.classList.add("selected");
+          onSelect(z);
+        },
+      }, "Profiles");
+      const row = h("tr", { class: z === selected ? "selected" : "", "data-zone": String(z.rank) },
+        cols.map((c) => (c.key === "rank"
+          ? h("th", { scope: "row", class: "num" }, String(z.rank))
+          : h("td", { class: c.num ? "num" : "" }, c.show ? c.show(z) : String(c.get(z) ?? "—")))),
+        h("td", {}, btn));
+      row.addEventListener("click", (e) => {
+        if (e.target.closest("button")) return;
+        btn.click();
+      });
+      tbody.appendChild(row);
+    }
+  }
+  draw();
+  return h("div", { class: "table-scroll zone-table-wrap" },
+    h("table", { class: "data sortable", id: "zone-table" },
+      h("caption", { class: "visually-hidden" }, "Zones of soft spots ranked by severity; column titles sort the table"),
+      h("thead", {}, headRow), tbody));
+}

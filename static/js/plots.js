@@ -1,0 +1,147 @@
+// Plotly helpers shared by the pages: colours, layouts, soft-spot shading and labels.
+
+import { h } from "./dom.js";
+
+// Okabe–Ito palette: distinguishable with the common forms of colour blindness.
+export const COLORS = {
+  fused: "#0072B2", // blue
+  front: "#009E73", // bluish green
+  rear: "#CC79A7", // reddish purple
+  truth: "#000000",
+  accel: "#0072B2",
+  pitch: "#D55E00", // vermillion
+  speed: "#56B4E9",
+  spotFill: "rgba(230, 159, 0, 0.22)", // orange
+  spotLine: "#B26F00",
+  truthFill: "rgba(86, 180, 233, 0.20)", // sky blue
+  truthLine: "#0072B2",
+};
+
+/** Plotly, or an explanation of why it is not there. */
+export function plotly() {
+  if (!window.Plotly) throw new Error("plotly.js did not load from /static/vendor/plotly.min.js");
+  return window.Plotly;
+}
+
+export const CONFIG = {
+  responsive: true,
+  displaylogo: false,
+  scrollZoom: false,
+  modeBarButtonsToRemove: ["lasso2d", "select2d"],
+  toImageButtonOptions: { format: "png", scale: 2 },
+};
+
+/** A base layout: chainage on x, readable fonts, legend on top. */
+export function baseLayout(extra = {}) {
+  return {
+    margin: { l: 64, r: 24, t: 36, b: 80 },
+    font: { family: "system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif", size: 13, color: "#1b1f24" },
+    paper_bgcolor: "#ffffff",
+    plot_bgcolor: "#ffffff",
+    hovermode: "x unified",
+    legend: { orientation: "h", x: 0, y: -0.2, yanchor: "top" },
+    xaxis: { title: { text: "Chainage (m)" }, showgrid: true, gridcolor: "#e3e6ea", zeroline: false },
+    yaxis: { title: { text: "Loaded level (mm)" }, showgrid: true, gridcolor: "#e3e6ea", zerolinecolor: "#9aa3ad" },
+    ...extra,
+  };
+}
+
+// Only SVG traces are used: WebGL traces (scattergl) compile code at run time, which the
+// service's Content-Security-Policy (script-src 'self') forbids. The server decimates instead.
+
+/** Rectangles shading each soft spot over the full plot height (layout.shapes). */
+export function softSpotShapes(spots, { fill = COLORS.spotFill, line = COLORS.spotLine, name = "soft-spot" } = {}) {
+  return spots.map((s) => ({
+    type: "rect",
+    xref: "x",
+    yref: "paper",
+    x0: s.start_m,
+    x1: s.end_m,
+    y0: 0,
+    y1: 1,
+    fillcolor: fill,
+    line: { color: line, width: 1, dash: "dot" },
+    layer: "below",
+    name,
+  }));
+}
+
+/** One text label per soft spot (layout.annotations): number, depth and stiffness loss. */
+export function softSpotLabels(spots, { prefix = "S", color = COLORS.spotLine } = {}) {
+  return spots.map((s, i) => ({
+    x: s.peak_m ?? (s.start_m + s.end_m) / 2,
+    xref: "x",
+    y: 1 + (i % 2) * 0.075,
+    yref: "paper",
+    yanchor: "bottom",
+    showarrow: false,
+    text: `${prefix}${i + 1}: ${Number(s.depth_mm).toFixed(2)} mm, −${Number(s.stiffness_loss_pct).toFixed(0)} %`,
+    font: { size: 11, color: "#1b1f24" },
+    bgcolor: "rgba(255,255,255,0.85)",
+    bordercolor: color,
+    borderwidth: 1,
+    borderpad: 2,
+    name: "soft-spot-label",
+  }));
+}
+
+/** Keyboard-accessible zoom/pan buttons for a chainage plot (Plotly's modebar is mouse-only). */
+export function zoomControls(gd, { label = "Plot view" } = {}) {
+  const P = plotly();
+  const range = () => {
+    const r = gd.layout.xaxis.range;
+    return [Number(r[0]), Number(r[1])];
+  };
+  const setRange = (a, b) => P.relayout(gd, { "xaxis.range": [a, b], "xaxis.autorange": false });
+  const zoom = (factor) => {
+    const [a, b] = range();
+    const mid = (a + b) / 2;
+    const half = ((b - a) / 2) * factor;
+    setRange(mid - half, mid + half);
+  };
+  const pan = (frac) => {
+    const [a, b] = range();
+    const d = (b - a) * frac;
+    setRange(a + d, b + d);
+  };
+  return h("div", { class: "plot-controls", role: "group", "aria-label": label },
+    h("button", { type: "button", class: "button small", onclick: () => zoom(0.5), "aria-label": "Zoom in" }, "Zoom in"),
+    h("button", { type: "button", class: "button small", onclick: () => zoom(2), "aria-label": "Zoom out" }, "Zoom out"),
+    h("button", { type: "button", class: "button small", onclick: () => pan(-0.4), "aria-label": "Pan towards lower chainage" }, "◀ Pan"),
+    h("button", { type: "button", class: "button small", onclick: () => pan(0.4), "aria-label": "Pan towards higher chainage" }, "Pan ▶"),
+    h("button", {
+      type: "button", class: "button small",
+      onclick: () => P.relayout(gd, { "xaxis.autorange": true, "yaxis.autorange": true }),
+    }, "Reset view"),
+  );
+}
+
+/** Zoom a plot's x axis to a window around [a, b]. */
+export function zoomTo(gd, a, b, margin = 0.75) {
+  const w = Math.max(b - a, 1);
+  plotly().relayout(gd, { "xaxis.range": [a - w * margin - 5, b + w * margin + 5], "xaxis.autorange": false });
+}
+
+/** Viridis sample (0..1) as an rgb string, for lines coloured by order (e.g. run date). */
+export function viridis(t) {
+  const stops = [
+    [0.0, [68, 1, 84]], [0.25, [59, 82, 139]], [0.5, [33, 145, 140]], [0.75, [94, 201, 98]], [1.0, [253, 231, 37]],
+  ];
+  const x = Math.max(0, Math.min(1, t));
+  for (let i = 1; i < stops.length; i += 1) {
+    if (x <= stops[i][0]) {
+      const [x0, c0] = stops[i - 1];
+      const [x1, c1] = stops[i];
+      const f = (x - x0) / (x1 - x0);
+      const c = c0.map((v, k) => Math.round(v + (c1[k] - v) * f));
+      return `rgb(${c[0]}, ${c[1]}, ${c[2]})`;
+    }
+  }
+  return "rgb(253, 231, 37)";
+}
+
+/** Resize every Plotly graph inside an element (after it becomes visible). */
+export function resizeAll(root) {
+  if (!window.Plotly) return;
+  for (const gd of root.querySelectorAll(".js-plotly-plot")) window.Plotly.Plots.resize(gd);
+}
