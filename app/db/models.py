@@ -116,6 +116,8 @@ class Run(Base):
         UniqueConstraint("track_id", "content_hash"),
         Index("ix_runs_track_id_recorded_at", "track_id", "recorded_at"),
         Index("ix_runs_status_heartbeat_at", "status", "heartbeat_at"),
+        # Never reuse the id of a deleted run: a client may still hold it.
+        {"sqlite_autoincrement": True},
     )
 
     id: Mapped[int] = mapped_column(primary_key=True)

@@ -12,29 +12,36 @@ from .common import Name, StrictModel
 Direction = Literal["increasing", "decreasing"]
 RunStatus = Literal["processing", "done", "failed"]
 RunStage = Literal["queued", "inverting", "storing"]
-TimeUnit = Literal["s", "ms", "epoch_s"]
-AccelUnit = Literal["m/s2", "g"]
-PitchRateUnit = Literal["rad/s", "deg/s"]
-SpeedUnit = Literal["m/s", "km/h"]
-Gravity = Literal["auto", "included", "removed"]
-
 _Column = Field(default=None, min_length=1, max_length=200)
 
 
+def _unit(allowed: str) -> Any:
+    return Field(
+        default=None, max_length=20, description=f"{allowed}; unset: from the column name/values"
+    )
+
+
 class CsvOptionsFields(StrictModel):
-    """Which column is which and in what unit (unset: recognised from the header)."""
+    """Which column is which and in what unit (unset: recognised from the header).
+
+    Units are checked by the CSV reader, which also takes common spellings (``m/s^2``,
+    ``dps``, ``kmh``); an unsupported unit is answered 422 naming the field.
+    """
 
     time_column: str | None = _Column
     accel_column: str | None = _Column
     pitch_rate_column: str | None = _Column
     speed_column: str | None = _Column
     chainage_column: str | None = _Column
-    time_unit: TimeUnit | None = Field(default=None, description="s, ms or epoch_s")
-    accel_unit: AccelUnit | None = Field(default=None, description="m/s2 or g")
-    pitch_rate_unit: PitchRateUnit | None = Field(default=None, description="rad/s or deg/s")
-    speed_unit: SpeedUnit | None = Field(default=None, description="m/s or km/h")
-    gravity: Gravity = Field(
-        default="auto", description="Whether the acceleration includes gravity (auto: detect)"
+    time_unit: str | None = _unit("s, ms or epoch_s")
+    accel_unit: str | None = _unit("m/s2 (also m/s^2, mps2) or g")
+    pitch_rate_unit: str | None = _unit("rad/s (also radps) or deg/s (also dps)")
+    speed_unit: str | None = _unit("m/s (also mps) or km/h (also kmh, kph)")
+    chainage_unit: str | None = _unit("m or km")
+    gravity: str = Field(
+        default="auto",
+        max_length=20,
+        description="auto, included or removed: whether the acceleration includes gravity",
     )
 
 

@@ -13,12 +13,12 @@ from typing import Any
 import numpy as np
 
 from app.core.errors import ApiError
-from engine.errors import LogFormatError
+from engine.errors import LogFormatError, ParameterError
 from engine.runlog import RunLog
 
 CSV_OPTION_NAMES = (
     "time_column", "accel_column", "pitch_rate_column", "speed_column", "chainage_column",
-    "time_unit", "accel_unit", "pitch_rate_unit", "speed_unit", "gravity",
+    "time_unit", "accel_unit", "pitch_rate_unit", "speed_unit", "chainage_unit", "gravity",
 )  # fmt: skip
 """Form/JSON fields passed to :class:`engine.logio.CsvOptions` unchanged."""
 
@@ -52,7 +52,12 @@ def parse_csv(data: bytes, options: dict[str, Any], field: str = "file") -> RunL
     # even while it is being replaced.
     from engine.logio import CsvOptions, read_run_csv
 
-    opts = CsvOptions(**{k: options.get(k) for k in CSV_OPTION_NAMES if options.get(k) is not None})
+    try:
+        opts = CsvOptions.from_dict({k: v for k, v in options.items() if v is not None})
+    except ParameterError as exc:
+        message = str(exc)
+        named = [k for k in CSV_OPTION_NAMES if k in message]
+        raise ApiError(422, message, field=named[0] if named else None) from None
     if not data:
         raise ApiError(422, "the uploaded file is empty", field=field)
     try:

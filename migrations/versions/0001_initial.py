@@ -108,6 +108,7 @@ def upgrade() -> None:
         sa.PrimaryKeyConstraint("id", name=op.f("pk_runs")),
         sa.UniqueConstraint("idempotency_key", name=op.f("uq_runs_idempotency_key")),
         sa.UniqueConstraint("track_id", "content_hash", name=op.f("uq_runs_track_id_content_hash")),
+        sqlite_autoincrement=True,
     )
     op.create_index("ix_runs_track_id_recorded_at", "runs", ["track_id", "recorded_at"])
     op.create_index("ix_runs_status_heartbeat_at", "runs", ["status", "heartbeat_at"])

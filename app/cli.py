@@ -1,0 +1,116 @@
+"""Management commands: ``python -m app <command>``.
+
+    migrate              apply the database migrations
+    demo                 store a simulated demo run (track "demo", two soft zones) if absent
+    create-key NAME      create an API key for a pipeline (printed once, stored hashed)
+    list-keys            list API keys (id, name, prefix, state)
+    revoke-key ID        revoke an API key
+
+The database is the service's: ``DATABASE_URL`` or ``TRACKPROFILE_DATA_DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from sqlalchemy import select
+
+from app.core.config import get_settings
+from app.core.errors import ApiError
+from app.core.security import generate_key, hash_key, key_prefix
+from app.db.base import utcnow
+from app.db.migrate import upgrade
+from app.db.models import ApiKey
+from app.db.session import Database
+from app.schemas.simulate import SimulateRequest
+from app.services.context import AppContext
+from app.services.simulation import simulate_and_submit
+
+
+def _db() -> Database:
+    db = Database(get_settings().sqlalchemy_url)
+    upgrade(db)
+    return db
+
+
+def cmd_migrate(_ns: argparse.Namespace) -> int:
+    db = _db()
+    print(f"database at the latest schema: {db.engine.url.render_as_string(hide_password=True)}")
+    return 0
+
+
+def cmd_demo(ns: argparse.Namespace) -> int:
+    ctx = AppContext(settings=get_settings(), db=_db())
+    body = SimulateRequest(track=ns.track, name="Demo run (simulated, two soft zones)")
+    try:
+        run_id, created, truth = simulate_and_submit(ctx, body)
+    except ApiError as exc:
+        print(f"demo run not stored: {exc.message}", file=sys.stderr)
+        return 2
+    zones = ", ".join(f"{z.start_m:g}-{z.end_m:g} m ({z.loss:.0%} loss)" for z in truth.zones)
+    state = "stored" if created else "already stored"
+    print(f"demo run {run_id} {state} on track {ns.track!r}: soft zones at {zones}")
+    return 0
+
+
+def cmd_create_key(ns: argparse.Namespace) -> int:
+    db = _db()
+    key = generate_key()
+    with db.session() as s:
+        row = ApiKey(name=ns.name, prefix=key_prefix(key), key_hash=hash_key(key))
+        s.add(row)
+        s.commit()
+        print(f"API key {row.id} ({ns.name}) created. Send it as the X-API-Key header;")
+        print("it is shown only now (only its hash is stored):")
+        print(key)
+    return 0
+
+
+def cmd_list_keys(_ns: argparse.Namespace) -> int:
+    with _db().session() as s:
+        for k in s.scalars(select(ApiKey).order_by(ApiKey.id)):
+            state = f"revoked {k.revoked_at:%Y-%m-%d %H:%M}" if k.revoked_at else "active"
+            print(f"{k.id}\t{k.name}\t{k.prefix}...\t{state}")
+    return 0
+
+
+def cmd_revoke_key(ns: argparse.Namespace) -> int:
+    with _db().session() as s:
+        row = s.get(ApiKey, ns.id)
+        if row is None:
+            print(f"no API key with id {ns.id}", file=sys.stderr)
+            return 2
+        if row.revoked_at is None:
+            row.revoked_at = utcnow()
+            s.commit()
+        print(f"API key {row.id} ({row.name}) revoked")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m app", description="TrackProfile service admin")
+    sub = p.add_subparsers(dest="command", required=True)
+    sub.add_parser("migrate", help="apply the database migrations").set_defaults(fn=cmd_migrate)
+    d = sub.add_parser("demo", help="store a simulated demo run")
+    d.add_argument("--track", default="demo", help="track name (default: demo)")
+    d.set_defaults(fn=cmd_demo)
+    c = sub.add_parser("create-key", help="create an API key")
+    c.add_argument("name", help="who or what uses the key, e.g. 'fleet-pipeline'")
+    c.set_defaults(fn=cmd_create_key)
+    sub.add_parser("list-keys", help="list API keys").set_defaults(fn=cmd_list_keys)
+    r = sub.add_parser("revoke-key", help="revoke an API key")
+    r.add_argument("id", type=int, help="key id (see list-keys)")
+    r.set_defaults(fn=cmd_revoke_key)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run a management command; returns the exit code."""
+    ns = build_parser().parse_args(argv)
+    return int(ns.fn(ns))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

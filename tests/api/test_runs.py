@@ -1,0 +1,469 @@
+"""Runs: uploads (multipart, raw IMU, gzip, JSON), reading results, listing, deleting, repeats."""
+
+from __future__ import annotations
+
+import gzip
+import io
+import json
+
+import numpy as np
+import pytest
+from api_support import assert_zones_match, row_counts, sample, to_raw_imu, upload
+from starlette.testclient import TestClient
+
+SAMPLES = ["sample_clean_exact", "sample_noisy"]
+
+
+@pytest.mark.parametrize("name", SAMPLES)
+def test_sample_upload_finds_the_true_soft_zones(client: TestClient, name: str) -> None:
+    """Each shared sample run, uploaded as a file, gives its true soft zones within ±1.5 m."""
+    data, truth = sample(name)
+    r = upload(
+        client,
+        data,
+        f"{name}.csv",
+        track="line A",
+        start_chainage_m=truth["start_chainage_m"],
+        direction=truth["direction"],
+    )
+    assert r.status_code == 201, r.text
+    run = r.json()
+    assert run["status"] == "done"
+    assert run["duplicate"] is False
+    assert run["original_filename"] == f"{name}.csv"
+    assert run["sample_rate_hz"] == pytest.approx(truth["sample_rate_hz"])
+    assert run["n_samples"] == data.count(b"\n") - 1
+    assert run["speed_min_mps"] == pytest.approx(truth["speed"])
+    assert run["quality"]["coverage_m"] > 0.6 * truth["track"]["length"]
+    spots = client.get(f"/api/v1/runs/{run['id']}/soft-spots").json()
+    assert_zones_match(spots, truth["zones"])
+    for spot, zone in zip(spots, truth["zones"], strict=True):
+        assert spot["start_m"] <= spot["peak_m"] <= spot["end_m"]
+        assert spot["depth_mm"] > 0
+        assert abs(spot["stiffness_loss_pct"] - 100 * zone["stiffness_loss"]) <= 10
+
+
+def test_raw_imu_log_with_unit_options(client: TestClient) -> None:
+    """A logger's format (epoch s, g with gravity, deg/s, km/h) under its own column names is
+    read with the column/unit options and gives the same zones as the canonical file."""
+    data, truth = sample("sample_noisy")
+    raw = to_raw_imu(data, names=("t_epoch", "acc_vert", "rate_pitch", "v"), delimiter=";")
+    r = upload(
+        client,
+        raw,
+        "logger.csv",
+        track="raw",
+        start_chainage_m=truth["start_chainage_m"],
+        time_column="t_epoch",
+        accel_column="acc_vert",
+        pitch_rate_column="rate_pitch",
+        speed_column="v",
+        time_unit="epoch_s",
+        accel_unit="g",
+        pitch_rate_unit="deg/s",
+        speed_unit="km/h",
+        gravity="included",
+    )
+    assert r.status_code == 201, r.text
+    run = r.json()
+    assert run["duration_s"] == pytest.approx(20.533, abs=0.01)  # epoch time shifted to 0
+    assert run["speed_max_mps"] == pytest.approx(22.0, rel=1e-6)  # km/h converted
+    assert run["options"]["csv"]["accel_unit"] == "g"
+    assert_zones_match(client.get(f"/api/v1/runs/{run['id']}/soft-spots").json(), truth["zones"])
+
+
+def test_raw_imu_log_recognised_from_its_header(client: TestClient) -> None:
+    """The documented raw format (timestamp, az_g, gyro_y_dps, speed_kmh) needs no options."""
+    data, truth = sample("sample_noisy")
+    r = upload(
+        client, to_raw_imu(data), "raw.csv", track="raw", start_chainage_m=truth["start_chainage_m"]
+    )
+    assert r.status_code == 201, r.text
+    assert_zones_match(
+        client.get(f"/api/v1/runs/{r.json()['id']}/soft-spots").json(), truth["zones"]
+    )
+
+
+def test_wrong_unit_option_changes_the_result(client: TestClient) -> None:
+    """Unit options are applied, not ignored: reading deg/s as rad/s makes the log unusable
+    (or gives different soft spots), so the options visibly matter."""
+    data, truth = sample("sample_noisy")
+    raw = to_raw_imu(data)
+    r = upload(
+        client,
+        raw,
+        "raw.csv",
+        track="raw",
+        start_chainage_m=truth["start_chainage_m"],
+        pitch_rate_unit="rad/s",
+    )
+    if r.status_code == 201:
+        spots = client.get(f"/api/v1/runs/{r.json()['id']}/soft-spots").json()
+        with pytest.raises(AssertionError):
+            assert_zones_match(spots, truth["zones"])
+    else:
+        assert r.status_code == 422
+
+
+def test_gzip_upload_is_accepted(client: TestClient, synthetic_run) -> None:
+    """A gzip-compressed CSV is read like the plain file."""
+    r = upload(
+        client,
+        gzip.compress(synthetic_run["csv"]),
+        "run.csv.gz",
+        track="gz",
+        start_chainage_m=synthetic_run["start_chainage_m"],
+    )
+    assert r.status_code == 201, r.text
+    assert r.json()["n_samples"] == synthetic_run["n_samples"]
+    assert_zones_match(
+        client.get(f"/api/v1/runs/{r.json()['id']}/soft-spots").json(), synthetic_run["zones"]
+    )
+
+
+def test_json_body_with_columns(client: TestClient, synthetic_run) -> None:
+    """A pipeline may send canonical SI arrays as JSON; the run is processed like an upload."""
+    a = np.loadtxt(io.BytesIO(synthetic_run["csv"]), delimiter=",", skiprows=1)
+    body = {
+        "track": "json",
+        "start_chainage_m": synthetic_run["start_chainage_m"],
+        "recorded_at": "2025-06-01T08:30:00+02:00",
+        "columns": {
+            "time_s": a[:, 0].tolist(),
+            "accel_z_mps2": a[:, 1].tolist(),
+            "pitch_rate_radps": a[:, 2].tolist(),
+            "speed_mps": a[:, 3].tolist(),
+        },
+    }
+    r = client.post("/api/v1/runs", json=body)
+    assert r.status_code == 201, r.text
+    run = r.json()
+    assert run["source"] == "json"
+    assert run["recorded_at"].startswith("2025-06-01T06:30:00")  # stored in UTC
+    assert_zones_match(
+        client.get(f"/api/v1/runs/{run['id']}/soft-spots").json(), synthetic_run["zones"]
+    )
+
+
+def test_json_body_with_csv_text_and_options(client: TestClient, synthetic_run) -> None:
+    """A pipeline may send the CSV text in JSON, with the same column/unit options."""
+    raw = to_raw_imu(synthetic_run["csv"]).decode()
+    body = {
+        "track": "json",
+        "start_chainage_m": synthetic_run["start_chainage_m"],
+        "csv": raw,
+        "accel_unit": "g",
+        "gravity": "included",
+        "filename": "../../etc/passwd",
+    }
+    r = client.post("/api/v1/runs", json=body)
+    assert r.status_code == 201, r.text
+    assert r.json()["original_filename"] == "passwd"  # kept as data, never as a path
+    assert_zones_match(
+        client.get(f"/api/v1/runs/{r.json()['id']}/soft-spots").json(), synthetic_run["zones"]
+    )
+
+
+@pytest.fixture
+def stored_run(client: TestClient, synthetic_run) -> dict:
+    """The synthetic run, uploaded and processed."""
+    r = upload(
+        client, synthetic_run["csv"], track="T1", start_chainage_m=synthetic_run["start_chainage_m"]
+    )
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+def test_profile_json_full_and_window(client: TestClient, stored_run) -> None:
+    """The profile is on a regular 0.25 m grid; a window returns exactly the points inside."""
+    rid = stored_run["id"]
+    full = client.get(f"/api/v1/runs/{rid}/profile").json()
+    x = np.array(full["chainage_m"])
+    assert full["n"] == x.size > 400
+    assert np.allclose(np.diff(x), 0.25)
+    assert x[0] == pytest.approx(stored_run["chainage_min_m"], abs=1e-9) or x[0] < 20
+    assert len(full["level_mm"]) == len(full["front_level_mm"]) == x.size
+    win = client.get(f"/api/v1/runs/{rid}/profile", params={"from_m": 60, "to_m": 80}).json()
+    wx = np.array(win["chainage_m"])
+    assert wx[0] == 60.0 and wx[-1] == 80.0 and wx.size == 81
+    inside = (x >= 60) & (x <= 80)
+    assert win["level_mm"] == [v for v, k in zip(full["level_mm"], inside, strict=True) if k]
+    # the soft zone is a dip of the fused level
+    lvl = np.array(win["level_mm"], dtype=float)
+    assert 70 <= wx[np.nanargmin(lvl)] <= 76
+
+
+def test_profile_csv_matches_json(client: TestClient, stored_run) -> None:
+    """?format=csv gives the same points as JSON, with a header naming columns and units."""
+    rid = stored_run["id"]
+    params = {"from_m": 50, "to_m": 55}
+    js = client.get(f"/api/v1/runs/{rid}/profile", params=params).json()
+    r = client.get(f"/api/v1/runs/{rid}/profile", params={**params, "format": "csv"})
+    assert r.status_code == 200
+    assert r.headers["content-type"].startswith("text/csv")
+    lines = r.text.strip().splitlines()
+    assert lines[0] == "chainage_m,level_mm,front_level_mm,rear_level_mm,baseline_mm"
+    rows = [ln.split(",") for ln in lines[1:]]
+    assert [float(r[0]) for r in rows] == js["chainage_m"]
+    assert [float(r[1]) for r in rows] == pytest.approx(js["level_mm"], abs=1e-6)
+
+
+def test_profile_window_must_be_ordered(client: TestClient, stored_run) -> None:
+    """to_m before from_m is a 422 naming to_m."""
+    r = client.get(f"/api/v1/runs/{stored_run['id']}/profile", params={"from_m": 9, "to_m": 1})
+    assert r.status_code == 422
+    assert r.json()["detail"]["field"] == "to_m"
+
+
+def test_soft_spots_json_and_csv(client: TestClient, stored_run) -> None:
+    """Soft spots come as the documented objects, and as CSV with the same numbers."""
+    rid = stored_run["id"]
+    spots = client.get(f"/api/v1/runs/{rid}/soft-spots").json()
+    assert spots and set(spots[0]) == {
+        "start_m", "end_m", "peak_m", "depth_mm", "stiffness_loss_pct"
+    }  # fmt: skip
+    assert stored_run["n_soft_spots"] == len(spots)
+    r = client.get(f"/api/v1/runs/{rid}/soft-spots", params={"format": "csv"})
+    lines = r.text.strip().splitlines()
+    assert lines[0] == "start_m,end_m,peak_m,depth_mm,stiffness_loss_pct"
+    assert len(lines) == len(spots) + 1
+    assert float(lines[1].split(",")[0]) == pytest.approx(spots[0]["start_m"], abs=1e-3)
+
+
+def test_signals_are_decimated_keeping_peaks(client: TestClient, stored_run, synthetic_run):
+    """Raw signals come back against time, at most 5000 points, with the extremes preserved."""
+    sig = client.get(f"/api/v1/runs/{stored_run['id']}/signals").json()
+    a = np.loadtxt(io.BytesIO(synthetic_run["csv"]), delimiter=",", skiprows=1)
+    assert sig["n_samples"] == a.shape[0]
+    n = len(sig["time_s"])
+    assert sig["decimated"] == (a.shape[0] > 5000)
+    assert n <= 5000
+    assert len(sig["accel_z_mps2"]) == len(sig["pitch_rate_radps"]) == len(sig["speed_mps"]) == n
+    assert max(sig["accel_z_mps2"]) == pytest.approx(a[:, 1].max())
+    assert min(sig["pitch_rate_radps"]) == pytest.approx(a[:, 2].min())
+    assert sig["time_s"][0] == 0 and sig["time_s"][-1] == pytest.approx(a[-1, 0] - a[0, 0])
+
+
+def test_run_metadata_and_listing(client: TestClient, synthetic_run) -> None:
+    """Runs are listed newest first, filtered by track, status and time, and paginated."""
+    csv = synthetic_run["csv"]
+    start = synthetic_run["start_chainage_m"]
+    ids = []
+    for track, when, tweak in (
+        ("north", "2025-01-01T00:00:00Z", b""),
+        ("north", "2025-03-01T00:00:00Z", b"\n"),
+        ("south", "2025-02-01T00:00:00Z", b""),
+    ):
+        r = upload(client, csv + tweak, track=track, start_chainage_m=start, recorded_at=when)
+        assert r.status_code == 201, r.text
+        ids.append(r.json()["id"])
+    all_runs = client.get("/api/v1/runs").json()
+    assert all_runs["count"] == 3
+    assert [r["id"] for r in all_runs["data"]] == [ids[1], ids[2], ids[0]]
+    north = client.get("/api/v1/runs", params={"track": "north"}).json()
+    assert {r["id"] for r in north["data"]} == {ids[0], ids[1]}
+    tid = north["data"][0]["track_id"]
+    assert client.get("/api/v1/runs", params={"track": str(tid)}).json()["count"] == 2
+    window = client.get(
+        "/api/v1/runs",
+        params={"recorded_from": "2025-01-15T00:00:00Z", "recorded_to": "2025-02-15T00:00:00Z"},
+    ).json()
+    assert [r["id"] for r in window["data"]] == [ids[2]]
+    assert client.get("/api/v1/runs", params={"status": "failed"}).json()["count"] == 0
+    page = client.get("/api/v1/runs", params={"limit": 1, "offset": 1}).json()
+    assert page["count"] == 3 and [r["id"] for r in page["data"]] == [ids[2]]
+    assert client.get("/api/v1/tracks/north").json()["n_runs"] == 2
+    assert client.get("/api/v1/runs", params={"track": "nowhere"}).status_code == 404
+
+
+def test_delete_run_removes_its_data(client: TestClient, settings, synthetic_run) -> None:
+    """DELETE removes the run with its profile, soft spots and signals; then it is 404."""
+    empty = row_counts(settings)
+    r = upload(
+        client, synthetic_run["csv"], track="T", start_chainage_m=synthetic_run["start_chainage_m"]
+    )
+    rid = r.json()["id"]
+    stored = row_counts(settings)
+    assert stored["profile_points"] > 400 and stored["soft_spots"] >= 1
+    assert client.delete(f"/api/v1/runs/{rid}").status_code == 204
+    after = row_counts(settings)
+    assert after == {**empty, "tracks": 1}  # the track stays
+    assert client.get(f"/api/v1/runs/{rid}").status_code == 404
+    assert client.delete(f"/api/v1/runs/{rid}").status_code == 404
+    assert client.get(f"/api/v1/runs/{rid}/profile").status_code == 404
+
+
+def test_same_file_twice_is_stored_once(client: TestClient, settings, synthetic_run) -> None:
+    """Resending a file to the same track returns the stored run (200, duplicate) and adds
+    nothing; the same file on another track is another run."""
+    start = synthetic_run["start_chainage_m"]
+    first = upload(client, synthetic_run["csv"], track="T", start_chainage_m=start)
+    assert first.status_code == 201
+    before = row_counts(settings)
+    again = upload(client, synthetic_run["csv"], track="T", start_chainage_m=start)
+    assert again.status_code == 200
+    assert again.json()["id"] == first.json()["id"]
+    assert again.json()["duplicate"] is True
+    assert row_counts(settings) == before
+    other = upload(client, synthetic_run["csv"], track="U", start_chainage_m=start)
+    assert other.status_code == 201
+    assert other.json()["id"] != first.json()["id"]
+
+
+def test_idempotency_key(client: TestClient, settings, synthetic_run) -> None:
+    """A repeated Idempotency-Key returns the first run; reused for other content it is a 409
+    that stores nothing."""
+    start = synthetic_run["start_chainage_m"]
+    key = {"Idempotency-Key": "pipeline-42"}
+    first = upload(client, synthetic_run["csv"], track="T", start_chainage_m=start, headers=key)
+    assert first.status_code == 201
+    before = row_counts(settings)
+    again = upload(client, synthetic_run["csv"], track="T", start_chainage_m=start, headers=key)
+    assert (again.status_code, again.json()["id"]) == (200, first.json()["id"])
+    other = upload(
+        client, synthetic_run["csv"] + b"\n", track="T", start_chainage_m=start, headers=key
+    )
+    assert other.status_code == 409
+    assert other.json()["detail"]["field"] == "Idempotency-Key"
+    assert row_counts(settings) == before
+
+
+def test_unknown_run_is_404_everywhere(client: TestClient) -> None:
+    """Every per-run endpoint answers 404 for a run that does not exist."""
+    for path in ("", "/profile", "/soft-spots", "/signals"):
+        r = client.get(f"/api/v1/runs/12345{path}")
+        assert r.status_code == 404, path
+        assert "12345" in r.json()["detail"]["message"]
+
+
+# ------------------------------------------------------------------------------------------
+# Bad input: a clear 4xx naming the problem, and nothing stored
+# ------------------------------------------------------------------------------------------
+
+GOOD = "time_s,accel_z_mps2,pitch_rate_radps,speed_mps\n"
+
+
+def _csv(rows: list[str], header: str = GOOD) -> bytes:
+    return (header + "\n".join(rows) + "\n").encode()
+
+
+def _rows(n: int = 3000, dt: float = 0.001, v: float = 25.0) -> list[str]:
+    return [f"{i * dt:.3f},0.0,0.0,{v}" for i in range(n)]
+
+
+BAD_UPLOADS = {
+    "empty file": (b"", {}, 422, {"field": "file"}),
+    "header only": (GOOD.encode(), {}, 422, {}),
+    "missing pitch column": (
+        b"time_s,accel_z_mps2,speed_mps\n0,0,20\n0.001,0,20\n", {}, 422,
+        {"column": "pitch_rate_radps"},
+    ),
+    "text in a number": (
+        _csv([*_rows(5), "0.005,abc,0.0,25.0", *_rows(5)[1:]]), {}, 422,
+        {"column": "accel_z_mps2", "row": 7},
+    ),
+    "NaN value": (
+        _csv([*_rows(4), "0.004,nan,0.0,25.0", *_rows(300)[5:]]), {}, 422,
+        {"column": "accel_z_mps2", "row": 6},
+    ),
+    "time going back": (
+        _csv([*_rows(8), "0.0075,0,0,25", *_rows(300)[9:]]), {}, 422, {"column": "time_s"},
+    ),
+    "too short to invert": (_csv(_rows(1000)), {}, 422, {}),
+    "unknown vehicle": (_csv(_rows()), {"vehicle": "tgv"}, 422, {"field": "vehicle"}),
+    "unknown track id": (_csv(_rows()), {"track": None, "track_id": 77}, 422,
+                         {"field": "track_id"}),
+    "track and track id": (_csv(_rows()), {"track_id": 1}, 422, {}),
+    "no track": (_csv(_rows()), {"track": None}, 422, {}),
+    "no start chainage": (_csv(_rows()), {"start_chainage_m": None}, 422,
+                          {"field": "start_chainage_m"}),
+    "start chainage not a number": (_csv(_rows()), {"start_chainage_m": "ten"}, 422,
+                                    {"field": "start_chainage_m"}),
+    "bad direction": (_csv(_rows()), {"direction": "up"}, 422, {"field": "direction"}),
+    "unsupported unit": (_csv(_rows()), {"speed_unit": "mph"}, 422, {"field": "speed_unit"}),
+    "unknown form field": (_csv(_rows()), {"colour": "red"}, 422, {"field": "colour"}),
+    "bad recorded_at": (_csv(_rows()), {"recorded_at": "yesterday"}, 422,
+                        {"field": "recorded_at"}),
+    "absurd acceleration": (_csv([f"{i / 1000:.3f},1e6,0,25" for i in range(3000)]), {}, 422,
+                            {"column": "accel_z_mps2"}),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(BAD_UPLOADS))
+def test_bad_upload_is_refused_and_stores_nothing(client: TestClient, settings, case) -> None:
+    """Each malformed upload is answered 4xx with a message naming the problem (field,
+    column, row) and leaves the database unchanged."""
+    data, fields, status, facts = BAD_UPLOADS[case]
+    form = {"track": "T", "start_chainage_m": "10"} | fields
+    before = row_counts(settings)
+    r = upload(client, data, **form)
+    assert r.status_code == status, r.text
+    detail = r.json()["detail"]
+    assert isinstance(detail["message"], str) and len(detail["message"]) > 10
+    for key, value in facts.items():
+        assert detail.get(key) == value, detail
+    assert row_counts(settings) == before
+
+
+def test_upload_without_file_part(client: TestClient, settings) -> None:
+    """A multipart request without 'file' is a 422 naming the file field."""
+    before = row_counts(settings)
+    r = client.post("/api/v1/runs", data={"track": "T"}, files={"other": ("x", b"1")})
+    assert r.status_code == 422
+    assert r.json()["detail"]["field"] in ("file", "other")
+    r = client.post(
+        "/api/v1/runs",
+        data={"track": "T", "file": "not a file"},
+        headers={"content-type": "multipart/form-data; boundary=x"},
+    )
+    assert r.status_code in (400, 422)
+    assert row_counts(settings) == before
+
+
+@pytest.mark.parametrize(
+    ("content", "ctype", "status"),
+    [
+        (b"time_s,accel\n0,1\n", "text/csv", 415),
+        (b"{not json", "application/json", 400),
+        (b"", "application/json", 400),
+        (b"[1, 2, 3]", "application/json", 422),
+        (b'{"track": "T", "start_chainage_m": 1}', "application/json", 422),
+        (
+            b'{"track": "T", "csv": "a,b\\n1,2\\n", "columns": {"time_s": [0, 1]}}',
+            "application/json",
+            422,
+        ),
+        (
+            b'{"track": "T", "start_chainage_m": 1, "columns": {"time_s": [0, 0.001, 0.002],'
+            b'"accel_z_mps2": [0, 0], "pitch_rate_radps": [0, 0, 0], "speed_mps": [20, 20, 20]}}',
+            "application/json",
+            422,
+        ),
+    ],
+)
+def test_bad_request_bodies(client: TestClient, settings, content, ctype, status) -> None:
+    """Wrong content type, invalid JSON, wrong shapes and unequal columns are 4xx, not 5xx."""
+    before = row_counts(settings)
+    r = client.post("/api/v1/runs", content=content, headers={"content-type": ctype})
+    assert r.status_code == status, r.text
+    assert r.json()["detail"]["message"]
+    assert row_counts(settings) == before
+
+
+def test_upload_over_the_size_limit(start_app, settings, synthetic_run) -> None:
+    """An upload over TRACKPROFILE_MAX_UPLOAD_MB is a 413 and stores nothing, whether the
+    size is declared (Content-Length) or only found while reading (chunked)."""
+    c = start_app(max_upload_mb=0.05)
+    before = row_counts(settings)
+    r = upload(c, synthetic_run["csv"], track="T", start_chainage_m=12)
+    assert r.status_code == 413
+    assert "limit" in r.json()["detail"]["message"]
+
+    def chunks():
+        body = json.dumps({"track": "T", "csv": synthetic_run["csv"].decode()}).encode()
+        for i in range(0, len(body), 8192):
+            yield body[i : i + 8192]
+
+    r = c.post("/api/v1/runs", content=chunks(), headers={"content-type": "application/json"})
+    assert r.status_code == 413
+    assert row_counts(settings) == before
