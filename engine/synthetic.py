@@ -78,6 +78,7 @@ def make_run(
     vehicle: VehicleParams = TABLE1,
     params: TrackParams | None = None,
     end_margin_m: float = 10.0,
+    track_seed: int | None = None,
 ) -> SyntheticRun:
     """Simulate a run over a track with soft zones and write it through a sensor.
 
@@ -106,9 +107,12 @@ def make_run(
         Vehicle and track.
     end_margin_m : float
         Distance kept between the leading axle and the end of the track, m.
+    track_seed : int, optional
+        Seed of the stiffness scatter alone (default ``seed``): the same physical track for
+        runs with different sensor noise.
     """
     p = params or TrackParams()
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(seed if track_seed is None else track_seed)
     track = Track(length, params=p, zones=tuple(zones))
     if jitter > 0:
         k = track.k * np.clip(1.0 + jitter * rng.standard_normal(track.n_supports), 0.5, 1.5)

@@ -1,0 +1,123 @@
+"""Run-to-run alignment: the chainage offset that lines a profile up with a reference.
+
+Logged start chainages are off by metres (odometer slip, GPS). Two passes over the same track
+see the same loaded profile, so the offset is where their cross-correlation peaks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import ParameterError
+
+
+@dataclass(frozen=True)
+class Alignment:
+    """Result of aligning a profile to a reference.
+
+    Attributes
+    ----------
+    offset_m : float
+        Add this to the run's chainages to put them on the reference, m.
+    correlation : float
+        Normalised correlation of the two profiles at that offset (-1..1).
+    overlap_m : float
+        Length of track both profiles cover at that offset, m.
+    ok : bool
+        Whether the offset can be trusted (enough overlap, a clear correlation peak).
+    reason : str
+        Why not, when ``ok`` is false.
+    """
+
+    offset_m: float
+    correlation: float
+    overlap_m: float
+    ok: bool
+    reason: str = ""
+
+
+def align_profiles(
+    ref_chainage: NDArray[np.float64],
+    ref_level: NDArray[np.float64],
+    chainage: NDArray[np.float64],
+    level: NDArray[np.float64],
+    *,
+    max_shift_m: float = 10.0,
+    min_overlap_m: float = 60.0,
+    min_correlation: float = 0.5,
+) -> Alignment:
+    """Chainage offset of a profile against a reference profile, by cross-correlation.
+
+    Parameters
+    ----------
+    ref_chainage, ref_level : ndarray
+        Reference profile on a regular grid, m and mm (NaN where unknown).
+    chainage, level : ndarray
+        Profile to align, on a regular grid of the same step, m and mm.
+    max_shift_m : float
+        Largest offset searched, m (either way).
+    min_overlap_m : float
+        Shortest common stretch accepted, m.
+    min_correlation : float
+        Smallest normalised correlation accepted at the best offset.
+
+    Returns
+    -------
+    Alignment
+        The offset to the nearest tenth of a grid step (parabolic peak refinement).
+    """
+    step = float(chainage[1] - chainage[0])
+    ref_step = float(ref_chainage[1] - ref_chainage[0])
+    if abs(step - ref_step) > 1e-9 * max(step, 1.0):
+        raise ParameterError(f"profiles must share a grid step: {ref_step} m vs {step} m")
+    if max_shift_m <= 0:
+        raise ParameterError("max_shift_m must be > 0 m")
+    # put both on one grid: index = (chainage - origin) / step
+    origin = min(ref_chainage[0], chainage[0]) - max_shift_m - step
+    n = int(round((max(ref_chainage[-1], chainage[-1]) + max_shift_m - origin) / step)) + 2
+    a = np.full(n, np.nan)
+    b = np.full(n, np.nan)
+    ia = np.rint((ref_chainage - origin) / step).astype(int)
+    ib = np.rint((chainage - origin) / step).astype(int)
+    a[ia] = ref_level
+    b[ib] = level
+    k = int(np.ceil(max_shift_m / step))
+    lags = np.arange(-k, k + 1)
+    corr = np.full(lags.size, np.nan)
+    over = np.zeros(lags.size)
+    for j, lag in enumerate(lags):
+        # b shifted by lag samples: b_shift[i] = b[i - lag]
+        if lag >= 0:
+            x, y = a[lag:], b[: n - lag]
+        else:
+            x, y = a[:lag], b[-lag:]
+        m = np.isfinite(x) & np.isfinite(y)
+        cnt = int(m.sum())
+        over[j] = cnt * step
+        if cnt * step < min_overlap_m:
+            continue
+        xm, ym = x[m] - x[m].mean(), y[m] - y[m].mean()
+        den = np.sqrt(np.dot(xm, xm) * np.dot(ym, ym))
+        corr[j] = np.dot(xm, ym) / den if den > 0 else np.nan
+    if not np.any(np.isfinite(corr)):
+        return Alignment(0.0, float("nan"), float(over.max()), False,
+                         f"overlap shorter than {min_overlap_m:g} m")  # fmt: skip
+    j = int(np.nanargmax(corr))
+    best = float(corr[j])
+    shift = float(lags[j])
+    if 0 < j < lags.size - 1 and np.isfinite(corr[j - 1]) and np.isfinite(corr[j + 1]):
+        c0, c1, c2 = corr[j - 1], corr[j], corr[j + 1]
+        den = c0 - 2 * c1 + c2
+        if den < 0:
+            shift += 0.5 * (c0 - c2) / den
+    offset = shift * step
+    if j in (0, lags.size - 1):
+        return Alignment(offset, best, float(over[j]), False,
+                         f"best match at the edge of the +-{max_shift_m:g} m search")  # fmt: skip
+    if best < min_correlation:
+        return Alignment(offset, best, float(over[j]), False,
+                         f"correlation {best:.2f} below {min_correlation:g}")  # fmt: skip
+    return Alignment(offset, best, float(over[j]), True)
