@@ -583,10 +583,15 @@ def _read_header(lines: Iterable[str]) -> _Header:
         if len(samples) >= _SAMPLE_LINES:
             break
     delimiter = _sniff(header, samples)
-    names = []
-    for k, name in enumerate(_split(header, delimiter), 1):
-        name = name.strip().strip('"').strip()
-        names.append(name if name else f"column {k}")
+    raw_names = [n.strip().strip('"').strip() for n in _split(header, delimiter)]
+    if (
+        len(raw_names) > 2
+        and not raw_names[-1]
+        and samples
+        and all(len(_split(s, delimiter)) == len(raw_names) - 1 for s in samples)
+    ):
+        raw_names.pop()  # a trailing delimiter on the header line only
+    names = [n if n else f"column {k}" for k, n in enumerate(raw_names, 1)]
     return _Header(line=ln, names=names, delimiter=delimiter, samples=samples)
 
 
@@ -1027,10 +1032,10 @@ def _check_finite(table: _Table, j: int, name: str) -> None:
         )
 
 
-def _time(table: _Table, j: int, name: str, unit: str, explicit: bool) -> NDArray[np.float64]:
+def _time(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
     raw = table.columns[j]
     t = np.asarray(raw, dtype=np.float64)
-    if unit == "epoch_s" or (unit == "s" and not explicit and abs(t[0]) > EPOCH_THRESHOLD_S):
+    if unit == "epoch_s":
         t = t - t[0]
     elif unit == "ms":
         t = (t - t[0] if abs(t[0]) > EPOCH_MS_THRESHOLD else t) * 1e-3
@@ -1285,12 +1290,15 @@ def parse_run_csv(source: Source, options: CsvOptions | None = None) -> ParsedRu
         units[role] = _resolve_unit(role, opts, mapping)
 
     jt = idx["time"]
-    t_unit = units["time"] or _auto_time_unit(float(table.columns[jt][0]))
-    if units["time"] is None and t_unit != "s":
+    t0 = float(table.columns[jt][0])
+    t_unit = units["time"] or _auto_time_unit(t0)
+    if t_unit == "s" and opts.time_unit is None and abs(t0) > EPOCH_THRESHOLD_S:
+        t_unit = "epoch_s"  # seconds by its name, epoch seconds by its values
+    if opts.time_unit is None and (t_unit == "epoch_s" or abs(t0) > EPOCH_MS_THRESHOLD):
         what = "epoch milliseconds" if t_unit == "ms" else "epoch seconds"
-        notes.append(f"time column {names[jt]!r} read as {what} (from its values)")
+        notes.append(f"time column {names[jt]!r} read as {what}, shifted to start at 0")
     units["time"] = t_unit
-    t = _time(table, jt, names[jt], t_unit, opts.time_unit is not None)
+    t = _time(table, jt, names[jt], t_unit)
 
     ja = idx["accel"]
     a_unit = units["accel"]

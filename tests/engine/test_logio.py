@@ -403,6 +403,7 @@ ACCEPTED: dict[str, Callable[[], bytes]] = {
     "trailing delimiter on data lines": lambda: _csv(
         _lines()[:1] + [ln + "," for ln in _lines()[1:]]
     ),
+    "trailing delimiter on the header only": lambda: _csv([_lines()[0] + ","] + _lines()[1:]),
     "unused text column": lambda: _csv(
         [_lines()[0] + ",status"] + [ln + ',"OK, 3D fix"' for ln in _lines()[1:]]
     ),
@@ -523,6 +524,18 @@ def test_epoch_milliseconds_are_recognised_and_shifted_to_zero() -> None:
     assert parsed.log.time_s[0] == 0.0
     np.testing.assert_allclose(parsed.log.time_s, s["t"], atol=1e-9)
     assert any("epoch milliseconds" in n for n in parsed.notes)
+
+
+def test_epoch_seconds_in_a_column_named_time_s_are_shifted_and_reported() -> None:
+    """'time_s' holding epoch seconds reads as epoch_s from 0, with a note saying so."""
+    s = _signals()
+    data = _csv(_repr_lines(HEADER, [1.7638e9 + s["t"], s["a"], s["w"], s["v"]]))
+    parsed = parse_run_csv(data)
+    assert parsed.units["time"] == "epoch_s" and parsed.log.time_s[0] == 0.0
+    np.testing.assert_allclose(parsed.log.time_s, s["t"], atol=5e-7)
+    assert any("epoch seconds" in n for n in parsed.notes)
+    explicit = read_run_csv(data, CsvOptions(time_unit="s"))  # taken literally when explicit
+    assert explicit.time_s[0] == pytest.approx(1.7638e9)
 
 
 def test_explicit_options_win_over_names() -> None:
