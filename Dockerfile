@@ -1,0 +1,31 @@
+# TrackProfile service: uvicorn app.main:app on port 8000, database in the /data volume.
+FROM python:3.11-slim
+
+ENV PYTHONDONTWRITEBYTECODE=1 \
+    PYTHONUNBUFFERED=1 \
+    PIP_NO_CACHE_DIR=1 \
+    PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    TRACKPROFILE_DATA_DIR=/data
+
+RUN groupadd --system --gid 10001 app \
+    && useradd --system --uid 10001 --gid app --home-dir /app --shell /usr/sbin/nologin app
+
+WORKDIR /app
+COPY pyproject.toml README.md alembic.ini ./
+COPY engine ./engine
+COPY app ./app
+COPY migrations ./migrations
+COPY static ./static
+# Editable install: the app finds migrations/ and static/ next to its package.
+RUN pip install -e . \
+    && mkdir -p /data \
+    && chown app:app /data
+
+USER app
+VOLUME ["/data"]
+EXPOSE 8000
+
+HEALTHCHECK --interval=30s --timeout=5s --start-period=30s --retries=3 \
+    CMD ["python", "-c", "import sys, urllib.request; sys.exit(0 if urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=4).status == 200 else 1)"]
+
+CMD ["uvicorn", "app.main:app", "--host", "0.0.0.0", "--port", "8000", "--proxy-headers"]

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# One command from a fresh clone to a running service with a demo run:
+#   bash scripts/serve.sh        ->  http://127.0.0.1:8000
+# Installs into .venv, applies the migrations, stores a simulated demo run (track "demo",
+# two soft zones) and starts uvicorn. HOST and PORT override the address; the database is
+# ./data/trackprofile.db unless DATABASE_URL or TRACKPROFILE_DATA_DIR say otherwise.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. scripts/_venv.sh '.'
+python -m app migrate
+python -m app demo
+host="${HOST:-127.0.0.1}"
+port="${PORT:-8000}"
+echo "serving on http://${host}:${port}  (dashboard at /, API docs at /docs; Ctrl-C stops)"
+exec python -m uvicorn app.main:app --host "$host" --port "$port"

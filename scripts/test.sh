@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# One command that installs the test dependencies and runs the checks and the test suite:
+#   bash scripts/test.sh [pytest arguments]
+# Lint (ruff), type check (mypy, engine), then pytest. Installs Debian's chromium for the
+# browser tests when it is missing (needs root or sudo; without it those tests are skipped).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. scripts/_venv.sh '.[test]'
+
+if [ ! -x /usr/bin/chromium ]; then
+  sudo=""
+  if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null 2>&1; then sudo="sudo -n"; fi
+  if [ "$(id -u)" = 0 ] || [ -n "$sudo" ]; then
+    echo "installing chromium (Debian package) for the browser tests"
+    $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq chromium \
+      || echo "warning: chromium could not be installed; browser tests will be skipped" >&2
+  else
+    echo "warning: no root or sudo to install chromium; browser tests will be skipped" >&2
+  fi
+fi
+
+echo "== ruff check"
+ruff check .
+echo "== mypy"
+mypy
+echo "== pytest"
+python -m pytest "$@"

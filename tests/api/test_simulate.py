@@ -1,0 +1,80 @@
+"""POST /api/v1/simulate: synthetic runs processed like uploads, with their truth."""
+
+from __future__ import annotations
+
+import pytest
+from api_support import assert_zones_match, row_counts
+from starlette.testclient import TestClient
+
+BODY = {"track": "sim", "length_m": 220, "speed_mps": 25, "zones": [{"start_m": 100,
+        "end_m": 105, "loss": 0.5}], "seed": 7}  # fmt: skip
+
+
+def test_simulated_run_finds_its_zone(client: TestClient) -> None:
+    """A simulated run is stored and processed; its soft spot matches the simulated zone and
+    the answer carries the truth (zones, true loaded level)."""
+    r = client.post("/api/v1/simulate", json=BODY)
+    assert r.status_code == 201, r.text
+    body = r.json()
+    run = body["run"]
+    assert run["status"] == "done"
+    assert run["source"] == "simulate"
+    assert run["track"] == "sim"
+    assert run["options"]["simulation"]["zones"] == BODY["zones"]
+    spots = client.get(f"/api/v1/runs/{run['id']}/soft-spots").json()
+    assert_zones_match(spots, BODY["zones"])
+    truth = body["truth"]
+    assert truth["zones"] == BODY["zones"]
+    assert len(truth["chainage_m"]) == len(truth["level_mm"]) > 100
+    i_min = min(range(len(truth["level_mm"])), key=lambda i: truth["level_mm"][i] or 0)
+    assert 95 <= truth["chainage_m"][i_min] <= 110  # the true level dips at the zone
+    sig = client.get(f"/api/v1/runs/{run['id']}/signals").json()
+    assert sig["n_samples"] == run["n_samples"]
+
+
+def test_same_simulation_is_not_stored_twice(client: TestClient, settings) -> None:
+    """The simulation is deterministic in its seed: the same request returns the stored run;
+    another seed is another run."""
+    first = client.post("/api/v1/simulate", json=BODY).json()["run"]
+    before = row_counts(settings)
+    again = client.post("/api/v1/simulate", json=BODY)
+    assert again.status_code == 200
+    assert again.json()["run"]["id"] == first["id"]
+    assert row_counts(settings) == before
+    other = client.post("/api/v1/simulate", json={**BODY, "seed": 8})
+    assert other.status_code == 201
+    assert other.json()["run"]["id"] != first["id"]
+
+
+def test_zone_text_and_ideal_sensor(client: TestClient) -> None:
+    """Zones may be given as 'start:end:loss' text; an ideal sensor is allowed."""
+    body = {**BODY, "zones": ["100:105:0.5"], "sensor": "ideal", "jitter": 0}
+    r = client.post("/api/v1/simulate", json=body)
+    assert r.status_code == 201, r.text
+    assert r.json()["truth"]["zones"] == BODY["zones"]
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"zones": [{"start_m": 200, "end_m": 260, "loss": 0.5}]}, "zones.0.end_m"),
+        ({"zones": [{"start_m": 50, "end_m": 40, "loss": 0.5}]}, "zones.0"),
+        ({"zones": [{"start_m": 50, "end_m": 60, "loss": 1.5}]}, "zones.0.loss"),
+        ({"zones": ["50-60"]}, "zones.0"),
+        ({"length_m": 5000, "speed_mps": 5}, "length_m"),
+        ({"start_chainage_m": 2}, "start_chainage_m"),
+        ({"start_chainage_m": 215}, "start_chainage_m"),
+        ({"speed_mps": -3}, "speed_mps"),
+        ({"vehicle": "nope"}, "vehicle"),
+        ({"sensor": "noisy"}, "sensor"),
+        ({"wheels": 4}, "wheels"),
+    ],
+)
+def test_impossible_simulations_are_refused(client: TestClient, settings, change, field):
+    """Zones off the track, no room to run, too long a run, bad values, unknown vehicles and
+    unknown keys are 422 naming the field; nothing is stored."""
+    before = row_counts(settings)
+    r = client.post("/api/v1/simulate", json={**BODY, **change})
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"]["field"].startswith(field), r.json()
+    assert row_counts(settings) == before
