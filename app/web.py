@@ -37,7 +37,7 @@ def install_web(app: FastAPI, settings: Settings) -> None:
     static_dir = settings.static_dir
     plotly_js = plotly_js_path()
 
-    @app.get("/", include_in_schema=False)
+    @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     def dashboard() -> FileResponse:
         index = static_dir / "index.html"
         if not index.is_file():

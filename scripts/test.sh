@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # One command that installs the test dependencies and runs the checks and the test suite:
 #   bash scripts/test.sh [pytest arguments]
-# Lint (ruff), type check (mypy, engine), then pytest. Installs Debian's chromium for the
+# Lint (ruff), type check (mypy: engine and app), then pytest. Installs Debian's chromium for the
 # browser tests when it is missing (needs root or sudo; without it those tests are skipped).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,8 +20,9 @@ if [ ! -x /usr/bin/chromium ]; then
 fi
 
 echo "== ruff check"
-ruff check .
-echo "== mypy"
-mypy
+python -m ruff check .
+echo "== mypy (engine, app)"
+python -m mypy
+python -m mypy app
 echo "== pytest"
 python -m pytest "$@"

@@ -8,6 +8,7 @@ validation ``errors`` (each ``{"loc", "msg", "type"}``).
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -77,12 +78,12 @@ def too_large_detail(limit_bytes: int) -> dict[str, Any]:
     }
 
 
-def _loc_name(loc: tuple[Any, ...] | list[Any]) -> str:
+def _loc_name(loc: Sequence[Any]) -> str:
     parts = [str(p) for p in loc if p not in ("body", "query", "path", "header", "form")]
     return ".".join(parts)
 
 
-def validation_detail(errors: list[Any]) -> dict[str, Any]:
+def validation_detail(errors: Sequence[Any]) -> dict[str, Any]:
     """Detail of a 422 for pydantic/FastAPI validation errors, naming the first bad field."""
     cleaned = [
         {
@@ -96,7 +97,8 @@ def validation_detail(errors: list[Any]) -> dict[str, Any]:
         return {"message": "the request is not valid", "errors": []}
     first = cleaned[0]
     field = _loc_name(first["loc"])
-    message = f"{field}: {first['msg']}" if field else first["msg"]
+    msg = str(first["msg"])
+    message = f"{field}: {msg}" if field else msg
     if len(cleaned) > 1:
         message += f" (and {len(cleaned) - 1} more problem{'s' if len(cleaned) > 2 else ''})"
     detail: dict[str, Any] = {"message": message, "errors": cleaned}

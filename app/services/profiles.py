@@ -64,13 +64,13 @@ def insert_profile(
         ]
         if mark is not None:
             rows = list(zip([run_id] * (hi - lo), *columns, strict=True))
-            conn.exec_driver_sql(sql, rows)  # type: ignore[arg-type]
+            conn.exec_driver_sql(sql, rows)
         else:
             dict_rows = [
                 dict(zip(cols, r, strict=True))
                 for r in zip([run_id] * (hi - lo), *columns, strict=True)
             ]
-            conn.execute(insert(ProfilePoint.__table__), dict_rows)
+            conn.execute(insert(ProfilePoint), dict_rows)
     return n
 
 

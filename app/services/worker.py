@@ -16,9 +16,9 @@ import socket
 import threading
 import uuid
 from datetime import timedelta
-from typing import Any
+from typing import Any, cast
 
-from sqlalchemy import delete, or_, select, update
+from sqlalchemy import CursorResult, Update, delete, or_, select, update
 from sqlalchemy.orm import Session
 
 from app.core.errors import engine_error_detail
@@ -33,6 +33,12 @@ from .logs import unpack_log
 from .processing import invert, store_result
 
 log = logging.getLogger(__name__)
+
+
+def _rowcount(session: Session, statement: Update) -> int:
+    """Execute an UPDATE in the session's transaction; the number of rows it changed."""
+    result = cast("CursorResult[Any]", session.execute(statement))
+    return int(result.rowcount)
 
 
 def _pid_alive(pid: int) -> bool:
@@ -247,11 +253,12 @@ class Worker:
         with self.ctx.db.session() as s:
             # The UPDATE takes the write lock first and proves the claim is still ours (the run
             # may have been deleted or taken over meanwhile): then everything is written at once.
-            owned = s.execute(
+            owned = _rowcount(
+                s,
                 update(Run)
                 .where(Run.id == run_id, Run.claimed_by == self.id, Run.status == "processing")
-                .values(stage="storing", heartbeat_at=utcnow())
-            ).rowcount
+                .values(stage="storing", heartbeat_at=utcnow()),
+            )
             if owned != 1:
                 s.rollback()
                 log.info(
@@ -264,11 +271,12 @@ class Worker:
             s.commit()
 
     def _fail(self, s: Session, run_id: int, detail: dict[str, Any]) -> None:
-        res = s.execute(
+        failed = _rowcount(
+            s,
             update(Run)
             .where(Run.id == run_id, Run.claimed_by == self.id, Run.status == "processing")
-            .values(status="failed", stage=None, error=detail, processed_at=utcnow())
+            .values(status="failed", stage=None, error=detail, processed_at=utcnow()),
         )
-        if res.rowcount == 1:
+        if failed == 1:
             s.execute(delete(RunInput).where(RunInput.run_id == run_id))
         s.commit()

@@ -1,0 +1,208 @@
+"""Service benchmark: a 1-hour 1 kHz log uploaded, processed and stored, then window reads.
+
+    python benchmarks/bench_service.py [--port 8011] [--repeats 30]
+
+1. The 1-hour log (3.6 M samples, 30 m/s over 108 km, a 40 % soft zone every 2 km, realistic
+   sensor noise) comes from the engine's forward model via ``benchmarks/common.py`` (simulated
+   once, a few minutes, then cached under ``benchmarks/.cache``) and is written as a canonical
+   CSV with 8 significant digits (what a logger writes; ~160 MB).
+2. The service runs as a real uvicorn process on 127.0.0.1 with a fresh SQLite database. The
+   CSV is uploaded (multipart, streamed from disk) and the run polled until it is done: that
+   wall time is the end-to-end figure (upload + parse + check + queue + inversion + detection
+   + storing 432 000 profile rows). The server's resident memory is sampled every 10 ms
+   (psutil) for the peak.
+3. A 2 km chainage window of the stored profile is read ``--repeats`` times at random places:
+   through HTTP (``GET /api/v1/runs/{id}/profile?from_m=&to_m=``, JSON) and directly with the
+   service's storage function (one indexed query); medians and 95th percentiles.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+import psutil
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from common import CACHE, hour_log, machine  # noqa: E402
+
+
+def hour_csv() -> tuple[Path, float]:
+    """The 1-hour log as a canonical CSV on disk (cached) and its start chainage, m."""
+    from engine.logio import write_run_csv
+
+    log, start = hour_log()
+    path = CACHE / "hour_1kHz_8digits.csv"
+    if not path.exists():
+        tmp = path.with_suffix(".tmp")
+        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+            write_run_csv(log, fh, digits=8)
+        tmp.rename(path)
+    return path, start
+
+
+class PeakRss:
+    """Samples a process's resident set size in a thread; ``peak`` in bytes."""
+
+    def __init__(self, pid: int, interval: float = 0.01) -> None:
+        self.proc = psutil.Process(pid)
+        self.interval = interval
+        self.peak = 0
+        self._stop = threading.Event()
+        self._t = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self.peak = max(self.peak, self.proc.memory_info().rss)
+            except psutil.Error:
+                return
+            time.sleep(self.interval)
+
+    def __enter__(self) -> PeakRss:
+        self._t.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._t.join()
+
+
+def wait_healthy(base: str, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(f"{base}/healthz", timeout=2).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.2)
+    raise RuntimeError("the service did not come up")
+
+
+def pct(values: list[float], q: float) -> float:
+    return float(np.percentile(np.array(values), q))
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--port", type=int, default=8011)
+    ap.add_argument("--repeats", type=int, default=30)
+    ns = ap.parse_args()
+
+    csv_path, start = hour_csv()
+    size_mb = csv_path.stat().st_size / 1e6
+    with tempfile.TemporaryDirectory(prefix="bench-service-") as data_dir:
+        env = {
+            **os.environ,
+            "TRACKPROFILE_DATA_DIR": data_dir,
+            "TRACKPROFILE_MAX_UPLOAD_MB": "1000",
+        }
+        env.pop("DATABASE_URL", None)
+        base = f"http://127.0.0.1:{ns.port}"
+        server = subprocess.Popen(
+            [sys.executable, "-m", "uvicorn", "app.main:app", "--host", "127.0.0.1",
+             "--port", str(ns.port), "--log-level", "warning"],
+            cwd=REPO, env=env,
+        )  # fmt: skip
+        try:
+            wait_healthy(base)
+            rss_idle = psutil.Process(server.pid).memory_info().rss
+            with PeakRss(server.pid) as mem, httpx.Client(base_url=base, timeout=600) as c:
+                t0 = time.perf_counter()
+                with open(csv_path, "rb") as fh:
+                    r = c.post(
+                        "/api/v1/runs",
+                        files={"file": ("hour.csv", fh, "text/csv")},
+                        data={"track": "bench", "start_chainage_m": str(start)},
+                    )
+                t_accepted = time.perf_counter() - t0
+                r.raise_for_status()
+                run = r.json()
+                while run["status"] == "processing":
+                    time.sleep(0.05)
+                    run = c.get(f"/api/v1/runs/{run['id']}").json()
+                t_total = time.perf_counter() - t0
+            if run["status"] != "done":
+                print("run failed:", run["error"])
+                return 1
+
+            rng = np.random.default_rng(0)
+            lo, hi = run["chainage_min_m"], run["chainage_max_m"]
+            starts = rng.uniform(lo, hi - 2000.0, ns.repeats)
+            http_ms: list[float] = []
+            n_points = 0
+            with httpx.Client(base_url=base, timeout=60) as c:
+                c.get(f"/api/v1/runs/{run['id']}/profile", params={"from_m": lo, "to_m": lo + 2000})
+                for a in starts:
+                    t = time.perf_counter()
+                    resp = c.get(
+                        f"/api/v1/runs/{run['id']}/profile", params={"from_m": a, "to_m": a + 2000}
+                    )
+                    http_ms.append(1e3 * (time.perf_counter() - t))
+                    resp.raise_for_status()
+                    n_points = resp.json()["n"]
+        finally:
+            server.terminate()
+            server.wait(timeout=30)
+
+        # The same window read in-process: the storage layer's single indexed query.
+        from app.core.config import Settings
+        from app.db.session import Database
+        from app.services.profiles import read_profile
+
+        db = Database(Settings(data_dir=Path(data_dir)).sqlalchemy_url)
+        db_ms: list[float] = []
+        with db.session() as s:
+            for a in starts:
+                t = time.perf_counter()
+                cols = read_profile(s, run["id"], float(a), float(a) + 2000.0)
+                db_ms.append(1e3 * (time.perf_counter() - t))
+        db.dispose()
+        db_mb = sum(p.stat().st_size for p in Path(data_dir).glob("trackprofile.db*")) / 1e6
+
+    out = io.StringIO()
+    print(f"machine: {machine()}", file=out)
+    print(
+        f"log: {run['n_samples']} samples ({run['duration_s'] / 3600:.2f} h at "
+        f"{run['sample_rate_hz']:.0f} Hz), CSV {size_mb:.0f} MB; profile "
+        f"{(hi - lo) / 1000:.1f} km, {run['n_soft_spots']} soft spots; database {db_mb:.0f} MB",
+        file=out,
+    )
+    print(
+        f"upload -> done end to end: {t_total:.1f} s (answer 202 after {t_accepted:.1f} s: "
+        f"upload + parse + checks + queue; engine {run['processing_s']:.2f} s) (target <= 15 s)",
+        file=out,
+    )
+    print(
+        f"server resident memory: idle {rss_idle / 1e6:.0f} MB, peak {mem.peak / 1e6:.0f} MB "
+        "(target <= 1500 MB)",
+        file=out,
+    )
+    print(
+        f"2 km window ({n_points} points), {ns.repeats} reads: HTTP JSON median "
+        f"{statistics.median(http_ms):.1f} ms, p95 {pct(http_ms, 95):.1f} ms; storage query "
+        f"median {statistics.median(db_ms):.1f} ms, p95 {pct(db_ms, 95):.1f} ms "
+        "(target <= 50 ms)",
+        file=out,
+    )
+    print(out.getvalue(), end="")
+    _ = cols
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
