@@ -6,8 +6,8 @@ import contextlib
 import io
 
 import pytest
-from api_support import assert_zones_match
 
+from api.api_support import assert_zones_match
 from app.cli import main
 from app.core.config import get_settings
 

@@ -8,8 +8,9 @@ import json
 
 import numpy as np
 import pytest
-from api_support import assert_zones_match, row_counts, sample, to_raw_imu, upload
 from starlette.testclient import TestClient
+
+from api.api_support import assert_zones_match, row_counts, sample, to_raw_imu, upload
 
 SAMPLES = ["sample_clean_exact", "sample_noisy"]
 

@@ -5,8 +5,7 @@ from __future__ import annotations
 import hashlib
 import sqlite3
 
-from api_support import db_file, row_counts
-
+from api.api_support import db_file, row_counts
 from app.cli import main as cli_main
 from app.core.config import get_settings
 

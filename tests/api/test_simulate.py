@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from api_support import assert_zones_match, row_counts
 from starlette.testclient import TestClient
+
+from api.api_support import assert_zones_match, row_counts
 
 BODY = {"track": "sim", "length_m": 220, "speed_mps": 25, "zones": [{"start_m": 100,
         "end_m": 105, "loss": 0.5}], "seed": 7}  # fmt: skip

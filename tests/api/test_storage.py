@@ -5,9 +5,9 @@ from __future__ import annotations
 import sqlite3
 
 import pytest
-from api_support import db_file, row_counts, upload
 from sqlalchemy import select
 
+from api.api_support import db_file, row_counts, upload
 from app.core.config import Settings
 from app.db.migrate import alembic_config, current_revision, upgrade
 from app.db.models import ProfilePoint

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from api_support import row_counts
 from starlette.testclient import TestClient
+
+from api.api_support import row_counts
 
 
 def test_create_and_read_track(client: TestClient) -> None:

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from api_support import row_counts
 from starlette.testclient import TestClient
 
+from api.api_support import row_counts
 from engine.vehicle import TABLE1
 
 

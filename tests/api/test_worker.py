@@ -8,9 +8,9 @@ import sys
 import threading
 
 import pytest
-from api_support import assert_zones_match, db_file, row_counts, upload, wait_done
 from starlette.testclient import TestClient
 
+from api.api_support import assert_zones_match, db_file, row_counts, upload, wait_done
 from app.services.worker import Worker
 
 

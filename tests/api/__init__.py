@@ -1,0 +1,1 @@
+"""API tests: the service through HTTP against a real SQLite file."""
