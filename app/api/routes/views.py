@@ -48,10 +48,11 @@ from app.services.profiles import read_profile
 
 router = APIRouter(prefix="/views", tags=["views"])
 
-HEATMAP_MAX_SPAN_M = 25_000.0
+HEATMAP_MAX_SPAN_M = 10_000.0
 """Widest window given a heatmap, m. Wider windows (a whole 100 km line) show the soft spots
-only: binning 50 runs x 400 000 points per request would not answer in the 2 s budget, and
-at one bin per 80 m the lowest level of a bin says little that the spots do not."""
+only: binning 50 runs x 400 000 points per request would not fit the 2 s budget (10 km of 50
+runs, 2 million rows, take ~0.5 s), and at one bin per 80 m the lowest level of a bin says
+little that the spots do not."""
 
 HEATMAP_MIN_BIN_M = 0.25
 """Narrowest heatmap bin, m (the profile grid step)."""
@@ -355,14 +356,15 @@ def track_chainage_map(
     from_m: Annotated[float | None, Query(allow_inf_nan=False, description="From, m")] = None,
     to_m: Annotated[float | None, Query(allow_inf_nan=False, description="To, m")] = None,
     bins: Annotated[int, Query(ge=10, le=5000, description="Heatmap bins across")] = 1200,
-    spots: Annotated[bool, Query(description="Include the soft spots and zones")] = True,
+    spots: Annotated[bool, Query(description="Include the soft spots")] = True,
+    zones: Annotated[bool, Query(description="Include the zones (needs spots)")] = True,
     heatmap: Annotated[bool, Query(description="Include the level heatmap")] = True,
     max_runs: Annotated[int, Query(ge=1, le=1000, description="Newest runs shown")] = 200,
 ) -> ChainageMapPublic:
     """The chainage map of a track (its name or id): runs x chainage, soft spots, zones.
 
     Without a window the whole extent of the track's runs is served. The heatmap (lowest level
-    per run and bin) is computed only for windows up to 25 km wide; zoom in for it.
+    per run and bin) is computed only for windows up to 10 km wide; zoom in for it.
     """
     _check_window(from_m, to_m)
     trk = get_track(session, track)
@@ -423,7 +425,7 @@ def track_chainage_map(
         runs_omitted=omitted,
         runs_pending=pending,
         spots=spot_cols,
-        zones=cluster_zones(spot_cols, runs) if spot_cols is not None else None,
+        zones=cluster_zones(spot_cols, runs) if spot_cols is not None and zones else None,
         heatmap=heat,
         heatmap_note=note,
     )

@@ -34,7 +34,7 @@ export async function render(main) {
     for (const t of tracks) {
       const count = t.run_count ?? t.n_runs ?? t.runs_count;
       list.appendChild(h("li", {},
-        h("a", { href: `#/tracks/${encodeURIComponent(t.name)}`, class: "track-link" }, t.name),
+        h("a", { href: `#/tracks/${encodeURIComponent(t.id)}`, class: "track-link" }, t.name),
         count !== undefined ? h("span", { class: "muted" }, ` · ${count} run${count === 1 ? "" : "s"}`) : null,
         t.description ? h("p", { class: "muted small" }, t.description) : null));
     }
@@ -70,7 +70,7 @@ export async function render(main) {
       }, "Delete");
       tbody.appendChild(h("tr", {},
         h("th", { scope: "row" }, h("a", { href: `#/runs/${encodeURIComponent(id)}` }, `Run ${id}`)),
-        h("td", {}, h("a", { href: `#/tracks/${encodeURIComponent(trackName(r))}` }, trackName(r))),
+        h("td", {}, h("a", { href: `#/tracks/${encodeURIComponent(r.track_id ?? trackName(r))}` }, trackName(r))),
         h("td", {}, vehicleName(r)),
         h("td", {}, fmtDate(r.recorded_at)),
         h("td", { class: "num" }, fmt(r.start_chainage_m, 1)),

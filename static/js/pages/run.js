@@ -65,7 +65,7 @@ export async function render(main, [id]) {
 
   const track = trackName(run);
   append(subtitle, [
-    "Track ", h("a", { href: `#/tracks/${encodeURIComponent(track)}`, id: "run-track-link" }, track),
+    "Track ", h("a", { href: `#/tracks/${encodeURIComponent(run.track_id ?? track)}`, id: "run-track-link" }, track),
     vehicleName(run) ? ` · vehicle ${vehicleName(run)}` : "",
     run.recorded_at ? ` · recorded ${fmtDate(run.recorded_at)}` : "",
   ]);

@@ -34,20 +34,43 @@ const ZONE_COLUMNS = [
   { key: "last_seen", label: "Last seen", get: (z) => z.last_seen || "", show: (z) => fmtDay(z.last_seen) },
 ];
 
-export async function render(main, [name]) {
+/**
+ * The id of the track a route names (#/tracks/{id} or #/tracks/{name}). API calls use the id:
+ * a name may hold "/" or other characters that do not survive a URL path.
+ */
+async function resolveTrack(ref) {
+  const tracks = listItems(await apiFetch("tracks?limit=1000"));
+  const byId = /^\d+$/.test(ref) ? tracks.find((t) => String(t.id) === ref) : null;
+  return byId || tracks.find((t) => t.name === ref) || null;
+}
+
+export async function render(main, [ref]) {
   let stopped = false;
-  const enc = encodeURIComponent(name);
-  const heading = h("h1", { id: "track-title" }, "Track ", h("span", { class: "track-name" }, name));
+  const heading = h("h1", { id: "track-title" }, "Track ", h("span", { class: "track-name" }, ref));
   const lead = h("p", { class: "lead", id: "track-lead" });
   const status = messageBox("info");
   main.append(heading, lead, status.el);
 
+  let track;
+  try {
+    track = await resolveTrack(ref);
+  } catch (err) {
+    status.show(`Cannot load the tracks: ${err.message}`, "error");
+    return null;
+  }
+  if (!track) {
+    status.show(`There is no track “${ref}”.`, "error");
+    return null;
+  }
+  const name = track.name;
+  heading.querySelector(".track-name").textContent = name;
+  const enc = encodeURIComponent(track.id);
   const t0 = performance.now();
   let map;
   try {
     map = await apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200`);
   } catch (err) {
-    status.show(err instanceof ApiError && err.status === 404 ? `There is no track named “${name}”.` : `Cannot load the chainage map: ${err.message}`, "error");
+    status.show(err instanceof ApiError && err.status === 404 ? `There is no track “${name}”.` : `Cannot load the chainage map: ${err.message}`, "error");
     return null;
   }
   // A register of tracked defects (issue 6), when the service has one, replaces the zones this
@@ -92,64 +115,71 @@ export async function render(main, [name]) {
 
   const labels = runs.map((r) => r.label || `${fmtDate(r.recorded_at)} · run ${r.id}`);
   const P = plotly();
-  await P.newPlot(mapDiv, mapTraces(map, labels, heatToggle.checked), mapLayout(labels, map), { ...CONFIG, scrollZoom: false });
+  const layout = mapLayout(labels, map);
+  await P.newPlot(mapDiv, mapTraces(map, heatToggle.checked), layout, { ...CONFIG, scrollZoom: false });
   mapSection.insertBefore(zoomControls(mapDiv, { label: "Chainage map view" }), legendBoxOf(mapSection));
   const elapsed = performance.now() - t0;
-  mapNote.textContent = `${(map.spots ? map.spots.peak_m.length : 0).toLocaleString()} soft spots from ${runs.length} runs, loaded in ${(elapsed / 1000).toFixed(2)} s. `
-    + (map.heatmap ? `Background: lowest level per ${fmt(map.heatmap.bin_m, map.heatmap.bin_m < 10 ? 2 : 0)} m cell.` : `No background: ${map.heatmap_note || "no profile stored"}.`)
-    + (map.runs_omitted ? ` ${map.runs_omitted} older runs not shown.` : "")
-    + (map.runs_pending ? ` ${map.runs_pending} runs still processing or failed are not shown.` : "");
+  const describe = (m, prefix) => {
+    mapNote.textContent = prefix
+      + (m.heatmap ? `Background: lowest level per ${fmt(m.heatmap.bin_m, m.heatmap.bin_m < 10 ? 2 : 0)} m cell.` : `No background: ${m.heatmap_note || "no profile stored in this window"}.`)
+      + (map.runs_omitted ? ` ${map.runs_omitted} older runs not shown.` : "")
+      + (map.runs_pending ? ` ${map.runs_pending} runs still processing or failed are not shown.` : "");
+  };
+  describe(map, `${(map.spots ? map.spots.peak_m.length : 0).toLocaleString()} soft spots from ${runs.length} runs, loaded in ${(elapsed / 1000).toFixed(2)} s. `);
 
+  // Zooming asks the server for that window only: its soft spots and, up to 10 km wide, the
+  // binned levels; the plot then holds what it shows rather than the whole line.
   let relayoutTimer = null;
-  let lastRange = null;
+  let requestSeq = 0;
+  let current = map;
+  const redraw = (m, range) => {
+    current = m;
+    const lay = { ...mapLayout(labels, map), xaxis: { ...layout.xaxis } };
+    if (range) lay.xaxis = { ...lay.xaxis, range, autorange: false };
+    return P.react(mapDiv, mapTraces(m, heatToggle.checked), lay, { ...CONFIG, scrollZoom: false });
+  };
   mapDiv.on("plotly_relayout", (ev) => {
-    if (!heatToggle.checked) return;
     let range = null;
-    if (ev["xaxis.range[0]"] !== undefined) range = [ev["xaxis.range[0]"], ev["xaxis.range[1]"]];
-    else if (Array.isArray(ev["xaxis.range"])) range = ev["xaxis.range"];
+    if (ev["xaxis.range[0]"] !== undefined) range = [Number(ev["xaxis.range[0]"]), Number(ev["xaxis.range[1]"])];
+    else if (Array.isArray(ev["xaxis.range"])) range = ev["xaxis.range"].map(Number);
     else if (ev["xaxis.autorange"]) range = "full";
     if (!range) return;
     clearTimeout(relayoutTimer);
-    relayoutTimer = setTimeout(() => refreshHeatmap(range), 250);
+    relayoutTimer = setTimeout(() => loadWindow(range), 150);
   });
 
-  async function refreshHeatmap(range) {
-    const key = JSON.stringify(range);
-    if (key === lastRange || stopped) return;
-    lastRange = key;
-    const q = range === "full" ? "" : `&from_m=${encodeURIComponent(range[0])}&to_m=${encodeURIComponent(range[1])}`;
+  async function loadWindow(range) {
+    const seq = ++requestSeq;
+    if (range === "full") {
+      if (current !== map) await redraw(map, null);
+      describe(map, "Whole line. ");
+      return;
+    }
+    const [a, b] = range;
     try {
-      const part = await apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200&spots=false${q}`);
-      if (stopped || JSON.stringify(range) !== lastRange) return;
-      const idx = mapDiv.data.findIndex((t) => t.meta === "heatmap");
-      if (!part.heatmap) {
-        if (idx >= 0) P.deleteTraces(mapDiv, [idx]);
-        mapNote.textContent = `No background: ${part.heatmap_note || "no profile in this window"}.`;
-        return;
-      }
-      if (idx >= 0) P.restyle(mapDiv, { x: [part.heatmap.x], z: [part.heatmap.z] }, [idx]);
-      else P.addTraces(mapDiv, heatmapTrace(part.heatmap, labels, heatToggle.checked), 0);
-      mapNote.textContent = `Background: lowest level per ${fmt(part.heatmap.bin_m, part.heatmap.bin_m < 10 ? 2 : 0)} m cell, ${fmt(part.heatmap.x[0], 0)}–${fmt(part.heatmap.x[part.heatmap.x.length - 1], 0)} m.`;
+      const part = await apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200&zones=false&heatmap=${heatToggle.checked}&from_m=${encodeURIComponent(a)}&to_m=${encodeURIComponent(b)}`);
+      if (stopped || seq !== requestSeq) return;
+      await redraw(part, [a, b]);
+      describe(part, `${fmt(a, 0)}–${fmt(b, 0)} m: ${part.spots.peak_m.length.toLocaleString()} soft spots. `);
     } catch (err) {
-      mapNote.textContent = `Cannot refresh the background: ${err.message}`;
+      mapNote.textContent = `Cannot load this window: ${err.message}`;
     }
   }
 
   heatToggle.addEventListener("change", () => {
     const idx = mapDiv.data.findIndex((t) => t.meta === "heatmap");
     if (idx >= 0) P.restyle(mapDiv, { visible: heatToggle.checked }, [idx]);
-    else if (heatToggle.checked) {
-      const r = mapDiv.layout.xaxis.range;
-      lastRange = null;
-      refreshHeatmap([Number(r[0]), Number(r[1])]);
-    }
+    else if (heatToggle.checked) loadWindow(mapDiv.layout.xaxis.range.map(Number));
   });
 
   // ---- zones ---------------------------------------------------------------------------------
   const zones = normaliseZones(register || map.zones || [], runs.length);
   const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "img", "aria-label": "Profiles of all runs around the selected zone" });
   const zoneInfo = h("p", { class: "hint", id: "zone-info" }, "Choose a zone in the table to see its profile across runs.");
-  const table = zoneTable(zones, (zone) => showZone(zone));
+  const table = zoneTable(zones, (zone) => {
+    showZone(zone);
+    zonePlotDiv.scrollIntoView({ behavior: "smooth", block: "nearest" });
+  });
   main.appendChild(h("div", { class: "track-lower" },
     h("section", { class: "card", "aria-labelledby": "zones-h" },
       h("h2", { id: "zones-h" }, register ? "Defect register" : "Zones ranked by severity"),
@@ -201,7 +231,9 @@ export async function render(main, [name]) {
         margin: { l: 64, r: 12, t: 24, b: 52 },
       });
       await P.react(zonePlotDiv, traces, layout, CONFIG);
-      zoneInfo.textContent = `Zone ${fmt(zone.start_m, 1)}–${fmt(zone.end_m, 1)} m (shaded): ${wr.length} runs cover it, ${zone.runs_seen} detected a soft spot there. Lines run from dark (oldest) to light (newest).`;
+      const covers = wr.length === 1 ? "1 run covers it" : `${wr.length} runs cover it`;
+      zoneInfo.textContent = `Zone ${fmt(zone.start_m, 1)}–${fmt(zone.end_m, 1)} m (shaded): ${covers}, ${zone.runs_seen} detected a soft spot there.`
+        + (wr.length > 1 ? " Lines run from dark (oldest) to light (newest)." : "");
       announce(`Showing zone at ${fmt(zone.peak_m, 1)} m across ${wr.length} runs.`);
     } catch (err) {
       zoneInfo.textContent = `Cannot load the zone's profiles: ${err.message}`;
@@ -230,6 +262,10 @@ function legendBox() {
     CLASSES.map((c, i) => h("li", {}, h("span", { class: `sym sym-${c.symbol}`, "aria-hidden": "true", style: `--c:${viridis(1 - (i + 0.5) / CLASSES.length)}` }), c.label)));
 }
 
+function runLabels(m) {
+  return (m.runs || []).map((r) => r.label || `run ${r.id}`);
+}
+
 function heatmapTrace(heat, labels, visible) {
   return {
     type: "heatmap", meta: "heatmap", name: "Level", x: heat.x, y: labels, z: heat.z,
@@ -239,7 +275,8 @@ function heatmapTrace(heat, labels, visible) {
   };
 }
 
-function mapTraces(map, labels, heat) {
+function mapTraces(map, heat) {
+  const labels = runLabels(map);
   const traces = [];
   if (map.heatmap) traces.push(heatmapTrace(map.heatmap, labels, heat));
   const s = map.spots || { run_index: [], start_m: [], end_m: [], peak_m: [], depth_mm: [], stiffness_loss_pct: [] };
@@ -262,7 +299,8 @@ function mapTraces(map, labels, heat) {
       x: s.peak_m, y: s.run_index.map((i) => labels[i]),
       marker: {
         color: s.depth_mm, colorscale: "Viridis", reversescale: true, cmin: 0, cmax: depthMax,
-        size: s.depth_mm.map((d) => 8 + 14 * Math.min(d / depthMax, 1)),
+        // Dense overviews (a whole line) get smaller markers so that zones stay apart.
+        size: s.depth_mm.map((d) => (n > 1500 ? 5 + 8 * Math.min(d / depthMax, 1) : 8 + 14 * Math.min(d / depthMax, 1))),
         symbol: s.depth_mm.map((d) => CLASSES[severityClass(d)].symbol),
         line: { color: "#1b1f24", width: 1 },
         colorbar: { title: { text: "Depth (mm)" }, thickness: 14, len: 0.9 },

@@ -1,0 +1,135 @@
+"""Helpers of the real-browser tests: the service in a subprocess, page watching, plot waits.
+
+The app runs as a user starts it (``uvicorn app.main:app``) on a free loopback port with its own
+SQLite file; the browser is Debian's ``/usr/bin/chromium`` launched by path (no
+``playwright install``, nothing downloaded).
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+from support.samples import REPO
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+VIEWPORT = {"width": 1366, "height": 768}
+SCREENSHOTS = REPO / "docs" / "screenshots"
+SAMPLE_ZONES = ((140.0, 146.0), (333.0, 337.0))
+"""Soft zones of sample_noisy (and of the generated stand-in), m."""
+SAMPLE_START_M = 24.13
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class LiveServer:
+    """A running service: its base URL, database URL and log file."""
+
+    url: str
+    database_url: str
+    log_path: Path
+    proc: subprocess.Popen[bytes]
+
+    def api(self) -> httpx.Client:
+        """An HTTP client of the service's API."""
+        return httpx.Client(base_url=self.url, timeout=60.0)
+
+    def log_tail(self, n: int = 4000) -> str:
+        """The end of the server's log (for failure messages)."""
+        try:
+            return self.log_path.read_text(errors="replace")[-n:]
+        except OSError:
+            return ""
+
+
+def start_server(data_dir: Path, database_url: str | None = None) -> LiveServer:
+    """Start ``uvicorn app.main:app`` on a free port with a SQLite file under ``data_dir``."""
+    port = free_port()
+    db_url = database_url or f"sqlite:///{data_dir / 'trackprofile.db'}"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("TRACKPROFILE_")}
+    env.update(
+        {
+            "DATABASE_URL": db_url,
+            "TRACKPROFILE_DATA_DIR": str(data_dir),
+            "PYTHONPATH": str(REPO),
+        }
+    )
+    log_path = data_dir / "server.log"
+    log = log_path.open("wb")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "uvicorn", "app.main:app", "--host", "127.0.0.1",
+         "--port", str(port), "--log-level", "warning"],
+        cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT,
+    )  # fmt: skip
+    server = LiveServer(f"http://127.0.0.1:{port}", db_url, log_path, proc)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"the service exited at start:\n{server.log_tail()}")
+        try:
+            if httpx.get(f"{server.url}/healthz", timeout=2).status_code == 200:
+                return server
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.2)
+    stop_server(server)
+    raise RuntimeError(f"the service did not answer /healthz within 60 s:\n{server.log_tail()}")
+
+
+def stop_server(server: LiveServer) -> None:
+    """Stop the service's process (terminate, then kill)."""
+    server.proc.terminate()
+    try:
+        server.proc.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        server.proc.kill()
+        server.proc.wait(timeout=5)
+
+
+@dataclass
+class PageWatch:
+    """What a page did that a test may want to forbid: script errors, dialogs, 5xx answers."""
+
+    page_errors: list[str] = field(default_factory=list)
+    dialogs: list[str] = field(default_factory=list)
+    server_errors: list[str] = field(default_factory=list)
+
+    def assert_clean(self) -> None:
+        """No uncaught script error, no alert/confirm/prompt, no 5xx answer."""
+        assert not self.page_errors, f"script errors on the page: {self.page_errors}"
+        assert not self.dialogs, f"dialogs opened: {self.dialogs}"
+        assert not self.server_errors, f"5xx answers: {self.server_errors}"
+
+
+def wait_for_plot(page: Any, selector: str, min_traces: int = 1) -> None:
+    """Wait until the Plotly graph at ``selector`` has drawn at least ``min_traces`` traces."""
+    page.wait_for_function(
+        """([sel, n]) => {
+            const gd = document.querySelector(sel);
+            return !!(gd && gd.data && gd.data.length >= n && gd._fullLayout
+                      && gd.querySelector('.main-svg'));
+        }""",
+        arg=[selector, min_traces],
+    )

@@ -1,0 +1,140 @@
+"""Scale: a 100 km track with 50 runs opens its chainage map in at most 2 s (issue 5).
+
+The track is generated straight into the database (see ``bigtrack``): 50 processed runs over
+100 km, ~7 000 soft spots around 150 recurring zones, and the 0.25 m profile of every run
+between 40 and 50 km. Opening the whole line reads runs and soft spots only (the level heatmap
+is drawn for windows up to 10 km), so the profile rows elsewhere would not change the timing;
+the zoomed checks read the stored 10 km.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from browser.bigtrack import BigTrack, fill_big_track
+from browser.harness import LiveServer, start_server, stop_server, wait_for_plot
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+BUDGET_S = 2.0
+
+
+@pytest.fixture(scope="module")
+def big(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[LiveServer, BigTrack, int]]:
+    """The service over a database holding the generated 100 km, 50-run track."""
+    data = tmp_path_factory.mktemp("big-track")
+    url = f"sqlite:///{data / 'trackprofile.db'}"
+    track = fill_big_track(url)
+    server = start_server(data, url)
+    try:
+        with server.api() as api:
+            tracks = api.get("/api/v1/tracks").json()["data"]
+        track_id = next(t["id"] for t in tracks if t["name"] == track.name)
+        yield server, track, track_id
+    finally:
+        stop_server(server)
+
+
+def test_whole_line_map_answer_is_fast_and_complete(big: tuple[LiveServer, BigTrack, int]) -> None:
+    """The map of the whole line answers well within budget with every run and soft spot."""
+    server, track, track_id = big
+    with server.api() as api:
+        api.get(f"/api/v1/views/tracks/{track_id}/chainage-map")  # warm the connection
+        t = time.perf_counter()
+        r = api.get(f"/api/v1/views/tracks/{track_id}/chainage-map")
+        elapsed = time.perf_counter() - t
+    assert r.status_code == 200
+    body = r.json()
+    assert len(body["runs"]) == track.n_runs
+    assert len(body["spots"]["peak_m"]) == track.n_spots
+    assert body["heatmap"] is None and "10 km" in body["heatmap_note"]
+    # Recurring zones are merged across runs: far fewer zones than spots, most seen many times.
+    zones = body["zones"]
+    assert len(track.zone_peaks_m) <= len(zones) < track.n_spots / 10
+    assert max(z["runs_seen"] for z in zones) >= 0.8 * track.n_runs
+    assert elapsed < BUDGET_S / 2, f"chainage map answered in {elapsed:.2f} s"
+
+
+def test_browser_opens_the_100km_map_within_two_seconds(
+    page: Any, big: tuple[LiveServer, BigTrack, int], screenshots: Path
+) -> None:
+    """From a click on the track to the drawn map (markers) and the zone table: at most 2 s."""
+    server, track, track_id = big
+    times = []
+    for _ in range(2):  # best of two: the machine is shared with other work
+        page.goto(f"{server.url}/#/")
+        page.wait_for_selector("#track-list")
+        t = time.perf_counter()
+        page.click(f"#track-list a[href='#/tracks/{track_id}']")
+        page.wait_for_function(
+            """() => {
+                const gd = document.getElementById('chainage-map');
+                return gd && gd.querySelector('.scatterlayer .point')
+                       && document.querySelector('#zone-table tbody tr');
+            }"""
+        )
+        times.append(time.perf_counter() - t)
+    n_markers = page.evaluate(
+        """() => document.getElementById('chainage-map').data
+                 .find(d => d.meta === 'spots').x.length"""
+    )
+    assert n_markers == track.n_spots
+    assert min(times) <= BUDGET_S, f"chainage map opened in {min(times):.2f} s (tries: {times})"
+    page.screenshot(path=str(screenshots / "track-100km.png"), full_page=False)
+    page.watch.assert_clean()
+
+
+def test_zooming_into_the_line_draws_the_level_heatmap(
+    page: Any, big: tuple[LiveServer, BigTrack, int]
+) -> None:
+    """Zooming to a 5 km window fetches the binned levels of all 50 runs for that window."""
+    server, track, track_id = big
+    page.goto(f"{server.url}/#/tracks/{track_id}")
+    wait_for_plot(page, "#chainage-map")
+    assert page.evaluate(
+        "() => !document.getElementById('chainage-map').data.some(d => d.meta === 'heatmap')"
+    )
+    t = time.perf_counter()
+    page.evaluate("() => Plotly.relayout('chainage-map', {'xaxis.range': [42000, 47000]})")
+    page.wait_for_function(
+        "() => document.getElementById('chainage-map').data.some(d => d.meta === 'heatmap')"
+    )
+    elapsed = time.perf_counter() - t
+    heat = page.evaluate(
+        """() => { const h = document.getElementById('chainage-map').data
+                     .find(d => d.meta === 'heatmap');
+                   return {rows: h.z.length, x0: h.x[0], x1: h.x[h.x.length - 1],
+                           filled: h.z.every(r => r.some(v => v !== null))}; }"""
+    )
+    assert heat["rows"] == track.n_runs and heat["filled"]
+    assert 42000 <= heat["x0"] < 42100 and 46900 < heat["x1"] <= 47000
+    assert elapsed <= BUDGET_S, f"zoomed heatmap drawn in {elapsed:.2f} s"
+    page.watch.assert_clean()
+
+
+def test_run_view_refines_a_decimated_profile_when_zooming(
+    page: Any, big: tuple[LiveServer, BigTrack, int]
+) -> None:
+    """A long profile arrives min/max-decimated; zooming to 200 m fetches it at full resolution."""
+    server, track, track_id = big
+    with server.api() as api:
+        run_id = api.get(f"/api/v1/runs?track={track_id}&limit=1").json()["data"][0]["id"]
+    page.goto(f"{server.url}/#/runs/{run_id}")
+    wait_for_plot(page, "#profile-plot")
+    n_points = int((track.profile_to_m - track.profile_from_m) / 0.25)
+    overview = page.evaluate("() => document.getElementById('profile-plot').data[0].x.length")
+    assert overview <= 4000 < n_points
+    assert "drawn as" in page.locator("#profile-resolution").inner_text()
+    page.evaluate("() => Plotly.relayout('profile-plot', {'xaxis.range': [45000, 45200]})")
+    page.wait_for_function(
+        "() => document.getElementById('profile-resolution')"
+        ".textContent.includes('at full resolution')"
+    )
+    x = page.evaluate("() => document.getElementById('profile-plot').data[0].x")
+    # the 200 m in view plus half of it on each side, every 0.25 m grid point
+    assert len(x) == 1601 and x[0] == 44900 and x[-1] == 45300
+    page.watch.assert_clean()
