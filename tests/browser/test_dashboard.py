@@ -368,3 +368,98 @@ def test_controls_are_labelled_and_reachable_by_keyboard(
     )
     assert outline != "none"
     assert page.locator("#announcer[aria-live=polite]").count() == 1
+
+
+def raw_imu_csv(canonical: Path, dest: Path, names: tuple[str, str, str, str]) -> None:
+    """Rewrite a canonical run as a raw IMU log: epoch s, g with gravity, deg/s, km/h."""
+    import numpy as np
+
+    t, a, q, v = np.loadtxt(canonical, delimiter=",", skiprows=1, unpack=True)[:4]
+    g = 9.80665
+    cols = np.column_stack([1763800000.0 + t, (a + g) / g, np.degrees(q), 3.6 * v])
+    fmt = ["%.4f", "%.9g", "%.9g", "%.6g"]
+    np.savetxt(dest, cols, delimiter=",", header=",".join(names), comments="", fmt=fmt)
+
+
+def test_raw_imu_log_is_recognised_and_processed(
+    page: Any, live_server: LiveServer, sample_csv: Path, tmp_path: Path
+) -> None:
+    """A logger's own names and units (epoch s, g with gravity, deg/s, km/h) are recognised in
+    the preview and the upload finds the same two zones."""
+    raw = tmp_path / "logger.csv"
+    raw_imu_csv(sample_csv, raw, ("timestamp", "az_g", "gyro_y_dps", "speed_kmh"))
+    page.goto(f"{live_server.url}/#/upload")
+    page.set_input_files("#file-input", str(raw))
+    page.wait_for_selector("#preview-table")
+    page.wait_for_function(
+        "() => document.getElementById('recognised-note').textContent.includes('by the service')"
+    )
+    badges = " ".join(page.locator("#preview-table thead .badge").all_inner_texts())
+    for unit in ("epoch_s", "g", "deg/s", "km/h"):
+        assert unit in badges, badges
+    assert "included" in page.locator("#map-gravity").inner_text()
+    page.fill("#track-input", "Raw logger line")
+    page.fill("#start-chainage", str(SAMPLE_START_M))
+    page.click("#upload-button")
+    page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
+    wait_for_plot(page, "#profile-plot")
+    shapes = page.evaluate(
+        "() => document.getElementById('profile-plot').layout.shapes.map(s => [s.x0, s.x1])"
+    )
+    for a, b in SAMPLE_ZONES:
+        assert any(x1 >= a and x0 <= b for x0, x1 in shapes), (a, b, shapes)
+    page.watch.assert_clean()
+
+
+def test_unrecognised_columns_are_mapped_by_hand(
+    page: Any, live_server: LiveServer, sample_csv: Path, tmp_path: Path
+) -> None:
+    """With meaningless column names the page says so; choosing columns and units by hand
+    makes the upload work."""
+    raw = tmp_path / "channels.csv"
+    raw_imu_csv(sample_csv, raw, ("ch1", "ch2", "ch3", "ch4"))
+    page.goto(f"{live_server.url}/#/upload")
+    page.set_input_files("#file-input", str(raw))
+    page.wait_for_selector("#preview-table")
+    page.wait_for_function(
+        "() => document.getElementById('recognised-note').textContent.includes('Not recognised')"
+    )
+    for role, column, unit in (
+        ("time", "ch1", "epoch_s"),
+        ("accel", "ch2", "g"),
+        ("pitch_rate", "ch3", "deg/s"),
+        ("speed", "ch4", "km/h"),
+    ):
+        page.select_option(f"#map-{role}-column", column)
+        page.select_option(f"#map-{role}-unit", unit)
+    page.select_option("#map-gravity", "included")
+    page.wait_for_function(
+        "() => !document.getElementById('recognised-note').textContent.includes('Not recognised')"
+    )
+    page.fill("#track-input", "Hand-mapped line")
+    page.fill("#start-chainage", str(SAMPLE_START_M))
+    page.click("#upload-button")
+    page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
+    wait_for_plot(page, "#profile-plot")
+    assert page.locator("#spots-table tbody tr").count() >= 2
+    page.watch.assert_clean()
+
+
+def test_new_vehicle_is_created_and_selected(page: Any, live_server: LiveServer) -> None:
+    """The vehicle form creates a vehicle through the API and selects it for the upload; a
+    missing name is refused in the page."""
+    page.goto(f"{live_server.url}/#/upload")
+    page.wait_for_selector("#vehicle-select option", state="attached")
+    page.click(".new-vehicle summary")
+    page.click("#create-vehicle")
+    assert "name" in page.locator(".new-vehicle .message").inner_text()
+    page.fill("#vehicle-name", "Inspection car 2")
+    page.fill("#veh-ms", "18000")
+    page.click("#create-vehicle")
+    page.wait_for_function(
+        "() => document.getElementById('vehicle-select').value === 'Inspection car 2'"
+    )
+    with live_server.api() as api:
+        v = api.get("/api/v1/vehicles/Inspection car 2").json()
+    assert v["params"]["ms"] == 18000
+    page.watch.assert_clean()

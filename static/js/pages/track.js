@@ -173,7 +173,8 @@ export async function render(main, [ref]) {
   });
 
   // ---- zones ---------------------------------------------------------------------------------
-  const zones = normaliseZones(register || map.zones || [], runs.length);
+  // The register comes ranked by priority; the view's own zones are ranked by severity here.
+  const zones = normaliseZones(register || map.zones || [], runs.length, Boolean(register));
   const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "img", "aria-label": "Profiles of all runs around the selected zone" });
   const zoneInfo = h("p", { class: "hint", id: "zone-info" }, "Choose a zone in the table to see its profile across runs.");
   const table = zoneTable(zones, (zone) => {
@@ -328,14 +329,16 @@ function mapLayout(labels, map) {
 }
 
 /** Zones from either this view's clustering or the service's defect register, ranked. */
-function normaliseZones(list, nRuns) {
+function normaliseZones(list, nRuns, keepOrder = false) {
   const zones = list.map((z) => ({
     ...z,
     runs_seen: z.runs_seen ?? z.n_runs ?? 1,
     runs_total: z.runs_total ?? nRuns,
     depth_mm: z.depth_mm ?? z.depth_median_mm ?? z.depth_max_mm,
   }));
-  zones.sort((a, b) => (b.severity ?? b.depth_mm) - (a.severity ?? a.depth_mm) || b.runs_seen - a.runs_seen);
+  if (!keepOrder) {
+    zones.sort((a, b) => (b.severity ?? b.depth_mm) - (a.severity ?? a.depth_mm) || b.runs_seen - a.runs_seen);
+  }
   zones.forEach((z, i) => {
     z.rank = i + 1;
   });
