@@ -17,11 +17,15 @@ export async function render(main) {
 
   let tracks = [];
   let runs = [];
+  let total = 0;
   try {
-    [tracks, runs] = await Promise.all([
-      apiFetch("tracks").then(listItems),
-      apiFetch(`runs?limit=${PAGE}`).then(listItems),
+    const [trackAnswer, runAnswer] = await Promise.all([
+      apiFetch("tracks?limit=1000"),
+      apiFetch(`runs?limit=${PAGE}`),
     ]);
+    tracks = listItems(trackAnswer);
+    runs = listItems(runAnswer);
+    total = typeof runAnswer.count === "number" ? runAnswer.count : runs.length;
   } catch (err) {
     status.show(`Cannot load the data: ${err.message}`, "error");
     return null;
@@ -49,6 +53,7 @@ export async function render(main) {
       h("th", { scope: "col" }, "Recorded"), h("th", { scope: "col", class: "num" }, "Start (m)"),
       h("th", { scope: "col" }, "Status"), h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")))),
     tbody));
+  let update = () => {};
   const fill = (items) => {
     clear(tbody);
     for (const r of items) {
@@ -61,7 +66,9 @@ export async function render(main) {
           try {
             await apiFetch(`runs/${encodeURIComponent(id)}`, { method: "DELETE" });
             runs = runs.filter((x) => runId(x) !== id);
+            total -= 1;
             fill(runs);
+            update();
             announce(`Run ${id} deleted.`);
           } catch (err) {
             status.show(`Cannot delete run ${id}: ${err.message}`, "error");
@@ -83,6 +90,25 @@ export async function render(main) {
   } else {
     fill(runs);
     runsSection.appendChild(table);
+    const more = h("button", { type: "button", class: "button secondary", id: "more-runs" }, "Show more runs");
+    const counter = h("p", { class: "hint", id: "runs-count" });
+    update = () => {
+      counter.textContent = `${runs.length} of ${total} runs shown.`;
+      more.hidden = runs.length >= total;
+    };
+    more.addEventListener("click", async () => {
+      try {
+        const next = listItems(await apiFetch(`runs?limit=${PAGE}&offset=${runs.length}`));
+        runs = runs.concat(next);
+        fill(runs);
+        update();
+        announce(`${next.length} more runs shown.`);
+      } catch (err) {
+        status.show(`Cannot load more runs: ${err.message}`, "error");
+      }
+    });
+    update();
+    runsSection.append(counter, more);
   }
   return null;
 }
