@@ -6,6 +6,7 @@ on start it applies the migrations and starts the background worker.
 
 from __future__ import annotations
 
+import gc
 import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -56,9 +57,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if settings.start_worker:
             ctx.worker = Worker(ctx)
             await run_in_threadpool(ctx.worker.start)
+        # Move the start-up heap (framework, ORM, numpy: ~10^6 objects) out of the garbage
+        # collector's reach: a full collection then scans only request garbage, instead of
+        # adding ~50 ms to a profile read that allocates its rows (measured, see benchmarks).
+        gc.collect()
+        gc.freeze()
         try:
             yield
         finally:
+            gc.unfreeze()
             if ctx.worker is not None:
                 await run_in_threadpool(ctx.worker.stop)
                 ctx.worker = None

@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import argparse
+import gc
 import io
 import os
 import statistics
@@ -165,6 +166,8 @@ def main() -> int:
         from app.services.profiles import read_profile
 
         db = Database(Settings(data_dir=Path(data_dir)).sqlalchemy_url)
+        gc.collect()
+        gc.freeze()  # as the app does after start-up (app/main.py)
         db_ms: list[float] = []
         with db.session() as s:
             for a in starts:

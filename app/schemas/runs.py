@@ -197,13 +197,19 @@ class ProfilePublic(BaseModel):
     """A run's loaded profile on its chainage grid (mm, positive up; null = no data)."""
 
     run_id: int
-    chainage_offset_m: float
-    n: int
-    chainage_m: list[float]
+    chainage_offset_m: float = Field(description="Offset included in chainage_m, m")
+    n: int = Field(description="Number of grid points")
+    chainage_m: list[float] = Field(description="Chainage, m (regular grid, aligned)")
     level_mm: list[float | None] = Field(description="Fused loaded level, mm")
-    front_level_mm: list[float | None] = Field(description="Front-axle level, mm")
-    rear_level_mm: list[float | None] = Field(description="Rear-axle level, mm")
-    baseline_mm: list[float | None] = Field(description="Baseline the dips are measured from, mm")
+    front_level_mm: list[float | None] | None = Field(
+        default=None, description="Front-axle level, mm (with ?include=)"
+    )
+    rear_level_mm: list[float | None] | None = Field(
+        default=None, description="Rear-axle level, mm (with ?include=)"
+    )
+    baseline_mm: list[float | None] | None = Field(
+        default=None, description="Baseline the dips are measured from, mm (with ?include=)"
+    )
 
 
 class SoftSpotPublic(BaseModel):

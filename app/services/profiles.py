@@ -99,11 +99,16 @@ def read_profile(
 
 
 def iter_profile_rows(
-    session: Session, run_id: int, from_m: float | None, to_m: float | None, batch: int = 20_000
+    session: Session,
+    run_id: int,
+    from_m: float | None,
+    to_m: float | None,
+    columns: tuple[str, ...] = PROFILE_COLUMNS,
+    batch: int = 20_000,
 ) -> Iterator[list[tuple[Any, ...]]]:
-    """Stream a run's profile rows ``(chainage_m, level, front, rear, baseline)`` in batches."""
+    """Stream a run's profile rows (the ``columns``, chainage first) in batches."""
     table = ProfilePoint.__table__
-    stmt = select(*(table.c[name] for name in PROFILE_COLUMNS)).where(table.c.run_id == run_id)
+    stmt = select(*(table.c[name] for name in columns)).where(table.c.run_id == run_id)
     if from_m is not None:
         stmt = stmt.where(table.c.chainage_m >= from_m)
     if to_m is not None:

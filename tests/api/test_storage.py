@@ -96,7 +96,7 @@ def test_nan_levels_are_stored_as_null(client, settings, synthetic_run) -> None:
     """Where an axle did not pass, its level is missing (null), never NaN in the JSON."""
     rid = upload(client, synthetic_run["csv"], track="T",
                  start_chainage_m=synthetic_run["start_chainage_m"]).json()["id"]  # fmt: skip
-    prof = client.get(f"/api/v1/runs/{rid}/profile").json()
+    prof = client.get(f"/api/v1/runs/{rid}/profile", params={"include": "all"}).json()
     assert None in prof["front_level_mm"] or None in prof["rear_level_mm"]
     con = sqlite3.connect(db_file(settings))
     nulls = con.execute(

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import asyncio
-import json
 import time
 from collections.abc import Iterator
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
+import orjson
 from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
@@ -323,57 +323,92 @@ def _csv_value(v: float | None, fmt: str) -> str:
     return "" if v is None else format(v, fmt)
 
 
+EXTRA_PROFILE_COLUMNS = PROFILE_COLUMNS[2:]
+"""Arrays a profile answer carries on request (``?include=``), besides chainage and level."""
+
+
+def _included(include: str | None) -> tuple[str, ...]:
+    if not include:
+        return ()
+    names = [n.strip() for n in include.split(",") if n.strip()]
+    if "all" in names:
+        return EXTRA_PROFILE_COLUMNS
+    unknown = [n for n in names if n not in EXTRA_PROFILE_COLUMNS]
+    if unknown:
+        raise ApiError(
+            422,
+            f"include: unknown column(s) {', '.join(unknown)}; choose from "
+            f"{', '.join(EXTRA_PROFILE_COLUMNS)} or 'all'",
+            field="include",
+        )
+    return tuple(c for c in EXTRA_PROFILE_COLUMNS if c in names)
+
+
 @router.get(
     "/{run_id}/profile",
     response_model=ProfilePublic,
+    response_model_exclude_none=True,
     responses={200: {"content": {"text/csv": {"schema": {"type": "string"}}}}},
 )
 def read_run_profile(
     ctx: CtxDep,
     session: SessionDep,
     run_id: int,
-    from_m: Annotated[
-        float | None, Query(allow_inf_nan=False, description="From chainage, m")
+    from_m: Annotated[float | None, Query(allow_inf_nan=False, description="From, m")] = None,
+    to_m: Annotated[float | None, Query(allow_inf_nan=False, description="To, m")] = None,
+    include: Annotated[
+        str | None,
+        Query(
+            description="Extra arrays, comma-separated: front_level_mm, rear_level_mm, "
+            "baseline_mm, or all",
+        ),
     ] = None,
-    to_m: Annotated[float | None, Query(allow_inf_nan=False, description="To chainage, m")] = None,
     format: Annotated[Literal["json", "csv"], Query()] = "json",
 ) -> Response:
-    """The loaded profile on chainage (m): fused level, each axle, baseline (mm, positive up).
+    """The fused loaded profile on chainage: ``{"chainage_m": [...], "level_mm": [...]}``.
 
-    ``?from_m=&to_m=`` selects a chainage window (inclusive); ``?format=csv`` answers
-    ``chainage_m,level_mm,front_level_mm,rear_level_mm,baseline_mm``.
+    Levels in mm, positive up (null where there is no data); chainage in m, aligned (the run's
+    ``chainage_offset_m`` added). ``?from_m=&to_m=`` selects a window (inclusive) with one
+    indexed query; ``?include=all`` adds each axle's level and the baseline the soft spots are
+    measured from; ``?format=csv`` answers ``chainage_m,level_mm[,...]`` as CSV.
     """
+    extra = _included(include)
     run = _get_run(session, run_id)
     _require_done(run, "profile")
     lo, hi = _window(run, from_m, to_m)
     off = run.chainage_offset_m or 0.0
+    columns = ("chainage_m", "level_mm", *extra)
     if format == "csv":
         return StreamingResponse(
-            _profile_csv(ctx, run_id, lo, hi, off),
+            _profile_csv(ctx, run_id, lo, hi, off, columns),
             media_type="text/csv",
             headers={"Content-Disposition": f'attachment; filename="run-{run_id}-profile.csv"'},
         )
-    cols = read_profile(session, run_id, lo, hi)
+    cols = read_profile(session, run_id, lo, hi, columns)
     chainage = cols["chainage_m"] if off == 0 else [c + off for c in cols["chainage_m"]]
     payload = {
         "run_id": run_id,
         "chainage_offset_m": off,
         "n": len(chainage),
         "chainage_m": chainage,
-        **{k: cols[k] for k in PROFILE_COLUMNS[1:]},
+        **{k: cols[k] for k in columns[1:]},
     }
-    return Response(json.dumps(payload, separators=(",", ":")), media_type="application/json")
+    return Response(orjson.dumps(payload), media_type="application/json")
 
 
 def _profile_csv(
-    ctx: AppContext, run_id: int, lo: float | None, hi: float | None, off: float
+    ctx: AppContext,
+    run_id: int,
+    lo: float | None,
+    hi: float | None,
+    off: float,
+    columns: tuple[str, ...],
 ) -> Iterator[str]:
-    yield ",".join(PROFILE_COLUMNS) + "\n"
+    yield ",".join(columns) + "\n"
     with ctx.db.session() as s:
-        for rows in iter_profile_rows(s, run_id, lo, hi):
+        for rows in iter_profile_rows(s, run_id, lo, hi, columns):
             yield "".join(
-                f"{r[0] + off:.4f},{_csv_value(r[1], '.6f')},{_csv_value(r[2], '.6f')},"
-                f"{_csv_value(r[3], '.6f')},{_csv_value(r[4], '.6f')}\n"
+                f"{r[0] + off:.4f}," + ",".join(_csv_value(v, ".6f") for v in r[1:]) + "\n"
                 for r in rows
             )
 
