@@ -146,6 +146,28 @@ def test_json_body_with_columns(client: TestClient, synthetic_run) -> None:
     )
 
 
+def test_json_columns_with_chainage_instead_of_speed(client: TestClient, synthetic_run) -> None:
+    """With an odometer column (chainage_m) neither speed nor start chainage is needed."""
+    a = np.loadtxt(io.BytesIO(synthetic_run["csv"]), delimiter=",", skiprows=1)
+    dt = np.diff(a[:, 0], prepend=a[0, 0])
+    chainage = synthetic_run["start_chainage_m"] + np.cumsum(a[:, 3] * dt)
+    body = {
+        "track": "odo",
+        "columns": {
+            "time_s": a[:, 0].tolist(),
+            "accel_z_mps2": a[:, 1].tolist(),
+            "pitch_rate_radps": a[:, 2].tolist(),
+            "chainage_m": chainage.tolist(),
+        },
+    }
+    r = client.post("/api/v1/runs", json=body)
+    assert r.status_code == 201, r.text
+    assert r.json()["start_chainage_m"] is None
+    assert_zones_match(
+        client.get(f"/api/v1/runs/{r.json()['id']}/soft-spots").json(), synthetic_run["zones"]
+    )
+
+
 def test_json_body_with_csv_text_and_options(client: TestClient, synthetic_run) -> None:
     """A pipeline may send the CSV text in JSON, with the same column/unit options."""
     raw = to_raw_imu(synthetic_run["csv"]).decode()

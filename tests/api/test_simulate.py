@@ -79,3 +79,13 @@ def test_impossible_simulations_are_refused(client: TestClient, settings, change
     assert r.status_code == 422, r.text
     assert r.json()["detail"]["field"].startswith(field), r.json()
     assert row_counts(settings) == before
+
+
+def test_run_in_decreasing_chainage(client: TestClient) -> None:
+    """A run travelling towards decreasing chainage maps its soft spot to the right place."""
+    body = {**BODY, "direction": "decreasing", "start_chainage_m": 200}
+    r = client.post("/api/v1/simulate", json=body)
+    assert r.status_code == 201, r.text
+    run = r.json()["run"]
+    assert run["direction"] == "decreasing"
+    assert_zones_match(client.get(f"/api/v1/runs/{run['id']}/soft-spots").json(), BODY["zones"])
