@@ -41,7 +41,7 @@ export function baseLayout(extra = {}) {
     hovermode: "x unified",
     legend: { orientation: "h", x: 0, y: -0.2, yanchor: "top" },
     xaxis: { title: { text: "Chainage (m)" }, showgrid: true, gridcolor: "#e3e6ea", zeroline: false },
-    yaxis: { title: { text: "Loaded level (mm)" }, showgrid: true, gridcolor: "#e3e6ea", zerolinecolor: "#9aa3ad" },
+    yaxis: { title: { text: "Loaded level (mm)" }, showgrid: true, gridcolor: "#e3e6ea", zerolinecolor: "#9aa3ad", automargin: true },
     ...extra,
   };
 }

@@ -64,8 +64,13 @@ class LiveServer:
             return ""
 
 
-def start_server(data_dir: Path, database_url: str | None = None) -> LiveServer:
-    """Start ``uvicorn app.main:app`` on a free port with a SQLite file under ``data_dir``."""
+def start_server(
+    data_dir: Path, database_url: str | None = None, settings: dict[str, str] | None = None
+) -> LiveServer:
+    """Start ``uvicorn app.main:app`` on a free port with a SQLite file under ``data_dir``.
+
+    ``settings`` are extra ``TRACKPROFILE_*`` environment variables of the service.
+    """
     port = free_port()
     db_url = database_url or f"sqlite:///{data_dir / 'trackprofile.db'}"
     env = {k: v for k, v in os.environ.items() if not k.startswith("TRACKPROFILE_")}
@@ -76,6 +81,7 @@ def start_server(data_dir: Path, database_url: str | None = None) -> LiveServer:
             "PYTHONPATH": str(REPO),
         }
     )
+    env.update(settings or {})
     log_path = data_dir / "server.log"
     log = log_path.open("wb")
     proc = subprocess.Popen(

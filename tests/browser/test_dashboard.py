@@ -14,7 +14,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from browser.harness import SAMPLE_START_M, SAMPLE_ZONES, LiveServer, wait_for_plot
+from browser.harness import (
+    SAMPLE_START_M,
+    SAMPLE_ZONES,
+    LiveServer,
+    start_server,
+    stop_server,
+    wait_for_plot,
+)
 
 pytestmark = pytest.mark.browser
 
@@ -463,3 +470,47 @@ def test_new_vehicle_is_created_and_selected(page: Any, live_server: LiveServer)
         v = api.get("/api/v1/vehicles/Inspection car 2").json()
     assert v["params"]["ms"] == 18000
     page.watch.assert_clean()
+
+
+def test_background_processing_is_followed_until_done(
+    page: Any, sample_csv: Path, tmp_path: Path
+) -> None:
+    """When the service queues the run (202), the page shows the upload complete, follows the
+    processing and opens the run once it is done."""
+    server = start_server(tmp_path, settings={"TRACKPROFILE_INLINE_MAX_SAMPLES": "0"})
+    try:
+        answers: list[int] = []
+        page.on(
+            "response",
+            lambda r: (
+                answers.append(r.status)
+                if r.request.method == "POST" and r.url.endswith("/api/v1/runs")
+                else None
+            ),
+        )
+        page.goto(f"{server.url}/#/upload")
+        page.set_input_files("#file-input", str(sample_csv))
+        page.wait_for_selector("#preview-table")
+        page.fill("#track-input", "Queued line")
+        page.fill("#start-chainage", str(SAMPLE_START_M))
+        # Record what the progress labels say while the page changes (it is one document).
+        page.evaluate(
+            """() => {
+                window.__progress = [];
+                const box = document.querySelector('.progress-box');
+                new MutationObserver(() => {
+                    if (!box.hidden) window.__progress.push(box.innerText);
+                }).observe(box, {subtree: true, childList: true, characterData: true,
+                                 attributes: true});
+            }"""
+        )
+        page.click("#upload-button")
+        page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
+        seen = " / ".join(page.evaluate("() => window.__progress"))
+        assert "Upload 100 %" in seen and "Processing (" in seen and "Processing done" in seen
+        assert answers == [202]
+        wait_for_plot(page, "#profile-plot")
+        assert page.locator("#spots-table tbody tr").count() >= 2
+        page.watch.assert_clean()
+    finally:
+        stop_server(server)

@@ -159,7 +159,6 @@ export async function render(main, [id]) {
   const layout = baseLayout({
     shapes: softSpotShapes(spots),
     annotations: softSpotLabels(spots),
-    height: 420,
     margin: { l: 64, r: 24, t: 60, b: 96 },
   });
   await P.newPlot(profileDiv, traces, layout, CONFIG);
@@ -315,9 +314,9 @@ async function loadSignals(encId, div, note) {
   const layout = baseLayout({
     height: hasSpeed ? 460 : 360,
     xaxis: { title: { text: "Time (s)" }, gridcolor: "#e3e6ea", anchor: hasSpeed ? "y3" : "y2" },
-    yaxis: { title: { text: "Accel (m/s²)" }, domain: hasSpeed ? [0.7, 1] : [0.55, 1], gridcolor: "#e3e6ea" },
-    yaxis2: { title: { text: "Pitch rate (rad/s)" }, domain: hasSpeed ? [0.36, 0.64] : [0, 0.45], gridcolor: "#e3e6ea" },
-    yaxis3: hasSpeed ? { title: { text: "Speed (m/s)" }, domain: [0, 0.28], gridcolor: "#e3e6ea" } : undefined,
+    yaxis: { title: { text: "Accel (m/s²)" }, domain: hasSpeed ? [0.7, 1] : [0.55, 1], gridcolor: "#e3e6ea", automargin: true },
+    yaxis2: { title: { text: "Pitch rate (rad/s)" }, domain: hasSpeed ? [0.36, 0.64] : [0, 0.45], gridcolor: "#e3e6ea", automargin: true },
+    yaxis3: hasSpeed ? { title: { text: "Speed (m/s)" }, domain: [0, 0.28], gridcolor: "#e3e6ea", automargin: true } : undefined,
   });
   if (!hasSpeed) delete layout.yaxis3;
   await plotly().newPlot(div, traces, layout, CONFIG);

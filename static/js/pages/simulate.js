@@ -188,7 +188,6 @@ export async function render(main) {
     }
     const trueShapes = softSpotShapes(r.zones || [], { fill: COLORS.truthFill, line: COLORS.truthLine, name: "true-zone" });
     const layout = baseLayout({
-      height: 420,
       shapes: [...trueShapes, ...softSpotShapes(r.soft_spots)],
       annotations: softSpotLabels(r.soft_spots),
       margin: { l: 64, r: 24, t: 60, b: 96 },
@@ -213,8 +212,8 @@ export async function render(main) {
     ], baseLayout({
       height: 360,
       xaxis: { title: { text: "Time (s)" }, gridcolor: "#e3e6ea", anchor: "y2" },
-      yaxis: { title: { text: "Accel (m/s²)" }, domain: [0.55, 1], gridcolor: "#e3e6ea" },
-      yaxis2: { title: { text: "Pitch rate (rad/s)" }, domain: [0, 0.45], gridcolor: "#e3e6ea" },
+      yaxis: { title: { text: "Accel (m/s²)" }, domain: [0.55, 1], gridcolor: "#e3e6ea", automargin: true },
+      yaxis2: { title: { text: "Pitch rate (rad/s)" }, domain: [0, 0.45], gridcolor: "#e3e6ea", automargin: true },
     }), CONFIG);
   }
 
