@@ -12,7 +12,17 @@ class EngineError(ValueError):
 
 
 class ParameterError(EngineError):
-    """A model parameter (vehicle, track, sensor, solver) is out of range."""
+    """A model parameter or option (vehicle, track, sensor, solver, CSV option) is invalid.
+
+    Attributes
+    ----------
+    field : str or None
+        The parameter or option at fault, when the raiser names it.
+    """
+
+    def __init__(self, message: str, *, field: str | None = None):
+        super().__init__(message)
+        self.field = field
 
 
 class LogFormatError(EngineError):

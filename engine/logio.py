@@ -310,7 +310,9 @@ class CsvOptions:
             opt = f"{role}_column"
             value = getattr(self, opt)
             if value is not None and not isinstance(value, str):
-                raise ParameterError(f"{opt} must be a column name (text), got {value!r}")
+                raise ParameterError(
+                    f"{opt} must be a column name (text), got {value!r}", field=opt
+                )
             value = value.strip() if value is not None else None
             value = value or None
             object.__setattr__(self, opt, value)
@@ -318,7 +320,8 @@ class CsvOptions:
                 if value in seen:
                     raise ParameterError(
                         f"{seen[value]} and {opt} both name the column {value!r}: "
-                        "each column can have one meaning only"
+                        "each column can have one meaning only",
+                        field=opt,
                     )
                 seen[value] = opt
         for role in ROLES:
@@ -328,7 +331,8 @@ class CsvOptions:
         g = "auto" if g is None else g
         if not isinstance(g, str) or g.strip().lower() not in _GRAVITY_MODES:
             raise ParameterError(
-                f"gravity must be one of 'auto', 'included', 'removed', got {self.gravity!r}"
+                f"gravity must be one of 'auto', 'included', 'removed', got {self.gravity!r}",
+                field="gravity",
             )
         object.__setattr__(self, "gravity", g.strip().lower())
 
@@ -345,7 +349,8 @@ class CsvOptions:
         unknown = sorted(set(d) - set(known))
         if unknown:
             raise ParameterError(
-                f"unknown CSV option(s) {', '.join(unknown)}; known options: {', '.join(known)}"
+                f"unknown CSV option(s) {', '.join(unknown)}; known options: {', '.join(known)}",
+                field=unknown[0],
             )
         kw = {k: v for k, v in d.items() if v is not None and v != ""}
         return cls(**kw)
@@ -362,7 +367,7 @@ def _canonical_option_unit(role: str, value: object) -> str | None:
     allowed = _OPTION_UNITS[role]
     listed = ", ".join(repr(u) for u in allowed)
     if not isinstance(value, str):
-        raise ParameterError(f"{opt} must be one of {listed}, got {value!r}")
+        raise ParameterError(f"{opt} must be one of {listed}, got {value!r}", field=opt)
     if not value.strip():
         return None
     key = _unit_key(value)
@@ -372,7 +377,8 @@ def _canonical_option_unit(role: str, value: object) -> str | None:
     if unit is None or unit not in allowed:
         raise ParameterError(
             f"{opt} {value!r} is not supported: use one of {listed} "
-            "(or leave it empty to recognise the unit from the column name)"
+            "(or leave it empty to recognise the unit from the column name)",
+            field=opt,
         )
     return unit
 

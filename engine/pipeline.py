@@ -8,7 +8,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .chainage import axle_positions, bandpass_distance, to_grid
+from .chainage import AxlePositions, axle_positions, bandpass_distance, to_grid
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import InversionError, ParameterError
@@ -115,6 +115,71 @@ def _soft_spots(
     ]
 
 
+@dataclass(frozen=True)
+class RunCheck:
+    """What :func:`check_run` found: the run can be inverted with these values.
+
+    Attributes
+    ----------
+    positions : AxlePositions
+        Chainage of body and axles at each sample, m.
+    speed : ndarray
+        Speed at each sample, m/s.
+    f_lo_hz, f_hi_hz : float
+        Time-frequency band the inversion will use, Hz.
+    travelled_m : float
+        Distance covered by the run, m.
+    """
+
+    positions: AxlePositions
+    speed: NDArray[np.float64]
+    f_lo_hz: float
+    f_hi_hz: float
+    travelled_m: float
+
+
+def check_run(
+    log: RunLog,
+    *,
+    start_chainage_m: float | None = None,
+    direction: str = "increasing",
+    vehicle: VehicleParams = TABLE1,
+    config: ProcessConfig | None = None,
+) -> RunCheck:
+    """Check up front that a log can be inverted, without inverting it (cheap, O(n)).
+
+    Same parameters as :func:`process_run`. Raises :class:`InversionError` naming the
+    problem: a speed below ``MIN_SPEED_MPS``, a run shorter than twice the longest
+    wavelength, a sample rate too low for the shortest wavelength at the top speed, a
+    missing start chainage, a chainage column that does not move steadily.
+    """
+    cfg = config or ProcessConfig()
+    dt = log.dt
+    pos = axle_positions(log, vehicle, start_chainage_m, direction)
+    speed = log.speed_mps if log.speed_mps is not None else np.abs(np.gradient(pos.body)) / dt
+    v_min, v_max = float(np.percentile(speed, 1)), float(np.percentile(speed, 99))
+    if v_min < MIN_SPEED_MPS:
+        raise InversionError(
+            f"speed drops to {v_min:.2f} m/s; the inversion needs >= {MIN_SPEED_MPS} m/s "
+            "throughout (split the log at stops)"
+        )
+    travelled = abs(pos.body[-1] - pos.body[0])
+    if travelled < 2 * cfg.lambda_max_m:
+        raise InversionError(
+            f"the run covers {travelled:.1f} m; at least {2 * cfg.lambda_max_m:.0f} m "
+            f"(twice the longest wavelength, {cfg.lambda_max_m} m) are needed"
+        )
+    tp = 1.0 + cfg.taper
+    f_lo = v_min / (cfg.lambda_max_m * tp)
+    f_hi = v_max * tp / cfg.lambda_min_m
+    if f_hi * tp >= 0.5 / dt:
+        raise InversionError(
+            f"a {1 / dt:.0f} Hz log cannot resolve {cfg.lambda_min_m} m wavelengths at "
+            f"{v_max:.1f} m/s (needs > {2 * f_hi * tp:.0f} Hz)"
+        )
+    return RunCheck(pos, speed, f_lo, f_hi, float(travelled))
+
+
 def process_run(
     log: RunLog,
     *,
@@ -154,28 +219,10 @@ def process_run(
     cfg = config or ProcessConfig()
     trk = track or TrackParams()
     dt = log.dt
-    pos = axle_positions(log, vehicle, start_chainage_m, direction)
-    speed = log.speed_mps if log.speed_mps is not None else np.abs(np.gradient(pos.body)) / dt
-    v_min, v_max = float(np.percentile(speed, 1)), float(np.percentile(speed, 99))
-    if v_min < MIN_SPEED_MPS:
-        raise InversionError(
-            f"speed drops to {v_min:.2f} m/s; the inversion needs >= {MIN_SPEED_MPS} m/s "
-            "throughout (split the log at stops)"
-        )
-    travelled = abs(pos.body[-1] - pos.body[0])
-    if travelled < 2 * cfg.lambda_max_m:
-        raise InversionError(
-            f"the run covers {travelled:.1f} m; at least {2 * cfg.lambda_max_m:.0f} m "
-            f"(twice the longest wavelength, {cfg.lambda_max_m} m) are needed"
-        )
-    tp = 1.0 + cfg.taper
-    f_lo = v_min / (cfg.lambda_max_m * tp)
-    f_hi = v_max * tp / cfg.lambda_min_m
-    if f_hi * tp >= 0.5 / dt:
-        raise InversionError(
-            f"a {1 / dt:.0f} Hz log cannot resolve {cfg.lambda_min_m} m wavelengths at "
-            f"{v_max:.1f} m/s (needs > {2 * f_hi * tp:.0f} Hz)"
-        )
+    chk = check_run(
+        log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle, config=cfg
+    )
+    pos, speed, f_lo, f_hi = chk.positions, chk.speed, chk.f_lo_hz, chk.f_hi_hz
 
     if cfg.method == "spectral":
         inv = spectral_inverse(

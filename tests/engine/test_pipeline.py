@@ -168,3 +168,30 @@ def test_too_short_and_too_coarse_logs_are_refused():
         process_run(RunLog(t, t * 0, t * 0, t * 0 + 30.0))
     with pytest.raises(ParameterError):
         ProcessConfig(lambda_min_m=30, lambda_max_m=3)
+
+
+def test_check_run_refuses_up_front_what_process_run_would():
+    """check_run raises the same errors as the full pipeline, without inverting."""
+    from engine.pipeline import check_run
+
+    t = np.arange(0, 20.0, 0.05)
+    coarse = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 30.0))
+    with pytest.raises(InversionError, match="Hz"):
+        check_run(coarse, start_chainage_m=0.0)
+    t = np.arange(0, 20.0, 1e-3)
+    ok = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 25.0))
+    chk = check_run(ok, start_chainage_m=10.0)
+    assert chk.travelled_m == pytest.approx(25.0 * t[-1])
+    assert 0 < chk.f_lo_hz < chk.f_hi_hz < 500
+
+
+def test_csv_option_errors_name_the_option():
+    """A bad CSV option raises ParameterError whose .field names the option."""
+    from engine.logio import CsvOptions
+
+    with pytest.raises(ParameterError) as exc:
+        CsvOptions(accel_unit="furlongs")
+    assert exc.value.field == "accel_unit"
+    with pytest.raises(ParameterError) as exc:
+        CsvOptions(gravity="sideways")
+    assert exc.value.field == "gravity"
