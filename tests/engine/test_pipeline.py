@@ -195,3 +195,19 @@ def test_csv_option_errors_name_the_option():
     with pytest.raises(ParameterError) as exc:
         CsvOptions(gravity="sideways")
     assert exc.value.field == "gravity"
+
+
+@pytest.mark.parametrize("rate", [250.0, 100.0])
+def test_slower_loggers_still_work(rate):
+    """Logs at 250 Hz and 100 Hz give the zone; noise is reported where it can be told (NaN)."""
+    sensor = dataclasses.replace(REALISTIC_SENSOR, sample_rate_hz=rate)
+    run = make_run(length=320.0, zones=[SoftZone(150, 155, 0.5)], speed=25.0, sensor=sensor,
+                   sim_rate_hz=2000.0, jitter=0.05, seed=3)  # fmt: skip
+    res = process_run(run.log, start_chainage_m=run.start_chainage_m)
+    s = score(res, run)
+    assert s.profile_rms_mm < 0.05 and s.zones_found == 1 and s.false_alarms == 0
+    assert s.max_edge_error_m <= 1.5 and s.max_loss_error_pct <= 10
+    if rate >= 200:
+        assert res.quality.noise_accel_mps2 == pytest.approx(0.005, rel=0.15)
+    else:
+        assert np.isnan(res.quality.noise_accel_mps2)
