@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from app.db.models import Run, Track, Vehicle
-from app.schemas.runs import RunError, RunPublic
+from app.schemas.runs import RunAlignmentPublic, RunError, RunPublic
 from app.schemas.tracks import TrackPublic
 from app.schemas.vehicles import VehicleParamsSchema, VehiclePublic
 
@@ -36,6 +36,7 @@ def run_public(run: Run) -> RunPublic:
         chainage_min_m=None if run.chainage_min_m is None else run.chainage_min_m + off,
         chainage_max_m=None if run.chainage_max_m is None else run.chainage_max_m + off,
         chainage_offset_m=off,
+        alignment=_alignment(run),
         status=run.status,  # type: ignore[arg-type]
         stage=run.stage if run.status == "processing" else None,  # type: ignore[arg-type]
         progress=progress,
@@ -46,6 +47,18 @@ def run_public(run: Run) -> RunPublic:
         processing_s=run.processing_s,
         content_hash=run.content_hash,
         options=run.options or {},
+    )
+
+
+def _alignment(run: Run) -> RunAlignmentPublic | None:
+    if run.alignment_status is None:
+        return None
+    return RunAlignmentPublic(
+        status=run.alignment_status,  # type: ignore[arg-type]
+        offset_m=run.chainage_offset_m or 0.0,
+        correlation=run.alignment_correlation,
+        overlap_m=run.alignment_overlap_m,
+        reason=run.alignment_reason,
     )
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Depends
 
 from app.api.deps import check_access
-from app.api.routes import runs, simulate, tracks, vehicles, views
+from app.api.routes import runs, simulate, track_intel, tracks, vehicles, views
 from app.schemas.common import ERROR_RESPONSES
 
 api_router = APIRouter(
@@ -13,6 +13,8 @@ api_router = APIRouter(
 )
 api_router.include_router(runs.router)
 api_router.include_router(tracks.router)
+# Per-track aggregated profile, defect register, alerts, limits and report (issue 6).
+api_router.include_router(track_intel.router)
 api_router.include_router(vehicles.router)
 api_router.include_router(simulate.router)
 # Server-side chart data for the dashboard (decimated profiles, chainage maps, CSV preview).

@@ -34,6 +34,11 @@ RUN_STATUSES = ("processing", "done", "failed")
 RUN_STAGES = ("queued", "inverting", "storing")
 """What a ``processing`` run is doing: waiting for a worker, in the engine, being written."""
 
+ALIGNMENT_STATUSES = ("reference", "aligned", "unaligned")
+"""How a processed run sits on its track's chainage: the reference of its stretch (nothing was
+there before it, offset 0), aligned to the track's aggregated profile, or not alignable (kept
+as logged and left out of the aggregate and the register). NULL: not processed yet."""
+
 
 class Track(Base):
     """A line (or a stretch of one) that runs are recorded on, with its nominal properties."""
@@ -140,6 +145,10 @@ class Run(Base):
     chainage_min_m: Mapped[float | None] = mapped_column(Float)
     chainage_max_m: Mapped[float | None] = mapped_column(Float)
     chainage_offset_m: Mapped[float] = mapped_column(Float, default=0.0)
+    alignment_status: Mapped[str | None] = mapped_column(String(12))
+    alignment_correlation: Mapped[float | None] = mapped_column(Float)
+    alignment_overlap_m: Mapped[float | None] = mapped_column(Float)
+    alignment_reason: Mapped[str | None] = mapped_column(Text)
 
     status: Mapped[str] = mapped_column(String(12), default="processing")
     stage: Mapped[str | None] = mapped_column(String(12))
@@ -233,3 +242,61 @@ class ApiKey(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     revoked_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     last_used_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class TrackRunLevels(Base):
+    """One aligned run's level on its track's 0.25 m grid, a chunk of grid points per row.
+
+    ``levels`` holds ``CHUNK_POINTS`` little-endian float32 values (mm, NaN = no data) for the
+    grid points ``chunk * CHUNK_POINTS ... + CHUNK_POINTS - 1`` (chainage = index x 0.25 m).
+    Only runs that are the reference of their stretch or aligned to it have rows here: the
+    aggregate of a chainage range is recomputed from these rows alone.
+    """
+
+    __tablename__ = "track_run_levels"
+    __table_args__ = (Index("ix_track_run_levels_track_id_chunk", "track_id", "chunk"),)
+
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
+    chunk: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="CASCADE"))
+    levels: Mapped[bytes] = mapped_column(LargeBinary)
+
+
+class TrackProfilePoint(Base):
+    """The aggregated profile of a track at one 0.25 m grid point (aligned chainage, m).
+
+    ``level_mm`` is the median over the aligned runs covering the point, ``spread_mm`` their
+    robust spread (1.4826 x MAD), ``n_runs`` how many there are. Keyed ``(track_id,
+    chainage_m)``: a chainage window is one range scan.
+    """
+
+    __tablename__ = "track_profile_points"
+    __table_args__ = {"sqlite_with_rowid": False}
+
+    track_id: Mapped[int] = mapped_column(
+        ForeignKey("tracks.id", ondelete="CASCADE"), primary_key=True
+    )
+    chainage_m: Mapped[float] = mapped_column(Float, primary_key=True)
+    level_mm: Mapped[float] = mapped_column(Float)
+    spread_mm: Mapped[float] = mapped_column(Float)
+    n_runs: Mapped[int] = mapped_column(Integer)
+
+
+class TrackLimits(Base):
+    """A track's limits on defect depth (mm) and stiffness loss (%), EN 13848 style.
+
+    NULL disables a criterion; a track without a row uses the engine's default ``Limits``.
+    """
+
+    __tablename__ = "track_limits"
+
+    track_id: Mapped[int] = mapped_column(
+        ForeignKey("tracks.id", ondelete="CASCADE"), primary_key=True
+    )
+    alert_depth_mm: Mapped[float | None] = mapped_column(Float)
+    intervention_depth_mm: Mapped[float | None] = mapped_column(Float)
+    immediate_depth_mm: Mapped[float | None] = mapped_column(Float)
+    alert_loss_pct: Mapped[float | None] = mapped_column(Float)
+    intervention_loss_pct: Mapped[float | None] = mapped_column(Float)
+    immediate_loss_pct: Mapped[float | None] = mapped_column(Float)
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)

@@ -139,6 +139,25 @@ class RunError(BaseModel):
     kind: str | None = None
 
 
+AlignmentStatus = Literal["reference", "aligned", "unaligned"]
+
+
+class RunAlignmentPublic(BaseModel):
+    """How a processed run was placed on its track's chainage (issue 6)."""
+
+    status: AlignmentStatus = Field(
+        description="reference (first data on its stretch, offset 0), aligned (offset found by "
+        "cross-correlation with the track's aggregated profile) or unaligned (no trustworthy "
+        "match: kept as logged, left out of the track's aggregate and register)"
+    )
+    offset_m: float = Field(description="Offset added to the run's logged chainage, m")
+    correlation: float | None = Field(
+        description="Normalised correlation with the track's profile at that offset (-1..1)"
+    )
+    overlap_m: float | None = Field(description="Track length compared at that offset, m")
+    reason: str | None = Field(description="Why the run is a reference or is unaligned")
+
+
 class RunPublic(BaseModel):
     """A stored run: metadata, processing state, quality indicators."""
 
@@ -164,6 +183,9 @@ class RunPublic(BaseModel):
     chainage_max_m: float | None = Field(description="End of the stored profile, m (aligned)")
     chainage_offset_m: float = Field(
         description="Offset added to the run's own chainage to align it with the track, m"
+    )
+    alignment: RunAlignmentPublic | None = Field(
+        default=None, description="Alignment to the track (null until processed)"
     )
     status: RunStatus
     stage: RunStage | None = Field(description="While processing: queued, inverting, storing")

@@ -19,6 +19,7 @@ from engine.runlog import RunLog
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
 
+from .integrate import add_run_to_track
 from .profiles import insert_profile
 
 
@@ -59,6 +60,8 @@ def store_result(session: Session, run: Run, processed: Processed) -> None:
     """Write a run's profile and soft spots and mark it done (caller commits).
 
     Chainage in m, levels in mm; the run's chainage extent is where the fused level exists.
+    The run is then aligned to its track and merged into the track's aggregated profile
+    (``app.services.integrate``), in the same transaction.
     """
     res = processed.result
     insert_profile(
@@ -93,3 +96,4 @@ def store_result(session: Session, run: Run, processed: Processed) -> None:
     run.error = None
     run.processed_at = utcnow()
     session.execute(delete(RunInput).where(RunInput.run_id == run.id))
+    add_run_to_track(session, run, res.chainage_m, res.level_mm)

@@ -33,6 +33,7 @@ from app.schemas.runs import (
     SoftSpotPublic,
 )
 from app.services.context import AppContext
+from app.services.integrate import remove_run_from_track
 from app.services.logs import hash_columns, log_from_columns, parse_csv, sha256_hex
 from app.services.profiles import PROFILE_COLUMNS, iter_profile_rows, read_profile
 from app.services.submit import Submission, submit
@@ -303,8 +304,12 @@ def read_run(session: SessionDep, run_id: int) -> RunPublic:
 
 @router.delete("/{run_id}", status_code=204, response_class=Response)
 def delete_run(session: SessionDep, run_id: int) -> Response:
-    """Delete a run with its profile, soft spots and signals (also while it processes)."""
+    """Delete a run with its profile, soft spots and signals (also while it processes).
+
+    The track's aggregated profile is recomputed without it in the same transaction.
+    """
     run = _get_run(session, run_id)
+    remove_run_from_track(session, run)
     session.delete(run)
     session.commit()
     return Response(status_code=204)

@@ -1,0 +1,133 @@
+"""Track intelligence schemas: aggregated profile, defect register, alerts, limits.
+
+Chainage in m (aligned), levels and depths in mm, stiffness loss in %, trends per month
+(30.44 days).
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from engine.register import Limits
+
+from .common import StrictModel
+
+DefectStatus = Literal["new", "confirmed", "worsening", "stable"]
+LimitLevel = Literal["immediate", "intervention", "alert"]
+
+_DEFAULTS = Limits()
+
+
+class TrackProfileAggregatePublic(BaseModel):
+    """A track's aggregated profile over its aligned runs, one value per 0.25 m grid point."""
+
+    track_id: int
+    track: str = Field(description="Track name")
+    from_m: float | None = Field(description="Window asked for, m (null: the start)")
+    to_m: float | None = Field(description="Window asked for, m (null: the end)")
+    grid_step_m: float = Field(description="Grid step of the aggregate, m")
+    n: int = Field(description="Grid points with data in the window")
+    decimated: bool = Field(
+        description="True when max_points thinned the answer (each bucket keeps its lowest and "
+        "highest point)"
+    )
+    chainage_m: list[float] = Field(description="Aligned chainage, m")
+    level_mm: list[float] = Field(description="Median level over the runs covering the point, mm")
+    spread_mm: list[float] = Field(description="Robust spread (1.4826 x MAD) of the runs, mm")
+    n_runs: list[int] = Field(description="Aligned runs covering the point")
+
+
+class DefectObservationPublic(BaseModel):
+    """One run's sighting of a defect (aligned chainage)."""
+
+    run_id: int
+    recorded_at: datetime = Field(description="When the run was recorded (else uploaded)")
+    start_m: float
+    end_m: float
+    peak_m: float
+    depth_mm: float
+    stiffness_loss_pct: float | None
+
+
+class DefectPublic(BaseModel):
+    """A tracked defect of the soft-spot register: soft spots of many runs at one place."""
+
+    id: str = Field(description="Stable id: the first run that saw it and where")
+    priority: int = Field(
+        description="1 immediate action, 2 intervention, 3 alert, 4 below the limits"
+    )
+    level: LimitLevel | None = Field(description="Most urgent limit reached by the latest run")
+    level_since: datetime | None = Field(
+        description="Recording time of the first run that reached today's level (or worse)"
+    )
+    status: DefectStatus = Field(
+        description="new (one run), confirmed (fewer runs than a trend needs), worsening "
+        "(significant growth of depth or stiffness loss), stable"
+    )
+    start_m: float = Field(description="Start, m (median over the runs that saw it)")
+    end_m: float = Field(description="End, m (median)")
+    peak_m: float = Field(description="Deepest point, m (median)")
+    depth_mm: float = Field(description="Depth in the latest run, mm")
+    stiffness_loss_pct: float | None = Field(description="Stiffness loss in the latest run, %")
+    trend_mm_per_month: float = Field(description="Depth trend (least squares), mm/month")
+    trend_loss_pct_per_month: float = Field(
+        description="Stiffness-loss trend, percentage points/month"
+    )
+    first_seen: datetime
+    last_seen: datetime
+    runs_seen: int = Field(description="Runs that detected it")
+    runs_covering: int = Field(description="Aligned runs whose profile covers it")
+    history: list[DefectObservationPublic] | None = Field(
+        default=None, description="Every run's sighting, oldest first (?include=history)"
+    )
+
+
+def _limit(default: float | None, unit: str, what: str) -> float | None:
+    return Field(
+        default=default,
+        gt=0,
+        allow_inf_nan=False,
+        description=f"{what}, {unit} (null: not used; default {default})",
+    )
+
+
+class LimitsFields(StrictModel):
+    """Limits of a track in the style of EN 13848 (alert, intervention, immediate action).
+
+    A defect reaches a level when its depth *or* its stiffness loss reaches that level's
+    value; each criterion must grow from alert to intervention to immediate. A field left out
+    of a PUT takes its default; null switches that criterion off.
+    """
+
+    alert_depth_mm: float | None = _limit(_DEFAULTS.alert_depth_mm, "mm", "Alert depth")
+    intervention_depth_mm: float | None = _limit(
+        _DEFAULTS.intervention_depth_mm, "mm", "Intervention depth"
+    )
+    immediate_depth_mm: float | None = _limit(
+        _DEFAULTS.immediate_depth_mm, "mm", "Immediate-action depth"
+    )
+    alert_loss_pct: float | None = _limit(_DEFAULTS.alert_loss_pct, "%", "Alert stiffness loss")
+    intervention_loss_pct: float | None = _limit(
+        _DEFAULTS.intervention_loss_pct, "%", "Intervention stiffness loss"
+    )
+    immediate_loss_pct: float | None = _limit(
+        _DEFAULTS.immediate_loss_pct, "%", "Immediate-action stiffness loss"
+    )
+
+
+class LimitsUpdate(LimitsFields):
+    """Body of ``PUT /tracks/{track}/limits``."""
+
+
+class LimitsPublic(LimitsFields):
+    """A track's limits (its own, or the defaults)."""
+
+    model_config = {"extra": "ignore"}
+
+    track_id: int
+    track: str = Field(description="Track name")
+    is_default: bool = Field(description="True while the track has no limits of its own")
+    updated_at: datetime | None = Field(description="When the limits were last set")

@@ -1,0 +1,173 @@
+"""The aggregated track profile: median, spread and count of the aligned runs per grid point.
+
+Each aligned run's level is kept on the track grid (0.25 m, multiples of 0.25 m) in chunks of
+:data:`CHUNK_POINTS` points (``track_run_levels``); when a run arrives or is deleted only the
+chunks it covers are recomputed (``engine.aggregate.aggregate_levels``) and rewritten in
+``track_profile_points``, inside the caller's transaction. Chainage in m, levels in mm.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import delete, func, insert, select
+from sqlalchemy.orm import Session
+
+from app.db.models import TrackProfilePoint, TrackRunLevels
+from engine.aggregate import aggregate_levels
+
+from .alignment import GRID_STEP_M
+
+CHUNK_POINTS = 1000
+"""Grid points per stored chunk of a run's aligned levels (250 m)."""
+
+BATCH_CHUNKS = 40
+"""Chunks recomputed at once (10 km: 50 runs x 40 000 points stay a few MB)."""
+
+_DTYPE = np.dtype("<f4")
+_PLACEHOLDER = {"qmark": "?", "format": "%s", "pyformat": "%s"}
+
+
+def store_run_levels(
+    session: Session, track_id: int, run_id: int, i_lo: int, levels: NDArray[np.float64]
+) -> tuple[int, int] | None:
+    """Keep a run's aligned levels (mm) from grid point ``i_lo`` on; the chunks written.
+
+    Returns ``(first_chunk, last_chunk)``, or None when there is no finite level.
+    """
+    finite = np.flatnonzero(np.isfinite(levels))
+    if finite.size == 0:
+        return None
+    i_first, i_last = i_lo + int(finite[0]), i_lo + int(finite[-1])
+    c_lo, c_hi = i_first // CHUNK_POINTS, i_last // CHUNK_POINTS
+    rows = []
+    for chunk in range(c_lo, c_hi + 1):
+        buf = np.full(CHUNK_POINTS, np.nan, dtype=_DTYPE)
+        a = max(chunk * CHUNK_POINTS, i_lo)
+        b = min((chunk + 1) * CHUNK_POINTS, i_lo + levels.size)
+        if b > a:
+            buf[a - chunk * CHUNK_POINTS : b - chunk * CHUNK_POINTS] = levels[a - i_lo : b - i_lo]
+        if np.isfinite(buf).any():
+            rows.append({"run_id": run_id, "chunk": chunk, "track_id": track_id,
+                         "levels": buf.tobytes()})  # fmt: skip
+    if rows:
+        session.execute(insert(TrackRunLevels), rows)
+    return c_lo, c_hi
+
+
+def drop_run_levels(session: Session, run_id: int) -> tuple[int, int] | None:
+    """Forget a run's aligned levels; the chunks it covered (None when it had none)."""
+    t = TrackRunLevels.__table__
+    lo, hi = session.execute(
+        select(func.min(t.c.chunk), func.max(t.c.chunk)).where(t.c.run_id == run_id)
+    ).one()
+    if lo is None:
+        return None
+    session.execute(delete(TrackRunLevels).where(TrackRunLevels.run_id == run_id))
+    return int(lo), int(hi)
+
+
+def _batches(c_lo: int, c_hi: int) -> Iterator[tuple[int, int]]:
+    for a in range(c_lo, c_hi + 1, BATCH_CHUNKS):
+        yield a, min(c_hi, a + BATCH_CHUNKS - 1)
+
+
+def recompute_aggregate(session: Session, track_id: int, c_lo: int, c_hi: int) -> int:
+    """Rebuild the aggregated profile of chunks ``c_lo..c_hi`` from the runs' levels.
+
+    Returns the number of grid points with data written.
+    """
+    t = TrackRunLevels.__table__
+    written = 0
+    for a, b in _batches(c_lo, c_hi):
+        rows = session.execute(
+            select(t.c.run_id, t.c.chunk, t.c.levels).where(
+                t.c.track_id == track_id, t.c.chunk >= a, t.c.chunk <= b
+            )
+        ).all()
+        i0 = a * CHUNK_POINTS
+        n = (b - a + 1) * CHUNK_POINTS
+        x_lo, x_hi = i0 * GRID_STEP_M, (i0 + n - 1) * GRID_STEP_M
+        session.execute(
+            delete(TrackProfilePoint).where(
+                TrackProfilePoint.track_id == track_id,
+                TrackProfilePoint.chainage_m >= x_lo - 1e-6,
+                TrackProfilePoint.chainage_m <= x_hi + 1e-6,
+            )
+        )
+        if not rows:
+            continue
+        run_row = {rid: k for k, rid in enumerate(sorted({r[0] for r in rows}))}
+        levels = np.full((len(run_row), n), np.nan)
+        for rid, chunk, blob in rows:
+            at = (chunk - a) * CHUNK_POINTS
+            levels[run_row[rid], at : at + CHUNK_POINTS] = np.frombuffer(blob, dtype=_DTYPE)
+        grid = (i0 + np.arange(n, dtype=np.float64)) * GRID_STEP_M
+        agg = aggregate_levels(grid, levels)
+        keep = np.flatnonzero(agg.n_runs > 0)
+        _insert_points(
+            session, track_id, grid[keep], agg.level_mm[keep], agg.spread_mm[keep],
+            agg.n_runs[keep],
+        )  # fmt: skip
+        written += int(keep.size)
+    return written
+
+
+def _insert_points(
+    session: Session,
+    track_id: int,
+    chainage: NDArray[np.float64],
+    level: NDArray[np.float64],
+    spread: NDArray[np.float64],
+    n_runs: NDArray[np.int64],
+) -> None:
+    if chainage.size == 0:
+        return
+    conn = session.connection()
+    mark = _PLACEHOLDER.get(conn.dialect.paramstyle)
+    columns = [chainage.tolist(), level.tolist(), spread.tolist(), n_runs.tolist()]
+    if mark is None:
+        names = ("track_id", "chainage_m", "level_mm", "spread_mm", "n_runs")
+        dict_rows = [
+            dict(zip(names, (track_id, *r), strict=True)) for r in zip(*columns, strict=True)
+        ]
+        conn.execute(insert(TrackProfilePoint), dict_rows)
+        return
+    sql = (
+        f"INSERT INTO {TrackProfilePoint.__tablename__} "
+        f"(track_id, chainage_m, level_mm, spread_mm, n_runs) VALUES ({', '.join([mark] * 5)})"
+    )
+    conn.exec_driver_sql(sql, list(zip([track_id] * chainage.size, *columns, strict=True)))
+
+
+def read_track_profile(
+    session: Session, track_id: int, from_m: float | None = None, to_m: float | None = None
+) -> dict[str, list[Any]]:
+    """The aggregated profile between two chainages (m, inclusive), by column.
+
+    Columns ``chainage_m`` (m), ``level_mm``, ``spread_mm`` (mm) and ``n_runs``; only grid
+    points that at least one aligned run covers.
+    """
+    t = TrackProfilePoint.__table__
+    names = ("chainage_m", "level_mm", "spread_mm", "n_runs")
+    stmt = select(*(t.c[k] for k in names)).where(t.c.track_id == track_id)
+    if from_m is not None:
+        stmt = stmt.where(t.c.chainage_m >= from_m)
+    if to_m is not None:
+        stmt = stmt.where(t.c.chainage_m <= to_m)
+    rows = session.execute(stmt.order_by(t.c.chainage_m)).all()
+    if not rows:
+        return {k: [] for k in names}
+    return {k: list(col) for k, col in zip(names, zip(*rows, strict=True), strict=True)}
+
+
+def track_profile_extent(session: Session, track_id: int) -> tuple[float | None, float | None]:
+    """First and last chainage of the aggregated profile, m (None, None when empty)."""
+    t = TrackProfilePoint.__table__
+    lo, hi = session.execute(
+        select(func.min(t.c.chainage_m), func.max(t.c.chainage_m)).where(t.c.track_id == track_id)
+    ).one()
+    return lo, hi

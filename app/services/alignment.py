@@ -1,0 +1,184 @@
+"""Aligning a processed run to its track: the chainage offset against the aggregated profile.
+
+Logged start chainages are off by metres (odometer slip, GPS). Before a run joins its track's
+aggregate and register, its profile is cross-correlated (``engine.align.align_profiles``) with
+the track's aggregated profile over the run's stretch; the offset found is stored on the run
+and added wherever its chainage is served. A run over a stretch where the track has no data yet
+is the reference there (offset 0). A run whose match is not trustworthy is flagged
+``unaligned`` with the reason and kept out of the aggregate and the register.
+
+Units: chainage in m, levels in mm.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.db.models import TrackProfilePoint
+from engine.align import align_profiles
+from engine.errors import EngineError
+
+GRID_STEP_M = 0.25
+"""Step of the track grid, m: grid point ``i`` is at chainage ``i * GRID_STEP_M``."""
+
+MAX_SHIFT_M = 10.0
+"""Largest chainage offset searched, m (either way): twice the start-chainage errors seen."""
+
+MIN_OVERLAP_M = 60.0
+"""Shortest stretch shared with the track's data for an offset to count, m."""
+
+MIN_CORRELATION = 0.5
+"""Smallest normalised correlation with the track's profile for an offset to count."""
+
+
+@dataclass(frozen=True)
+class RunAlignment:
+    """Where a run goes on its track.
+
+    Attributes
+    ----------
+    status : {"reference", "aligned", "unaligned"}
+        Reference of its stretch (offset 0), aligned, or not alignable.
+    offset_m : float
+        Chainage offset added to the run's chainages, m (0 unless aligned).
+    correlation : float or None
+        Normalised correlation with the track's profile at that offset.
+    overlap_m : float or None
+        Length of track shared with the track's profile at that offset, m.
+    reason : str or None
+        Why the run is the reference or could not be aligned.
+    """
+
+    status: str
+    offset_m: float
+    correlation: float | None
+    overlap_m: float | None
+    reason: str | None
+
+    @property
+    def merged(self) -> bool:
+        """Whether the run joins the aggregate and the register."""
+        return self.status in ("reference", "aligned")
+
+
+def grid_index_range(lo_m: float, hi_m: float) -> tuple[int, int]:
+    """Indices of the first and last track grid points inside ``[lo_m, hi_m]`` (m)."""
+    return math.ceil(lo_m / GRID_STEP_M - 1e-9), math.floor(hi_m / GRID_STEP_M + 1e-9)
+
+
+def sample_at(
+    chainage_m: NDArray[np.float64], level_mm: NDArray[np.float64], x_m: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """A profile linearly interpolated at the chainages ``x_m`` (m; level in mm).
+
+    NaN outside the profile and next to its gaps (a value is only made from finite neighbours;
+    a point on a stored chainage takes that value as it is).
+    """
+    c = np.asarray(chainage_m, dtype=np.float64)
+    v = np.asarray(level_mm, dtype=np.float64)
+    x = np.asarray(x_m, dtype=np.float64)
+    out = np.full(x.shape, np.nan)
+    if c.size == 0 or x.size == 0:
+        return out
+    if c.size > 1 and c[0] > c[-1]:
+        c, v = c[::-1], v[::-1]
+    tol = 1e-9 * max(1.0, float(np.abs(c).max()))
+    inside = (x >= c[0] - tol) & (x <= c[-1] + tol)
+    if c.size == 1:
+        out[inside] = v[0]
+        return out
+    xi = x[inside]
+    i0 = np.clip(np.searchsorted(c, xi, side="right") - 1, 0, c.size - 2)
+    frac = np.clip((xi - c[i0]) / (c[i0 + 1] - c[i0]), 0.0, 1.0)
+    a, b = v[i0], v[i0 + 1]
+    value = np.where(frac <= 1e-9, a, np.where(frac >= 1 - 1e-9, b, (1 - frac) * a + frac * b))
+    out[inside] = value
+    return out
+
+
+def on_track_grid(
+    chainage_m: NDArray[np.float64], level_mm: NDArray[np.float64], offset_m: float = 0.0
+) -> tuple[int, NDArray[np.float64]]:
+    """A run's profile shifted by ``offset_m`` and sampled on the track grid.
+
+    Returns the index of the first grid point and the levels (mm) from there on; an empty
+    array when the profile has no finite level.
+    """
+    c = np.asarray(chainage_m, dtype=np.float64)
+    v = np.asarray(level_mm, dtype=np.float64)
+    finite = np.flatnonzero(np.isfinite(v))
+    if finite.size == 0:
+        return 0, np.empty(0)
+    lo, hi = sorted((float(c[finite[0]]), float(c[finite[-1]])))
+    i_lo, i_hi = grid_index_range(lo + offset_m, hi + offset_m)
+    if i_hi < i_lo:
+        return i_lo, np.empty(0)
+    x = np.arange(i_lo, i_hi + 1, dtype=np.float64) * GRID_STEP_M
+    return i_lo, sample_at(c + offset_m, v, x)
+
+
+def read_aggregate_grid(
+    session: Session, track_id: int, i_lo: int, i_hi: int
+) -> NDArray[np.float64]:
+    """The track's aggregated level at grid points ``i_lo..i_hi`` (mm; NaN where no run)."""
+    t = TrackProfilePoint.__table__
+    rows = session.execute(
+        select(t.c.chainage_m, t.c.level_mm).where(
+            t.c.track_id == track_id,
+            t.c.chainage_m >= i_lo * GRID_STEP_M - 1e-6,
+            t.c.chainage_m <= i_hi * GRID_STEP_M + 1e-6,
+        )
+    ).all()
+    out = np.full(i_hi - i_lo + 1, np.nan)
+    if rows:
+        arr = np.asarray(rows, dtype=np.float64)
+        idx = np.rint(arr[:, 0] / GRID_STEP_M).astype(np.int64) - i_lo
+        out[idx] = arr[:, 1]
+    return out
+
+
+def align_to_track(
+    session: Session,
+    track_id: int,
+    chainage_m: NDArray[np.float64],
+    level_mm: NDArray[np.float64],
+) -> RunAlignment:
+    """Align a run's profile (chainage as logged, m; level mm) to its track's aggregate.
+
+    The reference is the track's aggregated profile over the run's stretch widened by
+    :data:`MAX_SHIFT_M`; with no data there, the run is the reference of its stretch.
+    """
+    i0, own = on_track_grid(chainage_m, level_mm)
+    if own.size < 2 or not np.isfinite(own).any():
+        return RunAlignment("unaligned", 0.0, None, None, "the run has no profile to align")
+    own_c = (i0 + np.arange(own.size, dtype=np.float64)) * GRID_STEP_M
+    pad = math.ceil(MAX_SHIFT_M / GRID_STEP_M) + 1
+    r_lo, r_hi = i0 - pad, i0 + own.size - 1 + pad
+    ref = read_aggregate_grid(session, track_id, r_lo, r_hi)
+    if not np.isfinite(ref).any():
+        return RunAlignment(
+            "reference", 0.0, None, None,
+            "no earlier aligned run covers this stretch: the run is its reference",
+        )  # fmt: skip
+    ref_c = np.arange(r_lo, r_hi + 1, dtype=np.float64) * GRID_STEP_M
+    try:
+        al = align_profiles(
+            ref_c, ref, own_c, own,
+            max_shift_m=MAX_SHIFT_M, min_overlap_m=MIN_OVERLAP_M, min_correlation=MIN_CORRELATION,
+        )  # fmt: skip
+    except EngineError as exc:
+        return RunAlignment("unaligned", 0.0, None, None, f"cannot align: {exc}")
+    corr = float(al.correlation) if math.isfinite(al.correlation) else None
+    if not al.ok:
+        return RunAlignment(
+            "unaligned", 0.0, corr, float(al.overlap_m),
+            f"{al.reason} (offset searched within +-{MAX_SHIFT_M:g} m against the track's "
+            "aggregated profile)",
+        )  # fmt: skip
+    return RunAlignment("aligned", float(al.offset_m), corr, float(al.overlap_m), None)

@@ -1,0 +1,60 @@
+"""A run joining or leaving its track's aligned data (offset, aggregate), in the caller's
+transaction.
+
+``add_run_to_track`` runs when a run's result is stored (inline or by the worker),
+``remove_run_from_track`` before a run is deleted. Both lock the track first (``SELECT ... FOR
+UPDATE`` where the database has it; SQLite already serialises writers, and both functions
+write before they read the track's data), so two runs of one track stored at the same time
+are aligned one after the other, each against the other's data.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.db.models import Run, Track
+
+from .aggregate import drop_run_levels, recompute_aggregate, store_run_levels
+from .alignment import RunAlignment, align_to_track, on_track_grid
+
+
+def _lock_track(session: Session, track_id: int) -> None:
+    session.execute(select(Track.id).where(Track.id == track_id).with_for_update())
+
+
+def add_run_to_track(
+    session: Session, run: Run, chainage_m: NDArray[np.float64], level_mm: NDArray[np.float64]
+) -> RunAlignment:
+    """Align a just-stored run (profile as processed: chainage m, level mm) and merge it.
+
+    Sets the run's offset and alignment fields; a reference or aligned run's levels join the
+    track's aggregate over the chunks it covers. Call after the run's rows are written (so
+    that on SQLite the transaction already holds the write lock).
+    """
+    _lock_track(session, run.track_id)
+    # A run stored again (a worker retry) first leaves the aggregate it may have joined.
+    remove_run_from_track(session, run, lock=False)
+    al = align_to_track(session, run.track_id, chainage_m, level_mm)
+    run.chainage_offset_m = al.offset_m
+    run.alignment_status = al.status
+    run.alignment_correlation = al.correlation
+    run.alignment_overlap_m = al.overlap_m
+    run.alignment_reason = al.reason
+    if al.merged:
+        i_lo, levels = on_track_grid(chainage_m, level_mm, al.offset_m)
+        chunks = store_run_levels(session, run.track_id, run.id, i_lo, levels)
+        if chunks is not None:
+            recompute_aggregate(session, run.track_id, *chunks)
+    return al
+
+
+def remove_run_from_track(session: Session, run: Run, *, lock: bool = True) -> None:
+    """Take a run out of its track's aggregate (before deleting it); no-op if not in it."""
+    if lock:
+        _lock_track(session, run.track_id)
+    chunks = drop_run_levels(session, run.id)
+    if chunks is not None:
+        recompute_aggregate(session, run.track_id, *chunks)
