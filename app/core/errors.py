@@ -16,7 +16,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from engine.errors import EngineError, LogFormatError
+from engine.errors import EngineError, LogFormatError, ParameterError
 
 log = logging.getLogger(__name__)
 
@@ -58,13 +58,15 @@ class BodyTooLarge(Exception):
 
 
 def engine_error_detail(exc: EngineError) -> dict[str, Any]:
-    """The structured detail of an engine input error (message, column, row)."""
+    """The structured detail of an engine input error (message, column, row, field)."""
     detail: dict[str, Any] = {"message": str(exc)}
     if isinstance(exc, LogFormatError):
         if exc.column is not None:
             detail["column"] = exc.column
         if exc.row is not None:
             detail["row"] = exc.row
+    if isinstance(exc, ParameterError) and exc.field is not None:
+        detail["field"] = exc.field
     detail["kind"] = type(exc).__name__
     return detail
 
@@ -97,8 +99,9 @@ def validation_detail(errors: Sequence[Any]) -> dict[str, Any]:
         return {"message": "the request is not valid", "errors": []}
     first = cleaned[0]
     field = _loc_name(first["loc"])
-    msg = str(first["msg"])
-    message = f"{field}: {msg}" if field else msg
+    # pydantic prefixes the messages of custom validators with "Value error, "
+    msg = str(first["msg"]).removeprefix("Value error, ")
+    message = f"{field}: {msg}" if field else f"the request body is not valid: {msg}"
     if len(cleaned) > 1:
         message += f" (and {len(cleaned) - 1} more problem{'s' if len(cleaned) > 2 else ''})"
     detail: dict[str, Any] = {"message": message, "errors": cleaned}

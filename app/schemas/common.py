@@ -24,6 +24,37 @@ Name = Annotated[str, Field(min_length=1, max_length=200), AfterValidator(_clean
 markup included, is kept as typed and must be shown as text)."""
 
 
+def url_name_problem(value: str) -> str | None:
+    """Why a new track or vehicle name would address the wrong thing in URLs, or None.
+
+    Tracks and vehicles are addressed by id or name (``/api/v1/tracks/{track}``, ``?track=``),
+    the id first: a name of digits only would be read as another track's id, and ``.`` or
+    ``..`` are removed from paths by HTTP clients. Names with a ``/`` are accepted (markup
+    such as ``</b>`` is legitimate text) but address their track by id only, as the dashboard
+    always does; other characters work by name once percent-encoded.
+    """
+    if value in (".", ".."):
+        return "must not be '.' or '..' (HTTP clients drop them from URLs)"
+    if value.isdigit():
+        return (
+            "must not be digits only: in URLs and filters a number is read as an id; add a "
+            f"word, e.g. 'line {value}'"
+        )
+    return None
+
+
+def _url_name(value: str) -> str:
+    problem = url_name_problem(value)
+    if problem is not None:
+        raise ValueError(problem)
+    return value
+
+
+UrlName = Annotated[Name, AfterValidator(_url_name)]
+"""The name of a resource addressed by id or name in URLs (tracks, vehicles): a :data:`Name`
+that is not digits only, nor ``.`` or ``..``."""
+
+
 class StrictModel(BaseModel):
     """A request body: unknown keys are an error rather than silently ignored."""
 

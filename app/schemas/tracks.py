@@ -6,7 +6,7 @@ from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from .common import Name, StrictModel
+from .common import StrictModel, UrlName
 
 UIC60_EI = 210e9 * 3.055e-5
 
@@ -34,7 +34,7 @@ class TrackParamsFields(BaseModel):
 class TrackCreate(TrackParamsFields, StrictModel):
     """A new track. Unspecified properties default to UIC60 on 80 kN/mm supports."""
 
-    name: Name
+    name: UrlName
     description: str | None = Field(default=None, max_length=2000)
     rail: str = Field(default="UIC60", min_length=1, max_length=50)
 

@@ -7,7 +7,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from .common import Name, StrictModel
+from .common import StrictModel, UrlName
 
 
 def _p(default: float, unit: str, what: str, *, ge0: bool = False) -> Any:
@@ -39,7 +39,7 @@ PARAM_NAMES = tuple(VehicleParamsSchema.model_fields)
 class VehicleCreate(StrictModel):
     """A new vehicle: a name and its parameters, nested in ``params`` or given at top level."""
 
-    name: Name
+    name: UrlName
     description: str | None = Field(default=None, max_length=2000)
     params: VehicleParamsSchema = Field(default_factory=VehicleParamsSchema)
 

@@ -55,9 +55,8 @@ def parse_csv(data: bytes, options: dict[str, Any], field: str = "file") -> RunL
     try:
         opts = CsvOptions.from_dict({k: v for k, v in options.items() if v is not None})
     except ParameterError as exc:
-        message = str(exc)
-        named = [k for k in CSV_OPTION_NAMES if k in message]
-        raise ApiError(422, message, field=named[0] if named else None) from None
+        # The reader names the option at fault (ParameterError.field).
+        raise ApiError(422, str(exc), field=exc.field, kind="ParameterError") from None
     if not data:
         raise ApiError(422, "the uploaded file is empty", field=field)
     try:

@@ -18,9 +18,10 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ApiError, engine_error_detail
 from app.db.models import Run, RunInput, RunSignals, Track, Vehicle
+from app.schemas.common import url_name_problem
 from app.schemas.tracks import TrackParamsFields
-from engine.chainage import axle_positions
 from engine.errors import EngineError
+from engine.pipeline import check_run
 from engine.runlog import RunLog
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
@@ -116,9 +117,18 @@ def _existing(session: Session, sub: Submission, track: Track | None) -> Run | N
     return None
 
 
+def _check_new_track_name(name: str | None) -> None:
+    # A new track must be addressable by name in URLs (/api/v1/tracks/{track}); tracks that
+    # already exist are found by their stored name whatever it is.
+    problem = url_name_problem(name or "")
+    if problem is not None:
+        raise ApiError(422, f"track name {name!r} {problem}", field="track")
+
+
 def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
-    # What can be known about a long log without inverting it, so that a queued run does not
-    # fail later for a reason the client could have been told now.
+    # Everything that can be known about a log without inverting it (the engine's O(n)
+    # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
+    # queued run does not fail later for a reason the client could have been told now.
     if sub.log.chainage_m is None and sub.start_chainage_m is None:
         raise ApiError(
             422,
@@ -127,7 +137,12 @@ def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
             field="start_chainage_m",
         )
     try:
-        axle_positions(sub.log, vehicle, sub.start_chainage_m, sub.direction)
+        check_run(
+            sub.log,
+            start_chainage_m=sub.start_chainage_m,
+            direction=sub.direction,
+            vehicle=vehicle,
+        )
     except EngineError as exc:
         raise ApiError(422, **_engine_kwargs(exc)) from None
 
@@ -174,6 +189,8 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         vp = VehicleParams.from_dict(vehicle.params_dict())
         track_fields = track.params_dict() if track is not None else None
         track_name = track.name if track is not None else sub.track
+    if track is None:
+        _check_new_track_name(sub.track)
     tp = TrackParams.from_dict(track_fields) if track_fields else TrackParams()
 
     _preflight(sub, vp)

@@ -9,6 +9,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from sqlalchemy import create_engine, inspect, text
+from sqlalchemy.engine import make_url
+from sqlalchemy.pool import NullPool
 from starlette.testclient import TestClient
 
 from app.core.config import Settings
@@ -18,6 +21,12 @@ TABLES = (
     "tracks", "vehicles", "runs", "run_inputs", "profile_points", "soft_spots", "run_signals",
     "api_keys",
 )  # fmt: skip
+"""Tables of the first migration (``row_counts`` counts every table there is)."""
+
+
+def is_sqlite(settings: Settings) -> bool:
+    """True when the test app's database is a SQLite file."""
+    return make_url(settings.sqlalchemy_url).get_backend_name() == "sqlite"
 
 
 def db_file(settings: Settings) -> Path:
@@ -26,12 +35,46 @@ def db_file(settings: Settings) -> Path:
 
 
 def row_counts(settings: Settings) -> dict[str, int]:
-    """Number of rows in every table (read with plain sqlite3, outside the app)."""
-    con = sqlite3.connect(db_file(settings))
+    """Number of rows in every table of the database (Alembic's bookkeeping aside), read
+    outside the app: plain sqlite3 for a SQLite file, a separate connection otherwise.
+
+    Tables are listed from the database itself, so tables added by later migrations are
+    counted too.
+    """
+    if is_sqlite(settings):
+        con = sqlite3.connect(db_file(settings))
+        try:
+            names = [
+                r[0]
+                for r in con.execute(
+                    "SELECT name FROM sqlite_master WHERE type='table' "
+                    "AND name NOT LIKE 'sqlite_%' AND name != 'alembic_version'"
+                )
+            ]
+            return {t: con.execute(f'SELECT count(*) FROM "{t}"').fetchone()[0] for t in names}
+        finally:
+            con.close()
+    engine = create_engine(settings.sqlalchemy_url, poolclass=NullPool)
     try:
-        return {t: con.execute(f"SELECT count(*) FROM {t}").fetchone()[0] for t in TABLES}
+        with engine.connect() as conn:
+            names = [t for t in inspect(conn).get_table_names() if t != "alembic_version"]
+            return {
+                t: conn.execute(text(f'SELECT count(*) FROM "{t}"')).scalar_one() for t in names
+            }
     finally:
-        con.close()
+        engine.dispose()
+
+
+def sql(settings: Settings, statement: str, **params: Any) -> list[tuple[Any, ...]]:
+    """Run one SQL statement on the test app's database outside the app (committed);
+    the rows it returns. Parameters are named (``:name``)."""
+    engine = create_engine(settings.sqlalchemy_url, poolclass=NullPool)
+    try:
+        with engine.begin() as conn:
+            result = conn.execute(text(statement), params)
+            return [tuple(r) for r in result] if result.returns_rows else []
+    finally:
+        engine.dispose()
 
 
 def sample(name: str) -> tuple[bytes, dict[str, Any]]:

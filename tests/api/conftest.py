@@ -3,16 +3,26 @@
 Every test gets its own database; the app is built with ``create_app(settings)`` and driven
 through Starlette's httpx-based test client, which runs the app's lifespan (migrations, the
 background worker) like uvicorn does.
+
+With ``TEST_DATABASE_URL`` set to a PostgreSQL URL (``postgresql+psycopg://user@host:port/db``,
+see ``scripts/test_postgres.sh``) every test gets a fresh PostgreSQL database on that server
+instead (created from the URL's connection, dropped after the test); tests marked
+``sqlite_only`` are skipped then and tests marked ``postgres`` run.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from sqlalchemy import create_engine, text
+from sqlalchemy.engine import make_url
+from sqlalchemy.pool import NullPool
 
 from app.core.config import REPO_ROOT, Settings
 from app.main import create_app
@@ -23,11 +33,68 @@ with warnings.catch_warnings():
     from starlette.testclient import TestClient
 
 
+TEST_DATABASE_URL = os.environ.get("TEST_DATABASE_URL") or None
+"""A PostgreSQL server to run the API tests on (a database per test), or None for SQLite."""
+
+_created_databases: list[str] = []
+
+
+def uses_postgres() -> bool:
+    """True when the API tests run against PostgreSQL (``TEST_DATABASE_URL``)."""
+    return TEST_DATABASE_URL is not None and make_url(TEST_DATABASE_URL).get_backend_name() == (
+        "postgresql"
+    )
+
+
+def _admin_execute(statement: str) -> None:
+    assert TEST_DATABASE_URL is not None
+    engine = create_engine(TEST_DATABASE_URL, poolclass=NullPool, isolation_level="AUTOCOMMIT")
+    try:
+        with engine.connect() as conn:
+            conn.execute(text(statement))
+    finally:
+        engine.dispose()
+
+
+def database_url_for(tmp_path: Path) -> str:
+    """The database of the test that owns ``tmp_path``: a SQLite file in it, or (with
+    ``TEST_DATABASE_URL``) a PostgreSQL database named after it, created on first use."""
+    if not uses_postgres():
+        return f"sqlite:///{tmp_path / 'trackprofile.db'}"
+    assert TEST_DATABASE_URL is not None
+    name = "tp_" + hashlib.sha1(str(tmp_path).encode()).hexdigest()[:24]
+    if name not in _created_databases:
+        _admin_execute(f'CREATE DATABASE "{name}"')
+        _created_databases.append(name)
+    return make_url(TEST_DATABASE_URL).set(database=name).render_as_string(hide_password=False)
+
+
+@pytest.fixture(autouse=True)
+def _drop_test_databases() -> Iterator[None]:
+    """Drop the PostgreSQL databases a test created (after its apps have stopped)."""
+    yield
+    while _created_databases:
+        _admin_execute(f'DROP DATABASE IF EXISTS "{_created_databases.pop()}" WITH (FORCE)')
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Skip ``sqlite_only`` tests on PostgreSQL and ``postgres`` tests on SQLite."""
+    pg = uses_postgres()
+    skip_sqlite = pytest.mark.skip(reason="checks SQLite specifics (TEST_DATABASE_URL is set)")
+    skip_pg = pytest.mark.skip(reason="needs PostgreSQL: set TEST_DATABASE_URL")
+    for item in items:
+        if pg and "sqlite_only" in item.keywords:
+            item.add_marker(skip_sqlite)
+        if not pg and "postgres" in item.keywords:
+            item.add_marker(skip_pg)
+
+
 def make_settings(tmp_path: Path, **overrides: Any) -> Settings:
-    """Settings for a test app whose database is ``tmp_path/trackprofile.db``."""
+    """Settings for a test app whose database is ``tmp_path/trackprofile.db`` (or, with
+    ``TEST_DATABASE_URL``, a PostgreSQL database of its own)."""
     values: dict[str, Any] = {
         "data_dir": tmp_path,
-        "database_url": f"sqlite:///{tmp_path / 'trackprofile.db'}",
+        "database_url": database_url_for(tmp_path),
         "static_dir": REPO_ROOT / "static",
         "poll_interval_s": 0.05,
     }

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import hashlib
-import sqlite3
 
-from api.api_support import db_file, row_counts
+from api.api_support import db_file, is_sqlite, row_counts, sql
 from app.cli import main as cli_main
 from app.core.config import get_settings
 
@@ -48,11 +47,10 @@ def test_keys_are_stored_hashed_and_can_be_revoked(start_app, settings, monkeypa
     """Only the SHA-256 of a key is in the database; a revoked key stops working."""
     c = start_app(require_api_key=True)
     key = _create_key(monkeypatch, settings)
-    con = sqlite3.connect(db_file(settings))
-    stored = con.execute("SELECT key_hash, prefix FROM api_keys").fetchall()
-    con.close()
+    stored = sql(settings, "SELECT key_hash, prefix FROM api_keys")
     assert stored == [(hashlib.sha256(key.encode()).hexdigest(), key[:10])]
-    assert key.encode() not in db_file(settings).read_bytes()
+    if is_sqlite(settings):
+        assert key.encode() not in db_file(settings).read_bytes()
     assert (
         c.post("/api/v1/tracks", json={"name": "a"}, headers={"X-API-Key": key}).status_code == 201
     )

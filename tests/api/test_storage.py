@@ -6,8 +6,9 @@ import sqlite3
 
 import pytest
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 
-from api.api_support import db_file, row_counts, upload
+from api.api_support import db_file, is_sqlite, row_counts, sql, upload
 from app.core.config import Settings
 from app.db.migrate import alembic_config, current_revision, upgrade
 from app.db.models import ProfilePoint
@@ -61,6 +62,7 @@ def test_migrations_downgrade_and_upgrade(tmp_path) -> None:
     db.dispose()
 
 
+@pytest.mark.sqlite_only
 def test_sqlite_runs_in_wal_mode_with_foreign_keys(client, settings) -> None:
     """The app's connections use WAL, enforce foreign keys and wait on a busy database."""
     ctx = client.app.state.ctx
@@ -71,6 +73,7 @@ def test_sqlite_runs_in_wal_mode_with_foreign_keys(client, settings) -> None:
         assert raw.execute("PRAGMA busy_timeout").fetchone()[0] >= 5000
 
 
+@pytest.mark.sqlite_only
 def test_profile_is_stored_per_grid_point_and_read_by_key(client, settings, synthetic_run):
     """One row per chainage grid point; a chainage window is a primary-key range search."""
     r = upload(client, synthetic_run["csv"], track="T",
@@ -98,11 +101,10 @@ def test_nan_levels_are_stored_as_null(client, settings, synthetic_run) -> None:
                  start_chainage_m=synthetic_run["start_chainage_m"]).json()["id"]  # fmt: skip
     prof = client.get(f"/api/v1/runs/{rid}/profile", params={"include": "all"}).json()
     assert None in prof["front_level_mm"] or None in prof["rear_level_mm"]
-    con = sqlite3.connect(db_file(settings))
-    nulls = con.execute(
-        "SELECT count(*) FROM profile_points WHERE front_level_mm IS NULL OR rear_level_mm IS NULL"
-    ).fetchone()[0]
-    con.close()
+    nulls = sql(
+        settings,
+        "SELECT count(*) FROM profile_points WHERE front_level_mm IS NULL OR rear_level_mm IS NULL",
+    )[0][0]
     assert nulls > 0
 
 
@@ -132,8 +134,13 @@ def test_deleting_a_track_with_runs_is_prevented_by_the_database(client, setting
     r = client.post("/api/v1/simulate", json={"track": "fk", "length_m": 120, "zones": [],
                                               "speed_mps": 25})  # fmt: skip
     assert r.status_code == 201, r.text
-    con = sqlite3.connect(db_file(settings))
-    con.execute("PRAGMA foreign_keys=ON")
-    with pytest.raises(sqlite3.IntegrityError):
-        con.execute("DELETE FROM tracks WHERE name='fk'")
-    con.close()
+    if is_sqlite(settings):
+        con = sqlite3.connect(db_file(settings))
+        con.execute("PRAGMA foreign_keys=ON")
+        with pytest.raises(sqlite3.IntegrityError):
+            con.execute("DELETE FROM tracks WHERE name='fk'")
+        con.close()
+    else:
+        with pytest.raises(IntegrityError):
+            sql(settings, "DELETE FROM tracks WHERE name='fk'")
+    assert row_counts(settings)["tracks"] == 1

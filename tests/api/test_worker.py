@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import sqlite3
 import subprocess
 import sys
 import threading
+from datetime import UTC, datetime
 
 import pytest
 from starlette.testclient import TestClient
 
-from api.api_support import assert_zones_match, db_file, row_counts, upload, wait_done
+from api.api_support import assert_zones_match, row_counts, sql, upload, wait_done
 from app.services.worker import Worker
 
 
@@ -21,14 +21,8 @@ def _queue(c: TestClient, synthetic_run, **fields) -> dict:
     return r.json()
 
 
-def _sql(settings, statement: str, *args) -> list[tuple]:
-    con = sqlite3.connect(db_file(settings))
-    try:
-        rows = con.execute(statement, args).fetchall()
-        con.commit()
-        return rows
-    finally:
-        con.close()
+def _now() -> datetime:
+    return datetime.now(UTC).replace(tzinfo=None)
 
 
 def test_long_log_is_processed_in_the_background(start_app, settings, synthetic_run) -> None:
@@ -86,13 +80,13 @@ def test_run_interrupted_by_a_crash_is_resumed_at_start(start_app, settings, syn
     c = start_app(inline_max_samples=0, start_worker=False)
     run = _queue(c, synthetic_run)
     owner = f"{socket.gethostname()}:{_dead_pid()}:deadbeef"
-    _sql(settings, "UPDATE runs SET claimed_by=?, heartbeat_at=datetime('now'), attempts=1, "
-         "stage='inverting' WHERE id=?", owner, run["id"])  # fmt: skip
+    sql(settings, "UPDATE runs SET claimed_by=:owner, heartbeat_at=:now, attempts=1, "
+        "stage='inverting' WHERE id=:id", owner=owner, now=_now(), id=run["id"])  # fmt: skip
     restarted = start_app(inline_max_samples=0, lease_s=3600)
     done = wait_done(restarted, run["id"])
     assert done["status"] == "done", done
     assert row_counts(settings)["profile_points"] > 0
-    assert _sql(settings, "SELECT attempts FROM runs WHERE id=?", run["id"]) == [(2,)]
+    assert sql(settings, "SELECT attempts FROM runs WHERE id=:id", id=run["id"]) == [(2,)]
 
 
 def test_claim_of_another_host_is_taken_over_after_its_lease(start_app, settings, synthetic_run):
@@ -100,8 +94,8 @@ def test_claim_of_another_host_is_taken_over_after_its_lease(start_app, settings
     its lease is older than lease_s."""
     c = start_app(inline_max_samples=0, start_worker=False)
     run = _queue(c, synthetic_run)
-    _sql(settings, "UPDATE runs SET claimed_by='elsewhere:1:abc', heartbeat_at=datetime('now') "
-         "WHERE id=?", run["id"])  # fmt: skip
+    sql(settings, "UPDATE runs SET claimed_by='elsewhere:1:abc', heartbeat_at=:now "
+        "WHERE id=:id", now=_now(), id=run["id"])  # fmt: skip
     other = start_app(inline_max_samples=0, lease_s=1.0)
     assert wait_done(other, run["id"], timeout=30)["status"] == "done"
 
@@ -110,8 +104,8 @@ def test_live_claim_is_not_taken(start_app, settings, synthetic_run) -> None:
     """A claim with a fresh heartbeat belongs to a live worker: nobody else takes the run."""
     c = start_app(inline_max_samples=0, start_worker=False)
     run = _queue(c, synthetic_run)
-    _sql(settings, "UPDATE runs SET claimed_by='elsewhere:1:abc', heartbeat_at=datetime('now') "
-         "WHERE id=?", run["id"])  # fmt: skip
+    sql(settings, "UPDATE runs SET claimed_by='elsewhere:1:abc', heartbeat_at=:now "
+        "WHERE id=:id", now=_now(), id=run["id"])  # fmt: skip
     w = Worker(c.app.state.ctx)
     assert w.claim() is None
 
@@ -121,7 +115,7 @@ def test_run_interrupted_too_often_is_failed(start_app, settings, synthetic_run)
     stored input is removed."""
     c = start_app(inline_max_samples=0, start_worker=False)
     run = _queue(c, synthetic_run)
-    _sql(settings, "UPDATE runs SET attempts=3 WHERE id=?", run["id"])
+    sql(settings, "UPDATE runs SET attempts=3 WHERE id=:id", id=run["id"])
     other = start_app(inline_max_samples=0, max_attempts=3)
     failed = wait_done(other, run["id"])
     assert failed["status"] == "failed"
@@ -130,23 +124,47 @@ def test_run_interrupted_too_often_is_failed(start_app, settings, synthetic_run)
     assert row_counts(settings)["run_inputs"] == 0
 
 
-def test_engine_error_in_the_background_marks_the_run_failed(start_app, settings) -> None:
-    """A log the engine rejects only when inverting (too little distance covered) ends as
-    'failed' with the engine's message; resending it replaces the failed run."""
-    rows = "\n".join(f"{i / 1000:.3f},0.0,0.0,0.5" for i in range(3000))
+def test_log_that_cannot_be_inverted_is_refused_before_it_is_queued(start_app, settings) -> None:
+    """A log over the inline limit that the engine's pre-flight (check_run) rejects (speed
+    below 1 m/s) is answered 422 at once, naming the speed, instead of being queued to fail
+    later; nothing is stored."""
+    rows = "\n".join(f"{i / 1000:.3f},0.0,0.0,0.8" for i in range(3000))
     data = f"time_s,accel_z_mps2,pitch_rate_radps,speed_mps\n{rows}\n".encode()
     c = start_app(inline_max_samples=0)
+    before = row_counts(settings)
     r = upload(c, data, track="T", start_chainage_m=10)
-    assert r.status_code == 202, r.text
-    failed = wait_done(c, r.json()["id"])
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert detail["kind"] == "InversionError"
+    assert "0.80 m/s" in detail["message"] and "1.0 m/s" in detail["message"]
+    assert row_counts(settings) == before
+
+
+def test_engine_error_in_the_background_marks_the_run_failed(
+    start_app, settings, synthetic_run, monkeypatch
+) -> None:
+    """An engine error that only the inversion finds ends the queued run as 'failed' with the
+    engine's message and no stored input or profile; resending the file replaces the failed
+    run."""
+    import app.services.worker as worker_mod
+    from engine.errors import InversionError
+
+    def failing_invert(*_args, **_kwargs):
+        raise InversionError("the profile band has no energy (test)")
+
+    monkeypatch.setattr(worker_mod, "invert", failing_invert)
+    c = start_app(inline_max_samples=0)
+    failed = wait_done(c, _queue(c, synthetic_run)["id"])
     assert failed["status"] == "failed"
     assert failed["error"]["kind"] == "InversionError"
-    assert "m/s" in failed["error"]["message"] or " m" in failed["error"]["message"]
+    assert failed["error"]["message"] == "the profile band has no energy (test)"
     assert c.get(f"/api/v1/runs/{failed['id']}/profile").status_code == 409
-    assert row_counts(settings)["run_inputs"] == 0
-    again = upload(c, data, track="T", start_chainage_m=10)
-    assert again.status_code == 202
-    assert again.json()["id"] != failed["id"]
+    counts = row_counts(settings)
+    assert counts["run_inputs"] == counts["profile_points"] == counts["soft_spots"] == 0
+    monkeypatch.undo()
+    again = _queue(c, synthetic_run)
+    assert again["id"] != failed["id"]
+    assert wait_done(c, again["id"])["status"] == "done"
     assert c.get(f"/api/v1/runs/{failed['id']}").status_code == 404
 
 
@@ -154,7 +172,7 @@ def test_missing_input_fails_cleanly(start_app, settings, synthetic_run) -> None
     """A queued run whose stored input has vanished is failed with a clear message."""
     c = start_app(inline_max_samples=0, start_worker=False)
     run = _queue(c, synthetic_run)
-    _sql(settings, "DELETE FROM run_inputs WHERE run_id=?", run["id"])
+    sql(settings, "DELETE FROM run_inputs WHERE run_id=:id", id=run["id"])
     w = Worker(c.app.state.ctx)
     assert w.run_once() is True
     r = c.get(f"/api/v1/runs/{run['id']}").json()
