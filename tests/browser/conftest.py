@@ -1,11 +1,13 @@
 """Fixtures of the real-browser tests: the service under uvicorn, Debian's Chromium via Playwright.
 
-Screenshots of the pages go to ``docs/screenshots``.
+Screenshots of the pages go to ``docs/screenshots`` when ``UPDATE_SCREENSHOTS=1`` is set, and
+to a temporary folder otherwise (so that a test run leaves the work tree clean).
 """
 
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -109,7 +111,10 @@ def sample_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="session")
-def screenshots() -> Path:
-    """Where the page screenshots are kept (docs/screenshots)."""
+def screenshots(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Where the tests write page screenshots: docs/screenshots with ``UPDATE_SCREENSHOTS=1``
+    (to refresh the README's pictures), a temporary folder otherwise."""
+    if os.environ.get("UPDATE_SCREENSHOTS") != "1":
+        return tmp_path_factory.mktemp("screenshots")
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     return SCREENSHOTS

@@ -3,7 +3,7 @@
 Each test drives Debian's Chromium against the service started by ``live_server`` and checks
 what a user sees: Plotly traces drawn, soft spots shaded and labelled, tables filled, errors
 naming the column and row, user text shown as text. Screenshots of each page (1366x768) are
-written to docs/screenshots.
+written to docs/screenshots when UPDATE_SCREENSHOTS=1 is set.
 """
 
 from __future__ import annotations
@@ -178,12 +178,13 @@ def test_run_view_downloads_profile_and_soft_spots(
 def test_track_view_draws_chainage_map_and_zone_table(
     page: Any, live_server: LiveServer, demo_track: list[int], screenshots: Path
 ) -> None:
-    """The track view maps every soft spot of every run of the track and ranks the zones they
-    form; the deep zone is seen on every run; a zone opens its profile across runs; the table
-    sorts by a column."""
+    """The track view maps every soft spot of every run of the track and lists the defects of
+    the register they form; the deep zone is seen on every run; a defect opens its profile
+    across runs; the table sorts by a column."""
     with live_server.api() as api:
         n_spots = sum(len(api.get(f"/api/v1/runs/{i}/soft-spots").json()) for i in demo_track)
         zones = api.get(f"/api/v1/views/tracks/{TRACK}/chainage-map").json()["zones"]
+        defects = api.get(f"/api/v1/tracks/{TRACK}/defects").json()
     deep = [z for z in zones if z["end_m"] >= 140 and z["start_m"] <= 146]
     assert len(deep) == 1 and deep[0]["runs_seen"] == len(demo_track)
 
@@ -201,7 +202,7 @@ def test_track_view_draws_chainage_map_and_zone_table(
     assert drawn["markers"] == n_spots and drawn["points"] >= n_spots
     assert drawn["rows"] == len(demo_track)
     rows = page.locator("#zone-table tbody tr")
-    assert rows.count() == len(zones)
+    assert rows.count() == len(defects)
     seen = f"{len(demo_track)} of {len(demo_track)}"
     assert any(seen in t for t in rows.all_inner_texts())
     wait_for_plot(page, "#zone-plot")  # the top-ranked zone is shown at once
@@ -210,7 +211,10 @@ def test_track_view_draws_chainage_map_and_zone_table(
     page.wait_for_function(
         "() => document.getElementById('zone-info').textContent.startsWith('Zone 14')"
     )
-    zone_traces = page.evaluate("() => document.getElementById('zone-plot').data.length")
+    zone_traces = page.evaluate(
+        "() => document.getElementById('zone-plot').data"
+        ".filter(t => String(t.meta).startsWith('run-')).length"
+    )
     assert zone_traces == len(demo_track)
     peak_header = page.locator("#zone-table thead th", has_text="Peak (m)")
     peak_header.get_by_role("button").click()
@@ -218,6 +222,9 @@ def test_track_view_draws_chainage_map_and_zone_table(
     cells = page.locator("#zone-table tbody tr td:nth-child(3)").all_inner_texts()
     peaks = [float(c) for c in cells]
     assert peaks == sorted(peaks)
+    page.fill("#alerts-since", "2025-01-01")  # the morning pull, as shown in the screenshot
+    page.click("#alerts-show")
+    page.wait_for_selector("#alerts-table tbody tr")
     page.wait_for_timeout(400)
     page.evaluate("() => window.scrollTo(0, 0)")
     page.screenshot(path=str(screenshots / "track.png"), full_page=True)

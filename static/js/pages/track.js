@@ -1,10 +1,16 @@
 // Track view (the chainage map): every run of a track along chainage, soft spots as a map
-// (x chainage, y run, colour + size + symbol = severity), the zones ranked by severity with how
-// often each was seen, and the profiles of all runs around a chosen zone.
+// (x chainage, y run, colour + size + symbol = severity), the defect register (runs aligned,
+// soft spots merged into tracked defects with status, trend and priority) and the profiles of
+// all runs around a chosen defect, the aggregated profile, alerts since a date, the track's
+// limits and exports. Tracks whose runs were never aligned fall back to zones clustered here.
 
 import { h, clear, append, announce, fmt, fmtDate, fmtDay, messageBox } from "../dom.js";
 import { ApiError, apiFetch, apiGetOptional, listItems } from "../api.js";
-import { COLORS, CONFIG, baseLayout, plotly, softSpotShapes, viridis, zoomControls } from "../plots.js";
+import { CONFIG, baseLayout, plotly, softSpotShapes, viridis, zoomControls } from "../plots.js";
+import {
+  REGISTER_COLUMNS, aggregateCard, aggregateTraces, alertsCard, alignmentNotice, defectShapes,
+  exportLinks, limitsCard,
+} from "../register.js";
 
 // Severity classes by depth (mm): the symbol and size repeat what the colour says, so the map
 // reads without colour vision.
@@ -73,15 +79,23 @@ export async function render(main, [ref]) {
     status.show(err instanceof ApiError && err.status === 404 ? `There is no track “${name}”.` : `Cannot load the chainage map: ${err.message}`, "error");
     return null;
   }
-  // A register of tracked defects (issue 6), when the service has one, replaces the zones this
-  // view clusters itself.
+  // The service's register of tracked defects replaces the zones this view clusters itself,
+  // unless no run of the track was ever aligned (data stored before alignment existed).
   let register = null;
+  let trackRuns = [];
   try {
-    const defects = await apiGetOptional(`/api/v1/tracks/${enc}/defects`);
+    const [defects, runList] = await Promise.all([
+      apiGetOptional(`/api/v1/tracks/${enc}/defects`),
+      apiFetch(`/api/v1/runs?track=${enc}&limit=1000`).catch(() => null),
+    ]);
+    trackRuns = runList ? listItems(runList) : [];
     if (defects) register = listItems(defects);
-  } catch {
+  } catch (err) {
+    status.show(`Cannot load the defect register: ${err.message}`, "error");
     register = null;
   }
+  const anyAligned = trackRuns.some((r) => r.alignment && r.alignment.status !== "unaligned");
+  if (register && register.length === 0 && !anyAligned) register = null;
 
   const runs = map.runs || [];
   const doneRuns = runs.filter((r) => r.status === undefined || r.status === "done");
@@ -97,6 +111,9 @@ export async function render(main, [ref]) {
     main.appendChild(h("p", { class: "muted" }, "No runs on this track yet."));
     return null;
   }
+  main.appendChild(exportLinks(enc, track.id));
+  const notice = alignmentNotice(trackRuns);
+  if (notice) main.appendChild(notice);
 
   // ---- chainage map --------------------------------------------------------------------------
   const mapDiv = h("div", { class: "plot plot-map", id: "chainage-map", role: "img", "aria-label": "Chainage map of soft spots: chainage across, runs down, severity as colour, size and symbol" });
@@ -172,27 +189,60 @@ export async function render(main, [ref]) {
     else if (heatToggle.checked) loadWindow(mapDiv.layout.xaxis.range.map(Number));
   });
 
-  // ---- zones ---------------------------------------------------------------------------------
+  // ---- aggregated profile ---------------------------------------------------------------------
+  let zones = normaliseZones(register || map.zones || [], runs.length, Boolean(register));
+  let aggregate = null;
+  if (register) {
+    aggregate = await aggregateCard(enc, () => zones);
+    main.appendChild(aggregate.section);
+  }
+
+  // ---- register (or zones) -------------------------------------------------------------------
   // The register comes ranked by priority; the view's own zones are ranked by severity here.
-  const zones = normaliseZones(register || map.zones || [], runs.length, Boolean(register));
   const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "img", "aria-label": "Profiles of all runs around the selected zone" });
   const zoneInfo = h("p", { class: "hint", id: "zone-info" }, "Choose a zone in the table to see its profile across runs.");
-  const table = zoneTable(zones, (zone) => {
+  const onSelect = (zone) => {
     showZone(zone);
     zonePlotDiv.scrollIntoView({ behavior: "smooth", block: "nearest" });
-  });
-  main.appendChild(h("div", { class: "track-lower" },
+  };
+  const columns = register ? REGISTER_COLUMNS : ZONE_COLUMNS;
+  const tableBox = h("div", { id: "register-box" });
+  const drawTable = () => {
+    clear(tableBox);
+    tableBox.appendChild(zones.length
+      ? zoneTable(zones, onSelect, columns)
+      : h("p", { class: "muted", id: "register-empty" }, register ? "No defect: no aligned run found a soft spot on this track." : "No soft spot on this track."));
+  };
+  drawTable();
+  // The register has many columns: it and its plot take the full width, one above the other.
+  main.appendChild(h("div", { class: register ? "track-register" : "track-lower" },
     h("section", { class: "card", "aria-labelledby": "zones-h" },
       h("h2", { id: "zones-h" }, register ? "Defect register" : "Zones ranked by severity"),
       h("p", { class: "hint" }, register
-        ? "Tracked defects from the service's soft-spot register."
-        : "Soft spots of all runs merged where they overlap. Seen: runs that detected the zone, of the runs covering it. Depth and loss: medians over those runs. Rank: median depth × share of runs that saw it, so a dip seen on every pass ranks above a one-off. Click a column title to sort; choose a zone to see its profile across runs."),
-      zones.length ? table : h("p", { class: "muted" }, "No soft spot on this track.")),
+        ? "Soft spots of all aligned runs merged into tracked defects, most urgent first (priority from the limits below, then depth). Seen: runs that detected it, of the aligned runs covering it. Depth and loss: latest run. Trend: least-squares change per month. Status: new (one run), confirmed (two), worsening (significant growth) or stable. Click a column title to sort; click a defect (or its rank) to see its profile across runs."
+        : "No run of this track is aligned (stored before alignment existed): these zones are clustered as logged. Soft spots of all runs merged where they overlap. Seen: runs that detected the zone, of the runs covering it. Depth and loss: medians over those runs. Rank: median depth × share of runs that saw it, so a dip seen on every pass ranks above a one-off. Click a column title to sort; click a zone (or its rank) to see its profile across runs."),
+      tableBox),
     h("section", { class: "card", "aria-labelledby": "zoneplot-h" },
-      h("h2", { id: "zoneplot-h" }, "Zone across runs"),
+      h("h2", { id: "zoneplot-h" }, register ? "Defect across runs" : "Zone across runs"),
       zoneInfo,
       zonePlotDiv),
   ));
+
+  // ---- alerts and limits ---------------------------------------------------------------------
+  let alerts = null;
+  if (register) {
+    alerts = alertsCard(enc);
+    const limits = limitsCard(enc, async () => {
+      register = listItems(await apiFetch(`/api/v1/tracks/${enc}/defects`));
+      zones = normaliseZones(register, runs.length, true);
+      drawTable();
+      if (aggregate) await aggregate.render();
+      await alerts.load();
+    });
+    main.appendChild(h("div", { class: "track-lower" }, alerts.section, limits.section));
+    limits.load();
+    alerts.load();
+  }
 
   async function showZone(zone) {
     const width = Math.max(zone.end_m - zone.start_m, 2);
@@ -200,7 +250,7 @@ export async function render(main, [ref]) {
     const to = zone.end_m + Math.max(20, 2 * width);
     zoneInfo.textContent = `Loading the profiles of ${fmt(from, 0)}–${fmt(to, 0)} m…`;
     try {
-      const [win, aggregate] = await Promise.all([
+      const [win, aggWindow] = await Promise.all([
         apiFetch(`/api/v1/views/tracks/${enc}/window?from_m=${from}&to_m=${to}`),
         apiGetOptional(`/api/v1/tracks/${enc}/profile?from_m=${from}&to_m=${to}`).catch(() => null),
       ]);
@@ -215,18 +265,10 @@ export async function render(main, [ref]) {
           hovertemplate: `%{y:.3f} mm<extra>${escapeExtra(r.label || `run ${r.id}`)}</extra>`,
         });
       });
-      if (aggregate && Array.isArray(aggregate.chainage_m)) {
-        const y = aggregate.level_mm || aggregate.median_mm || aggregate.mean_mm;
-        if (y) {
-          traces.push({
-            type: "scatter", mode: "lines", name: "Aggregated profile", x: aggregate.chainage_m, y,
-            line: { color: COLORS.truth, width: 2.5 }, hovertemplate: "%{y:.3f} mm<extra>aggregate</extra>",
-          });
-        }
-      }
+      traces.push(...aggregateTraces(aggWindow));
       const layout = baseLayout({
         height: 380,
-        shapes: softSpotShapes([zone]),
+        shapes: register ? defectShapes([zone]) : softSpotShapes([zone]),
         xaxis: { title: { text: "Chainage (m)" }, range: [from, to], gridcolor: "#e3e6ea" },
         legend: { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
         margin: { l: 64, r: 12, t: 24, b: 52 },
@@ -242,6 +284,7 @@ export async function render(main, [ref]) {
   }
 
   if (zones.length) showZone(zones[0]);
+  if (aggregate) aggregate.render();
   announce(`Track ${name}: ${runs.length} runs, ${zones.length} zones.`);
   return () => {
     stopped = true;
@@ -345,27 +388,26 @@ function normaliseZones(list, nRuns, keepOrder = false) {
   return zones;
 }
 
-function zoneTable(zones, onSelect) {
-  const cols = ZONE_COLUMNS.filter((c) => !c.optional || zones.some((z) => z[c.key] !== undefined && z[c.key] !== null));
+function zoneTable(zones, onSelect, columns = ZONE_COLUMNS) {
+  const cols = columns.filter((c) => !c.optional || zones.some((z) => z[c.key] !== undefined && z[c.key] !== null));
   let sortKey = "rank";
   let sortDir = 1;
   const tbody = h("tbody", {});
   const headers = {};
   const headRow = h("tr", {});
   for (const c of cols) {
-    const btn = h("button", { type: "button", class: "sort", onclick: () => sortBy(c.key) }, c.label);
+    const btn = h("button", { type: "button", class: "sort", title: c.title, onclick: () => sortBy(c.key) }, c.label);
     const th = h("th", { scope: "col", class: c.num ? "num" : "" }, btn);
     headers[c.key] = th;
     headRow.appendChild(th);
   }
-  headRow.appendChild(h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")));
   let selected = null;
 
   function sortBy(key) {
     if (sortKey === key) sortDir = -sortDir;
     else {
       sortKey = key;
-      sortDir = ["depth_mm", "depth_max_mm", "stiffness_loss_pct", "runs_seen", "trend_mm_per_month"].includes(key) ? -1 : 1;
+      sortDir = ["depth_mm", "depth_max_mm", "stiffness_loss_pct", "runs_seen", "trend_mm_per_month", "trend_loss_pct_per_month"].includes(key) ? -1 : 1;
     }
     draw();
     announce(`Zones sorted by ${cols.find((c) => c.key === key).label}, ${sortDir > 0 ? "ascending" : "descending"}.`);
@@ -395,12 +437,12 @@ function zoneTable(zones, onSelect) {
           row.classList.add("selected");
           onSelect(z);
         },
-      }, "Profiles");
+      }, String(z.rank));
+      // The rank is the row's button (its profile across runs): one column fewer to fit 1366 px.
       const row = h("tr", { class: z === selected ? "selected" : "", "data-zone": String(z.rank) },
         cols.map((c) => (c.key === "rank"
-          ? h("th", { scope: "row", class: "num" }, String(z.rank))
-          : h("td", { class: c.num ? "num" : "" }, c.show ? c.show(z) : String(c.get(z) ?? "—")))),
-        h("td", {}, btn));
+          ? h("th", { scope: "row", class: "num" }, btn)
+          : h("td", { class: [c.num ? "num" : "", c.cls ? c.cls(z) : ""].join(" ").trim() || null }, c.show ? c.show(z) : String(c.get(z) ?? "—")))));
       row.addEventListener("click", (e) => {
         if (e.target.closest("button")) return;
         btn.click();
@@ -411,6 +453,6 @@ function zoneTable(zones, onSelect) {
   draw();
   return h("div", { class: "table-scroll zone-table-wrap" },
     h("table", { class: "data sortable", id: "zone-table" },
-      h("caption", { class: "visually-hidden" }, "Zones of soft spots ranked by severity; column titles sort the table"),
+      h("caption", { class: "visually-hidden" }, columns === ZONE_COLUMNS ? "Zones of soft spots ranked by severity; column titles sort the table" : "Defect register, most urgent first; column titles sort the table"),
       h("thead", {}, headRow), tbody));
 }

@@ -1,0 +1,265 @@
+// Track intelligence on the track view: the defect register's columns, the aggregated
+// profile plot, the alerts since a date, the limits form and the export links. Every value
+// from the API is shown through text nodes (h(), textContent); nothing is parsed as HTML.
+
+import { h, clear, append, announce, fmt, fmtDay, field, messageBox } from "./dom.js";
+import { ApiError, apiFetch } from "./api.js";
+import { COLORS, CONFIG, baseLayout, plotly } from "./plots.js";
+
+export const LEVEL_LABELS = { immediate: "Immediate action", intervention: "Intervention", alert: "Alert" };
+const SHORT_LEVEL = { immediate: "Immediate", intervention: "Intervention", alert: "Alert" };
+
+// Level colours with a distinct dash per level, so the shading reads without colour vision.
+const LEVEL_STYLE = {
+  immediate: { fill: "rgba(178, 24, 43, 0.22)", line: "#8a0f24", dash: "solid" },
+  intervention: { fill: "rgba(230, 97, 1, 0.20)", line: "#8c2d04", dash: "dash" },
+  alert: { fill: "rgba(242, 169, 0, 0.20)", line: "#7a5a00", dash: "dot" },
+  none: { fill: "rgba(107, 114, 128, 0.12)", line: "#4b5563", dash: "dashdot" },
+};
+
+function signed(v, digits) {
+  if (v === null || v === undefined) return "—";
+  const text = fmt(Math.abs(v), digits);
+  if (Number(text) === 0) return text;
+  return `${v > 0 ? "+" : "−"}${text}`;
+}
+
+/** Columns of the register table (the first is the rank, drawn as the row header). */
+export const REGISTER_COLUMNS = [
+  { key: "rank", label: "Rank", num: true, get: (d) => d.rank },
+  { key: "start_m", label: "Zone (m)", num: true, get: (d) => d.start_m, show: (d) => `${fmt(d.start_m, 1)}–${fmt(d.end_m, 1)}` },
+  { key: "peak_m", label: "Peak (m)", num: true, get: (d) => d.peak_m, show: (d) => fmt(d.peak_m, 1) },
+  { key: "priority", label: "Priority", num: true, get: (d) => d.priority, show: (d) => String(d.priority) },
+  { key: "level", label: "Level", title: "Limit level reached by the latest run (none: below the alert limits)", get: (d) => (d.level ? 3 - ["alert", "intervention", "immediate"].indexOf(d.level) : 9), show: (d) => (d.level ? SHORT_LEVEL[d.level] : "none"), cls: (d) => `level level-${d.level || "none"}` },
+  { key: "status", label: "Status", get: (d) => d.status, show: (d) => d.status, cls: (d) => `defect-status defect-${d.status}` },
+  { key: "runs_seen", label: "Seen", num: true, get: (d) => d.runs_seen, show: (d) => `${d.runs_seen} of ${d.runs_covering ?? d.runs_seen}` },
+  { key: "depth_mm", label: "Depth (mm)", num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
+  { key: "stiffness_loss_pct", label: "Loss (%)", num: true, get: (d) => d.stiffness_loss_pct, show: (d) => fmt(d.stiffness_loss_pct, 0) },
+  { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month", num: true, get: (d) => d.trend_mm_per_month, show: (d) => signed(d.trend_mm_per_month, 3) },
+  { key: "trend_loss_pct_per_month", label: "Trend (%/mo)", title: "Stiffness-loss trend, percentage points per month", num: true, get: (d) => d.trend_loss_pct_per_month, show: (d) => signed(d.trend_loss_pct_per_month, 1) },
+  { key: "first_seen", label: "First seen", get: (d) => d.first_seen || "", show: (d) => fmtDay(d.first_seen) },
+  { key: "last_seen", label: "Last seen", get: (d) => d.last_seen || "", show: (d) => fmtDay(d.last_seen) },
+];
+
+/** Shading of each defect on a chainage plot, by level (layout.shapes). */
+export function defectShapes(defects) {
+  return defects.map((d) => {
+    const s = LEVEL_STYLE[d.level || "none"];
+    return {
+      type: "rect", xref: "x", yref: "paper", x0: d.start_m, x1: d.end_m, y0: 0, y1: 1,
+      fillcolor: s.fill, line: { color: s.line, width: 1, dash: s.dash }, layer: "below", name: "defect",
+    };
+  });
+}
+
+/** Traces of the aggregated profile: the robust spread as a band around the median line. */
+export function aggregateTraces(agg) {
+  if (!agg || !Array.isArray(agg.chainage_m) || agg.chainage_m.length === 0) return [];
+  const x = agg.chainage_m;
+  const lv = agg.level_mm;
+  const sp = agg.spread_mm || lv.map(() => 0);
+  const hover = x.map((_, i) => [sp[i], agg.n_runs ? agg.n_runs[i] : null]);
+  return [
+    {
+      type: "scatter", mode: "lines", x, y: lv.map((v, i) => v + sp[i]), meta: "aggregate-band-upper",
+      line: { width: 0, color: "rgba(0,114,178,0)" }, hoverinfo: "skip", showlegend: false,
+    },
+    {
+      type: "scatter", mode: "lines", x, y: lv.map((v, i) => v - sp[i]), meta: "aggregate-band",
+      name: "Spread of the runs (±1.4826 MAD)", fill: "tonexty", fillcolor: "rgba(86, 180, 233, 0.35)",
+      line: { width: 0, color: "rgba(86,180,233,0)" }, hoverinfo: "skip",
+    },
+    {
+      type: "scatter", mode: "lines", x, y: lv, meta: "aggregate", name: "Aggregated profile (median)",
+      line: { color: COLORS.truth, width: 2 }, customdata: hover,
+      hovertemplate: "%{x:.2f} m: %{y:.3f} mm ± %{customdata[0]:.3f}, %{customdata[1]} runs<extra>aggregate</extra>",
+    },
+  ];
+}
+
+/** The card with the aggregated profile of the whole track (thinned server-side). */
+export async function aggregateCard(enc, defects) {
+  const div = h("div", { class: "plot plot-aggregate", id: "aggregate-plot", role: "img", "aria-label": "Aggregated profile of the track: median level of the aligned runs with their spread, defects shaded by level" });
+  const note = h("p", { class: "hint", id: "aggregate-note" });
+  const section = h("section", { class: "card", "aria-labelledby": "aggregate-h" },
+    h("h2", { id: "aggregate-h" }, "Aggregated profile"),
+    h("p", { class: "hint" }, "Median loaded level of all aligned runs per 0.25 m, with their spread as a band; defects of the register shaded by level (solid: immediate action, dashed: intervention, dotted: alert)."),
+    div, note);
+  const render = async () => {
+    let agg;
+    try {
+      agg = await apiFetch(`/api/v1/tracks/${enc}/profile?max_points=6000`);
+    } catch (err) {
+      note.textContent = `Cannot load the aggregated profile: ${err.message}`;
+      return;
+    }
+    if (!agg.n) {
+      note.textContent = "No aligned run yet: the aggregated profile is empty.";
+      div.hidden = true;
+      return;
+    }
+    div.hidden = false;
+    const layout = baseLayout({
+      height: 340, shapes: defectShapes(defects()), hovermode: "closest",
+      margin: { l: 64, r: 16, t: 16, b: 52 }, legend: { orientation: "h", x: 0, y: 1.12 },
+    });
+    await plotly().react(div, aggregateTraces(agg), layout, CONFIG);
+    note.textContent = `${agg.n.toLocaleString()} grid points${agg.decimated ? `, drawn as ${agg.chainage_m.length.toLocaleString()} (each stretch's lowest and highest point)` : ""}; up to ${Math.max(...agg.n_runs)} runs per point.`;
+  };
+  return { section, render };
+}
+
+/** Export links: the register (CSV, JSON), the aggregated profile (CSV), the report. */
+export function exportLinks(enc, trackId) {
+  const link = (id, href, text, download) => h("a", { class: "button small", id, href, download }, text);
+  return h("div", { class: "downloads", id: "track-exports", role: "group", "aria-label": "Exports" },
+    link("export-defects-csv", `/api/v1/tracks/${enc}/defects?format=csv`, "Defects (CSV)", `track-${trackId}-defects.csv`),
+    link("export-defects-json", `/api/v1/tracks/${enc}/defects?include=history`, "Defects (JSON)", `track-${trackId}-defects.json`),
+    link("export-profile-csv", `/api/v1/tracks/${enc}/profile?format=csv`, "Aggregated profile (CSV)", `track-${trackId}-profile.csv`),
+    h("a", { class: "button small", id: "export-report", href: `/api/v1/tracks/${enc}/report`, target: "_blank", rel: "noopener" }, "Report (HTML)"),
+  );
+}
+
+function isoDay(d) {
+  const pad = (n) => String(n).padStart(2, "0");
+  return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())}`;
+}
+
+/** Alerts: the defects whose current level was reached since a chosen date. */
+export function alertsCard(enc) {
+  const input = h("input", { type: "date", id: "alerts-since", required: true, value: isoDay(new Date(Date.now() - 30 * 86400e3)) });
+  const button = h("button", { type: "submit", class: "button", id: "alerts-show" }, "Show alerts");
+  const out = h("div", { id: "alerts-out", "aria-live": "polite" });
+  const form = h("form", { class: "alerts-form", id: "alerts-form" },
+    field("Since (date)", input, "Defects that reached their current limit level on or after this date (by recording date)."),
+    h("div", { class: "actions" }, button));
+  const section = h("section", { class: "card", "aria-labelledby": "alerts-h" },
+    h("h2", { id: "alerts-h" }, "Alerts since a date"), form, out);
+  const load = async () => {
+    clear(out);
+    const since = input.value;
+    if (!since) {
+      out.append(h("p", { class: "message error", role: "alert" }, "Choose a date."));
+      return;
+    }
+    let alerts;
+    try {
+      alerts = await apiFetch(`/api/v1/tracks/${enc}/alerts?since=${encodeURIComponent(since)}`);
+    } catch (err) {
+      out.append(h("p", { class: "message error", role: "alert" }, `Cannot load the alerts: ${err.message}`));
+      return;
+    }
+    if (!alerts.length) {
+      out.append(h("p", { class: "muted", id: "alerts-none" }, `No defect reached a limit since ${since}.`));
+      announce(`No alerts since ${since}.`);
+      return;
+    }
+    const rows = alerts.map((d) => h("tr", {},
+      h("td", { class: "num" }, String(d.priority)),
+      h("td", { class: `level level-${d.level}` }, LEVEL_LABELS[d.level] || d.level),
+      h("td", {}, fmtDay(d.level_since)),
+      h("td", { class: "num" }, `${fmt(d.start_m, 1)}–${fmt(d.end_m, 1)}`),
+      h("td", { class: "num" }, fmt(d.depth_mm, 2)),
+      h("td", { class: "num" }, fmt(d.stiffness_loss_pct, 0)),
+      h("td", {}, d.status)));
+    out.append(
+      h("p", { class: "small", id: "alerts-count" }, `${alerts.length} defect${alerts.length === 1 ? "" : "s"} reached a limit since ${since}.`),
+      h("div", { class: "table-scroll" }, h("table", { class: "data", id: "alerts-table" },
+        h("caption", { class: "visually-hidden" }, `Defects that reached a limit since ${since}`),
+        h("thead", {}, h("tr", {}, [["Priority", 1], ["Level"], ["Since"], ["Zone (m)", 1], ["Depth (mm)", 1], ["Loss (%)", 1], ["Status"]].map(([t, num]) => h("th", { scope: "col", class: num ? "num" : null }, t)))),
+        h("tbody", {}, rows))),
+      h("a", { class: "button small", href: `/api/v1/tracks/${enc}/alerts?since=${encodeURIComponent(since)}&format=csv`, download: "alerts.csv" }, "These alerts (CSV)"));
+    announce(`${alerts.length} alerts since ${since}.`);
+  };
+  form.addEventListener("submit", (e) => {
+    e.preventDefault();
+    load();
+  });
+  return { section, load, input };
+}
+
+const LIMIT_FIELDS = [
+  { key: "alert_depth_mm", label: "Alert depth (mm)", level: "alert" },
+  { key: "intervention_depth_mm", label: "Intervention depth (mm)", level: "intervention" },
+  { key: "immediate_depth_mm", label: "Immediate-action depth (mm)", level: "immediate" },
+  { key: "alert_loss_pct", label: "Alert stiffness loss (%)", level: "alert" },
+  { key: "intervention_loss_pct", label: "Intervention stiffness loss (%)", level: "intervention" },
+  { key: "immediate_loss_pct", label: "Immediate-action stiffness loss (%)", level: "immediate" },
+];
+
+/** The limits form: loads the track's limits, saves them with PUT, names a refused field. */
+export function limitsCard(enc, onSaved) {
+  const inputs = {};
+  const fields = LIMIT_FIELDS.map((f) => {
+    const input = h("input", { type: "number", id: `limit-${f.key}`, name: f.key, min: "0", step: "any", inputmode: "decimal" });
+    inputs[f.key] = input;
+    return field(f.label, input);
+  });
+  const state = h("p", { class: "hint", id: "limits-state" });
+  const msg = messageBox("info");
+  msg.el.id = "limits-message";
+  const save = h("button", { type: "submit", class: "button primary", id: "limits-save" }, "Save limits");
+  const form = h("form", { id: "limits-form", novalidate: true },
+    h("div", { class: "grid-3" }, fields),
+    h("p", { class: "hint" }, "A defect reaches a level when its depth or its stiffness loss in the latest run reaches that value; leave a box empty to switch that criterion off. Values grow from alert to immediate action."),
+    h("div", { class: "actions" }, save, msg.el));
+  const section = h("section", { class: "card", "aria-labelledby": "limits-h" },
+    h("h2", { id: "limits-h" }, "Limits"), state, form);
+
+  const show = (lim) => {
+    for (const f of LIMIT_FIELDS) {
+      inputs[f.key].value = lim[f.key] === null || lim[f.key] === undefined ? "" : String(lim[f.key]);
+      inputs[f.key].removeAttribute("aria-invalid");
+    }
+    state.textContent = lim.is_default ? "The default limits (this track has none of its own yet)." : `This track's limits, set ${fmtDay(lim.updated_at)}.`;
+  };
+  const load = async () => {
+    try {
+      show(await apiFetch(`/api/v1/tracks/${enc}/limits`));
+    } catch (err) {
+      state.textContent = `Cannot load the limits: ${err.message}`;
+    }
+  };
+  form.addEventListener("submit", async (e) => {
+    e.preventDefault();
+    const body = {};
+    for (const f of LIMIT_FIELDS) {
+      const raw = inputs[f.key].value.trim();
+      inputs[f.key].removeAttribute("aria-invalid");
+      body[f.key] = raw === "" ? null : Number(raw);
+      if (raw !== "" && !Number.isFinite(body[f.key])) body[f.key] = raw; // the service names it
+    }
+    save.disabled = true;
+    try {
+      const lim = await apiFetch(`/api/v1/tracks/${enc}/limits`, {
+        method: "PUT",
+        headers: { "Content-Type": "application/json", Accept: "application/json" },
+        body: JSON.stringify(body),
+      });
+      show(lim);
+      msg.show("Limits saved; the register is ranked with them.", "success");
+      announce("Limits saved.");
+      await onSaved();
+    } catch (err) {
+      const fieldsBad = err instanceof ApiError ? err.fields : [];
+      for (const name of fieldsBad) if (inputs[name]) inputs[name].setAttribute("aria-invalid", "true");
+      msg.show(`Not saved: ${err.message}`, "error");
+      if (fieldsBad.length && inputs[fieldsBad[0]]) inputs[fieldsBad[0]].focus();
+    } finally {
+      save.disabled = false;
+    }
+  });
+  return { section, load };
+}
+
+/** A notice listing the runs that could not be aligned (kept out of the register). */
+export function alignmentNotice(runs) {
+  const bad = runs.filter((r) => r.alignment && r.alignment.status === "unaligned");
+  if (!bad.length) return null;
+  const box = h("div", { class: "message warning", role: "status", id: "unaligned-runs" });
+  append(box, [
+    `${bad.length} run${bad.length === 1 ? " was" : "s were"} not aligned to this track and ${bad.length === 1 ? "is" : "are"} left out of the aggregated profile and the register: `,
+    bad.map((r, i) => [i ? "; " : "", h("a", { href: `#/runs/${encodeURIComponent(r.id)}` }, `run ${r.id}`), ` (${r.alignment.reason || "no reason given"})`]),
+  ]);
+  return box;
+}
