@@ -22,7 +22,12 @@ from .alignment import RunAlignment, align_to_track, on_track_grid
 
 
 def _lock_track(session: Session, track_id: int) -> None:
-    session.execute(select(Track.id).where(Track.id == track_id).with_for_update())
+    # FOR NO KEY UPDATE (key_share=True), not FOR UPDATE: the caller's transaction already
+    # holds FOR KEY SHARE on the track through the foreign keys of the rows it inserted, and
+    # so may a concurrent one; FOR UPDATE conflicts with KEY SHARE, so two such transactions
+    # would each wait for the other (PostgreSQL: deadlock detected). NO KEY UPDATE still
+    # serialises the runs of one track.
+    session.execute(select(Track.id).where(Track.id == track_id).with_for_update(key_share=True))
 
 
 def add_run_to_track(

@@ -207,13 +207,15 @@ class Worker:
             run = s.get(Run, run_id)
             if run is None or run.claimed_by != self.id:
                 return
+            log.info("claimed run %s (attempt %d) by %s", run_id, run.attempts, self.id)
             if run.attempts > settings.max_attempts:
+                times = "once" if run.attempts == 2 else f"{run.attempts - 1} times"
                 self._fail(
                     s,
                     run_id,
                     {
-                        "message": f"processing was interrupted {run.attempts - 1} times (the "
-                        "service stopped while working on it); upload the run again to retry",
+                        "message": f"processing was interrupted {times} (the service stopped "
+                        "while working on it); upload the run again to retry",
                         "kind": "Interrupted",
                     },
                 )
