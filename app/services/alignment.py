@@ -36,6 +36,11 @@ MIN_OVERLAP_M = 60.0
 MIN_CORRELATION = 0.5
 """Smallest normalised correlation with the track's profile for an offset to count."""
 
+ALIGN_WINDOW_M = 2000.0
+"""Longest stretch compared, m: a longer run is aligned on this much of the middle of what it
+shares with the track (plenty for a clear correlation peak, and the cost stays that of 2 km
+whatever the run's length)."""
+
 
 @dataclass(frozen=True)
 class RunAlignment:
@@ -137,9 +142,10 @@ def read_aggregate_grid(
     ).all()
     out = np.full(i_hi - i_lo + 1, np.nan)
     if rows:
-        arr = np.asarray(rows, dtype=np.float64)
-        idx = np.rint(arr[:, 0] / GRID_STEP_M).astype(np.int64) - i_lo
-        out[idx] = arr[:, 1]
+        n = len(rows)
+        chainage = np.fromiter((r[0] for r in rows), dtype=np.float64, count=n)
+        idx = np.rint(chainage / GRID_STEP_M).astype(np.int64) - i_lo
+        out[idx] = np.fromiter((r[1] for r in rows), dtype=np.float64, count=n)
     return out
 
 
@@ -152,7 +158,8 @@ def align_to_track(
     """Align a run's profile (chainage as logged, m; level mm) to its track's aggregate.
 
     The reference is the track's aggregated profile over the run's stretch widened by
-    :data:`MAX_SHIFT_M`; with no data there, the run is the reference of its stretch.
+    :data:`MAX_SHIFT_M`; with no data there, the run is the reference of its stretch. At most
+    :data:`ALIGN_WINDOW_M` of the stretch both share are compared (the middle of it).
     """
     i0, own = on_track_grid(chainage_m, level_mm)
     if own.size < 2 or not np.isfinite(own).any():
@@ -167,6 +174,12 @@ def align_to_track(
             "no earlier aligned run covers this stretch: the run is its reference",
         )  # fmt: skip
     ref_c = np.arange(r_lo, r_hi + 1, dtype=np.float64) * GRID_STEP_M
+    window = round(ALIGN_WINDOW_M / GRID_STEP_M)
+    shared = np.flatnonzero(np.isfinite(own) & np.isfinite(ref[pad : pad + own.size]))
+    if own.size > window and shared.size * GRID_STEP_M >= MIN_OVERLAP_M:
+        lo = int(min(max(0, int(np.median(shared)) - window // 2), own.size - window))
+        own, own_c = own[lo : lo + window], own_c[lo : lo + window]
+        ref, ref_c = ref[lo : lo + window + 2 * pad], ref_c[lo : lo + window + 2 * pad]
     try:
         al = align_profiles(
             ref_c, ref, own_c, own,

@@ -18,9 +18,16 @@ from typing import Any
 
 import numpy as np
 import pytest
+from sqlalchemy import func, select
 from starlette.testclient import TestClient
 
+from app.db.migrate import upgrade
+from app.db.models import Run, Track, TrackProfilePoint
+from app.db.session import Database
 from app.main import create_app
+from app.schemas.track_intel import DefectPublic
+from app.services.alignment import ALIGN_WINDOW_M
+from app.services.integrate import add_run_to_track
 from engine.logio import write_run_csv
 from engine.synthetic import REALISTIC_SENSOR, make_run
 from engine.track import SoftZone
@@ -354,6 +361,7 @@ def test_register_exports_csv_and_history(
     assert [ln.split(",")[header.index("id")] for ln in lines[1:]] == [d["id"] for d in defects]
     with_history = defects_of(client, "Line A", include="history")
     for d in with_history:
+        DefectPublic.model_validate(d)  # the answer is what the schema documents
         runs = [o["run_id"] for o in d["history"]]
         assert runs == [r["id"] for r in stored]
         assert all(d["start_m"] - 3 <= o["peak_m"] <= d["end_m"] + 3 for o in d["history"])
@@ -521,3 +529,40 @@ def test_unknown_track_and_bad_windows_are_refused(client: TestClient) -> None:
     assert client.get("/api/v1/tracks/Empty/defects").json() == []
     report = client.get("/api/v1/tracks/Empty/report")
     assert report.status_code == 200 and "No run on this track yet" in report.text
+
+
+def test_long_runs_are_aligned_on_a_window_of_their_shared_stretch(tmp_path: Path) -> None:
+    """A run longer than the alignment window (6 km here) is aligned on 2 km of the middle of
+    what it shares with the track: the offset is found as precisely, the overlap reported is
+    the window's, and the whole run joins the aggregate."""
+    db = Database(f"sqlite:///{tmp_path / 'long.db'}")
+    upgrade(db)
+    rng = np.random.default_rng(5)
+    x = np.arange(0.0, 6000.0, 0.25)
+    fingerprint = np.convolve(rng.standard_normal(x.size + 40), np.hanning(25), mode="same")
+    with db.session() as s:
+        track = Track(name="Long", k_nominal=8e7, spacing=0.6, EI=6.4e6, mass_per_m=60.0,
+                      c_support=5e4)  # fmt: skip
+        s.add(track)
+        s.flush()
+        results = []
+        for k, shift in enumerate((0.0, 3.3)):
+            run = Run(track_id=track.id, vehicle_id=1, source="upload", direction="increasing",
+                      sample_rate_hz=1000.0, n_samples=1, duration_s=1.0, speed_min_mps=30.0,
+                      speed_max_mps=30.0, status="done", options={}, attempts=0,
+                      content_hash=f"long-{k}")  # fmt: skip
+            s.add(run)
+            s.flush()
+            # logged = true + shift: the level at logged chainage c is the track's at c - shift
+            level = np.interp(x - shift, x, fingerprint[20:-20]) + rng.normal(0, 0.05, x.size)
+            results.append(add_run_to_track(s, run, x, level))
+        s.commit()
+        first, second = results
+        assert first.status == "reference"
+        assert second.status == "aligned" and second.offset_m == pytest.approx(-3.3, abs=0.05)
+        assert second.overlap_m is not None and second.overlap_m <= ALIGN_WINDOW_M
+        n_two = s.scalar(
+            select(func.count()).select_from(TrackProfilePoint).where(TrackProfilePoint.n_runs == 2)
+        )
+        assert n_two is not None and n_two * 0.25 > 5900
+    db.dispose()
