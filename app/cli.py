@@ -5,6 +5,8 @@
     create-key NAME      create an API key for a pipeline (printed once, stored hashed)
     list-keys            list API keys (id, name, prefix, state)
     revoke-key ID        revoke an API key
+    realign [TRACK ...]  align every run of the tracks again and rebuild their aggregates
+                         (all tracks when none is named; runs stored before alignment existed)
 
 The database is the service's: ``DATABASE_URL`` or ``TRACKPROFILE_DATA_DIR``.
 """
@@ -22,10 +24,11 @@ from app.core.errors import ApiError
 from app.core.security import generate_key, hash_key, key_prefix
 from app.db.base import utcnow
 from app.db.migrate import upgrade
-from app.db.models import ApiKey
+from app.db.models import ApiKey, Track
 from app.db.session import Database
 from app.schemas.simulate import SimulateRequest
 from app.services.context import AppContext
+from app.services.integrate import realign_track
 from app.services.simulation import simulate_and_submit
 
 
@@ -89,6 +92,28 @@ def cmd_revoke_key(ns: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_realign(ns: argparse.Namespace) -> int:
+    with _db().session() as s:
+        tracks = list(s.scalars(select(Track).order_by(Track.id)))
+        if ns.tracks:
+            by_ref = {str(t.id): t for t in tracks} | {t.name: t for t in tracks}
+            unknown = [ref for ref in ns.tracks if ref not in by_ref]
+            if unknown:
+                print(f"no track {unknown[0]!r} (give its name or id)", file=sys.stderr)
+                return 2
+            tracks = [by_ref[ref] for ref in ns.tracks]
+        for track in tracks:
+            done = realign_track(s, track.id)
+            s.commit()
+            counts = {st: sum(1 for _, a in done if a.status == st)
+                      for st in ("reference", "aligned", "unaligned")}  # fmt: skip
+            print(
+                f"track {track.id} ({track.name}): {len(done)} runs: {counts['reference']} "
+                f"reference, {counts['aligned']} aligned, {counts['unaligned']} unaligned"
+            )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m app", description="TrackProfile service admin")
     sub = p.add_subparsers(dest="command", required=True)
@@ -103,6 +128,9 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("revoke-key", help="revoke an API key")
     r.add_argument("id", type=int, help="key id (see list-keys)")
     r.set_defaults(fn=cmd_revoke_key)
+    a = sub.add_parser("realign", help="align the runs of tracks again, rebuild aggregates")
+    a.add_argument("tracks", nargs="*", metavar="TRACK", help="track names or ids (default all)")
+    a.set_defaults(fn=cmd_realign)
     return p
 
 

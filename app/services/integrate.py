@@ -2,23 +2,25 @@
 transaction.
 
 ``add_run_to_track`` runs when a run's result is stored (inline or by the worker),
-``remove_run_from_track`` before a run is deleted. Both lock the track first (``SELECT ... FOR
-UPDATE`` where the database has it; SQLite already serialises writers, and both functions
-write before they read the track's data), so two runs of one track stored at the same time
-are aligned one after the other, each against the other's data.
+``remove_run_from_track`` before a run is deleted, ``realign_track`` rebuilds a track's
+alignment and aggregate from its stored runs (``python -m app realign``). All lock the track
+first (``SELECT ... FOR NO KEY UPDATE`` where the database has it; SQLite already serialises
+writers, and they write before they read the track's data), so two runs of one track stored
+at the same time are aligned one after the other, each against the other's data.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import select
+from sqlalchemy import delete, func, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Run, Track
+from app.db.models import Run, Track, TrackProfilePoint, TrackRunLevels
 
 from .aggregate import drop_run_levels, recompute_aggregate, store_run_levels
 from .alignment import RunAlignment, align_to_track, on_track_grid
+from .profiles import read_profile
 
 
 def _lock_track(session: Session, track_id: int) -> None:
@@ -63,3 +65,27 @@ def remove_run_from_track(session: Session, run: Run, *, lock: bool = True) -> N
     chunks = drop_run_levels(session, run.id)
     if chunks is not None:
         recompute_aggregate(session, run.track_id, *chunks)
+
+
+def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignment]]:
+    """Align every processed run of a track again, oldest recording first, and rebuild its
+    aggregate from scratch (caller commits).
+
+    For runs stored before alignment existed (``alignment_status`` NULL) or after the
+    alignment settings changed. Returns each run's id and alignment, in the order processed.
+    """
+    _lock_track(session, track_id)
+    session.execute(delete(TrackRunLevels).where(TrackRunLevels.track_id == track_id))
+    session.execute(delete(TrackProfilePoint).where(TrackProfilePoint.track_id == track_id))
+    runs = session.scalars(
+        select(Run)
+        .where(Run.track_id == track_id, Run.status == "done")
+        .order_by(func.coalesce(Run.recorded_at, Run.created_at), Run.id)
+    ).all()
+    out = []
+    for run in runs:
+        cols = read_profile(session, run.id, columns=("chainage_m", "level_mm"))
+        chainage = np.asarray(cols["chainage_m"], dtype=np.float64)
+        level = np.array([np.nan if v is None else v for v in cols["level_mm"]], dtype=np.float64)
+        out.append((run.id, add_run_to_track(session, run, chainage, level)))
+    return out

@@ -566,3 +566,41 @@ def test_long_runs_are_aligned_on_a_window_of_their_shared_stretch(tmp_path: Pat
         )
         assert n_two is not None and n_two * 0.25 > 5900
     db.dispose()
+
+
+def test_realign_command_aligns_runs_stored_before_alignment(
+    tmp_path: Path, steady_runs: list[SimRun], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Runs without alignment (as stored before migration 0002) make no register; ``python -m
+    app realign TRACK`` aligns them oldest first, giving the same offsets and the register."""
+    import sqlite3
+
+    from app.cli import main as cli_main
+    from app.core.config import get_settings
+
+    with TestClient(create_app(make_settings(tmp_path))) as client:
+        runs = [sim.upload(client, "Line R") for sim in steady_runs[:3]]
+        offsets = [r["chainage_offset_m"] for r in runs]
+        con = sqlite3.connect(tmp_path / "trackprofile.db")
+        with con:
+            con.execute("UPDATE runs SET alignment_status = NULL, chainage_offset_m = 0")
+            con.execute("DELETE FROM track_run_levels")
+            con.execute("DELETE FROM track_profile_points")
+        con.close()
+        assert defects_of(client, "Line R") == []
+        assert client.get(f"/api/v1/runs/{runs[1]['id']}").json()["alignment"] is None
+
+        monkeypatch.setenv("DATABASE_URL", f"sqlite:///{tmp_path / 'trackprofile.db'}")
+        get_settings.cache_clear()
+        try:
+            assert cli_main(["realign", "Nowhere"]) == 2
+            assert cli_main(["realign", "Line R"]) == 0
+        finally:
+            get_settings.cache_clear()
+        again = [client.get(f"/api/v1/runs/{r['id']}").json() for r in runs]
+        assert [r["alignment"]["status"] for r in again] == ["reference", "aligned", "aligned"]
+        assert np.allclose([r["chainage_offset_m"] for r in again], offsets, atol=0.01)
+        defects = defects_of(client, "Line R")
+        assert len(defects) == 3 and all(d["runs_seen"] == 3 for d in defects)
+        window = client.get("/api/v1/tracks/Line R/profile?from_m=60&to_m=250").json()
+        assert set(window["n_runs"]) == {3}
