@@ -14,6 +14,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from sqlalchemy.exc import DataError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from engine.errors import EngineError, LogFormatError, ParameterError
@@ -80,6 +81,27 @@ def too_large_detail(limit_bytes: int) -> dict[str, Any]:
     }
 
 
+def out_of_range_detail() -> dict[str, Any]:
+    """Detail of a 422 for a number the database cannot hold (ids, offsets: 64-bit)."""
+    return {
+        "message": "a number in the request is out of range: ids, offsets and limits must be "
+        "whole numbers below 2^63 (9223372036854775807)",
+        "kind": "OutOfRange",
+    }
+
+
+def data_error_detail(exc: DataError) -> dict[str, Any]:
+    """Detail of a 422 for a request value the database refused (type, range, NUL in text)."""
+    reason = str(exc.orig).strip().splitlines()[0] if exc.orig is not None else ""
+    if "out of range" in reason:
+        return out_of_range_detail()
+    return {
+        "message": f"a value in the request cannot be stored or searched by the database: "
+        f"{reason[:200] or 'invalid value'}",
+        "kind": "InvalidValue",
+    }
+
+
 def _loc_name(loc: Sequence[Any]) -> str:
     parts = [str(p) for p in loc if p not in ("body", "query", "path", "header", "form")]
     return ".".join(parts)
@@ -139,6 +161,20 @@ def install_error_handlers(app: FastAPI) -> None:
             content={"detail": detail},
             headers=getattr(exc, "headers", None),
         )
+
+    # A value of the request that the database cannot take (an id or offset beyond 64 bits,
+    # a NUL character in text on PostgreSQL) is the client's error, not the server's: 422,
+    # and the connection stays usable (a 500 from the catch-all below drops it).
+    @app.exception_handler(OverflowError)
+    async def _overflow(request: Request, exc: OverflowError) -> JSONResponse:
+        log.info("number out of range on %s %s: %s", request.method, request.url.path, exc)
+        return JSONResponse(status_code=422, content={"detail": out_of_range_detail()})
+
+    @app.exception_handler(DataError)
+    async def _data_error(request: Request, exc: DataError) -> JSONResponse:
+        log.info("value refused by the database on %s %s: %s", request.method,
+                 request.url.path, exc.orig)  # fmt: skip
+        return JSONResponse(status_code=422, content={"detail": data_error_detail(exc)})
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
