@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from datetime import datetime
 
 import numpy as np
@@ -127,7 +127,8 @@ class Defect:
 
     def to_dict(self, with_history: bool = False) -> dict[str, object]:
         """JSON-ready dict (datetimes as ISO 8601 strings)."""
-        d = {k: v for k, v in asdict(self).items() if k != "history"}
+        # not asdict(self): that would deep-copy the whole history for nothing
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "history"}
         for k in ("first_seen", "last_seen", "level_since"):
             d[k] = d[k].isoformat() if d[k] is not None else None
         if with_history:
