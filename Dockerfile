@@ -16,8 +16,9 @@ COPY engine ./engine
 COPY app ./app
 COPY migrations ./migrations
 COPY static ./static
-# Editable install: the app finds migrations/ and static/ next to its package.
-RUN pip install -e . \
+# Editable install: the app finds migrations/ and static/ next to its package. The postgres
+# extra (psycopg 3) lets DATABASE_URL point at PostgreSQL (see docker-compose.yml).
+RUN pip install -e ".[postgres]" \
     && mkdir -p /data \
     && chown app:app /data
 

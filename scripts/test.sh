@@ -3,6 +3,9 @@
 #   bash scripts/test.sh [pytest arguments]
 # Lint (ruff), type check (mypy: engine and app), then pytest. Installs Debian's chromium for the
 # browser tests when it is missing (needs root or sudo; without it those tests are skipped).
+# Without arguments it then runs the API tests again on PostgreSQL (scripts/test_postgres.sh:
+# installs Debian's postgresql when missing and starts a throwaway server);
+# TRACKPROFILE_TEST_POSTGRES=0 skips that pass.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/_venv.sh '.[test]'
@@ -26,3 +29,7 @@ python -m mypy
 python -m mypy app
 echo "== pytest"
 python -m pytest "$@"
+
+if [ "$#" -eq 0 ] && [ "${TRACKPROFILE_TEST_POSTGRES:-1}" != 0 ]; then
+  bash scripts/test_postgres.sh
+fi

@@ -37,8 +37,19 @@ def sqlite_path(url: str) -> Path | None:
     return Path(u.database)
 
 
+def normalize_url(url: str) -> str:
+    """``url`` with PostgreSQL's driver made explicit: ``postgres://`` and ``postgresql://``
+    (as Docker images and hosting services write them) become ``postgresql+psycopg://``, the
+    driver the service installs (psycopg 3); every other URL is returned unchanged."""
+    for prefix in ("postgres://", "postgresql://"):
+        if url.startswith(prefix):
+            return "postgresql+psycopg://" + url.removeprefix(prefix)
+    return url
+
+
 def make_engine(url: str) -> Engine:
     """An SQLAlchemy engine for ``url``; SQLite files get their directory and pragmas."""
+    url = normalize_url(url)
     path = sqlite_path(url)
     if make_url(url).get_backend_name() == "sqlite":
         if path is not None:
@@ -56,7 +67,7 @@ class Database:
     """An engine and its session factory (one per app instance)."""
 
     def __init__(self, url: str) -> None:
-        self.url = url
+        self.url = normalize_url(url)
         self.engine = make_engine(url)
         self.session_factory = sessionmaker(bind=self.engine, expire_on_commit=False)
 

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# The API tests again, on PostgreSQL: starts a throwaway server (Debian's postgresql package,
+# installed with apt-get when missing; see scripts/pg_server.sh) on a free local port, runs
+# tests/api against it (each test gets its own database, TEST_DATABASE_URL), then stops it.
+#   bash scripts/test_postgres.sh [pytest arguments]      (default: tests/api)
+# scripts/test.sh calls it after the main run when it is given no arguments.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. scripts/_venv.sh '.[test]'
+
+port="$(python - <<'PY'
+import socket
+for port in range(5433, 5500):
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            continue
+        print(port)
+        break
+PY
+)"
+dir="$(mktemp -d "${TMPDIR:-/tmp}/trackprofile-pg.XXXXXX")"
+cleanup() {
+  bash scripts/pg_server.sh stop "$dir" || true
+  rm -rf "$dir"
+}
+trap cleanup EXIT
+
+echo "== PostgreSQL: starting a throwaway server on 127.0.0.1:${port}"
+if ! url="$(bash scripts/pg_server.sh start "$dir" "$port")"; then
+  if [ "${CI:-}" = true ]; then
+    echo "error: no PostgreSQL server could be started for the tests" >&2
+    exit 1
+  fi
+  echo "warning: no PostgreSQL server could be started (needs Debian's postgresql package," \
+    "or root/sudo to install it): the PostgreSQL pass is skipped" >&2
+  exit 0
+fi
+echo "== pytest tests/api on PostgreSQL (${url})"
+if [ "$#" -eq 0 ]; then set -- tests/api; fi
+TEST_DATABASE_URL="$url" python -m pytest "$@"
