@@ -22,6 +22,7 @@ from typing import Any
 import pytest
 from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import OperationalError
 from sqlalchemy.pool import NullPool
 
 from app.core.config import REPO_ROOT, Settings
@@ -71,7 +72,22 @@ def database_url_for(tmp_path: Path) -> str:
 
 @pytest.fixture(autouse=True)
 def _drop_test_databases() -> Iterator[None]:
-    """Drop the PostgreSQL databases a test created (after its apps have stopped)."""
+    """Drop the PostgreSQL databases a test created once nothing uses them: a test's own
+    database after its apps have stopped; one that a module-scoped fixture's app still holds
+    open is left to the end of the session."""
+    before = len(_created_databases)
+    yield
+    for name in _created_databases[before:]:
+        try:
+            _admin_execute(f'DROP DATABASE IF EXISTS "{name}"')
+        except OperationalError:  # still in use (a module's app): dropped at the end
+            continue
+        _created_databases.remove(name)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _drop_remaining_test_databases() -> Iterator[None]:
+    """At the end of the session, drop every test database that is left."""
     yield
     while _created_databases:
         _admin_execute(f'DROP DATABASE IF EXISTS "{_created_databases.pop()}" WITH (FORCE)')

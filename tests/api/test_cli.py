@@ -8,14 +8,19 @@ import io
 import pytest
 
 from api.api_support import assert_zones_match
+from api.conftest import database_url_for, uses_postgres
 from app.cli import main
 from app.core.config import get_settings
 
 
 @pytest.fixture
 def env_db(monkeypatch, tmp_path):
-    """Point the commands at a fresh data directory."""
-    monkeypatch.delenv("DATABASE_URL", raising=False)
+    """Point the commands at a fresh data directory (and at the test's database: the SQLite
+    file there, or its PostgreSQL database with TEST_DATABASE_URL)."""
+    if uses_postgres():
+        monkeypatch.setenv("DATABASE_URL", database_url_for(tmp_path))
+    else:
+        monkeypatch.delenv("DATABASE_URL", raising=False)
     monkeypatch.setenv("TRACKPROFILE_DATA_DIR", str(tmp_path))
     get_settings.cache_clear()
     yield tmp_path
@@ -49,7 +54,7 @@ def test_migrate_and_key_listing(env_db) -> None:
     """'migrate' creates the database; keys are listed by prefix only, then revoked."""
     code, out = _run("migrate")
     assert code == 0 and "latest schema" in out
-    assert (env_db / "trackprofile.db").is_file()
+    assert uses_postgres() or (env_db / "trackprofile.db").is_file()
     _, created = _run("create-key", "fleet")
     key = created.strip().splitlines()[-1]
     _, listing = _run("list-keys")

@@ -568,6 +568,7 @@ def test_long_runs_are_aligned_on_a_window_of_their_shared_stretch(tmp_path: Pat
     db.dispose()
 
 
+@pytest.mark.sqlite_only  # edits the SQLite file directly
 def test_realign_command_aligns_runs_stored_before_alignment(
     tmp_path: Path, steady_runs: list[SimRun], monkeypatch: pytest.MonkeyPatch
 ) -> None:
