@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import zlib
 from dataclasses import dataclass
 from typing import Any
 
@@ -40,13 +41,51 @@ def log_format_error(exc: LogFormatError, field: str = "file") -> ApiError:
     )
 
 
-def parse_csv(data: bytes, options: dict[str, Any], field: str = "file") -> RunLog:
+GZIP_MAGIC = b"\x1f\x8b"
+
+
+def gunzipped_size_over(data: bytes, limit_bytes: int) -> int | None:
+    """For gzip ``data``: the size it expands to once that passes ``limit_bytes`` (counted
+    in 1 MiB steps, nothing kept), else None. None too for plain or corrupt data (the CSV
+    reader reports those)."""
+    if not data.startswith(GZIP_MAGIC):
+        return None
+    d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+    pending, total = data, 0
+    try:
+        while pending:
+            out = d.decompress(pending, 1 << 20)
+            total += len(out)
+            if total > limit_bytes:
+                return total
+            if d.eof:  # the next member of a multi-member file, if any
+                pending = d.unused_data
+                if not pending.startswith(GZIP_MAGIC):
+                    break
+                d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+                continue
+            if not out and pending == d.unconsumed_tail:
+                break
+            pending = d.unconsumed_tail
+        total += len(d.flush())
+    except zlib.error:
+        return None
+    return total if total > limit_bytes else None
+
+
+def parse_csv(
+    data: bytes, options: dict[str, Any], field: str = "file", max_bytes: int | None = None
+) -> RunLog:
     """Read an uploaded CSV (plain or gzip) into a RunLog with the given column/unit options.
+
+    ``max_bytes`` limits the CSV's size once decompressed (the upload limit applies to the
+    CSV, not to what it was compressed to: a few kB of gzip can expand to gigabytes).
 
     Raises
     ------
     ApiError
-        422 naming the column, row or unit when the file cannot be read.
+        422 naming the column, row or unit when the file cannot be read; 413 when a gzip file
+        expands to more than ``max_bytes``.
     """
     # The CSV reader is a separate engine module; imported here so the service starts
     # even while it is being replaced.
@@ -59,6 +98,15 @@ def parse_csv(data: bytes, options: dict[str, Any], field: str = "file") -> RunL
         raise ApiError(422, str(exc), field=exc.field, kind="ParameterError") from None
     if not data:
         raise ApiError(422, "the uploaded file is empty", field=field)
+    if max_bytes is not None and (size := gunzipped_size_over(data, max_bytes)) is not None:
+        raise ApiError(
+            413,
+            f"the gzip-compressed file expands to more than {size / 1e6:.3g} MB, over the upload "
+            f"limit of {max_bytes / 1e6:g} MB (TRACKPROFILE_MAX_UPLOAD_MB), which applies to "
+            "the CSV itself: split the run into shorter logs",
+            field=field,
+            limit_bytes=max_bytes,
+        )
     try:
         return read_run_csv(data, opts)
     except LogFormatError as exc:

@@ -354,6 +354,13 @@ CATALOGUE: dict[str, Bad] = {
         words=("limit", "TRACKPROFILE_MAX_UPLOAD_MB"),
         settings={"max_upload_mb": 0.05},
     ),
+    "gzip expanding over the size limit": Bad(
+        multipart(gzip.compress(b"0" * 1_000_000), "bomb.csv.gz"),
+        status=413,
+        facts={"field": "file", "limit_bytes": 100_000},
+        words=("expands to more than", "TRACKPROFILE_MAX_UPLOAD_MB"),
+        settings={"max_upload_mb": 0.1},
+    ),
     "over the size limit (chunked, no length)": Bad(
         lambda b: {
             "content": iter(
@@ -549,3 +556,18 @@ def test_windows_line_ends_in_json_csv_are_accepted(client, synthetic_run, base_
     r = client.post("/api/v1/runs", json=body)
     assert r.status_code == 201, r.text
     assert r.json()["n_samples"] == 5355
+
+
+def test_gzip_size_is_measured_without_keeping_it() -> None:
+    """The decompressed size check counts multi-member gzip files whole, passes plain, small
+    and corrupt data on (the CSV reader reports those), and stops counting past the limit."""
+    from app.services.logs import gunzipped_size_over
+
+    member = gzip.compress(b"1" * 600_000)
+    assert gunzipped_size_over(member, 1_000_000) is None
+    assert gunzipped_size_over(member + member, 1_000_000) == 1_200_000
+    assert gunzipped_size_over(b"time_s\n" * 1000, 10) is None  # not gzip
+    assert gunzipped_size_over(member[:50], 1_000_000) is None  # truncated: the reader says so
+    assert gunzipped_size_over(b"\x1f\x8bnot gzip at all", 10) is None  # corrupt
+    bomb = gzip.compress(b"0" * 50_000_000)
+    assert 2_000_000 <= gunzipped_size_over(bomb, 2_000_000) <= 3_100_000  # stopped early

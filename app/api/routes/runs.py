@@ -115,11 +115,11 @@ def _submission(
 
 
 def _from_multipart(
-    fields: dict[str, Any], data: bytes, filename: str | None, key: str | None
+    fields: dict[str, Any], data: bytes, filename: str | None, key: str | None, max_bytes: int
 ) -> Submission:
     meta = _validate(RunUploadForm, fields)
     options = meta.csv_options()
-    log = parse_csv(data, options)
+    log = parse_csv(data, options, max_bytes=max_bytes)
     return _submission(
         meta, source="upload", content_hash=sha256_hex(data), filename=filename, key=key,
         log=log, options={"csv": options},
@@ -232,7 +232,10 @@ async def create_run(
                 raise ApiError(
                     422, f"unexpected file part {extra_files[0]!r}", field=extra_files[0]
                 )
-        sub = await run_in_threadpool(_from_multipart, fields, data, filename, idempotency_key)
+        sub = await run_in_threadpool(
+            _from_multipart, fields, data, filename, idempotency_key,
+            ctx.settings.max_upload_bytes,
+        )  # fmt: skip
         del data
     elif ctype == "application/json":
         body = await request.body()
