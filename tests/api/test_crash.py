@@ -64,6 +64,15 @@ def _upload(c: httpx.Client, data: bytes, key: str = "crash-1") -> httpx.Respons
     )
 
 
+def _send(url: str, data: bytes, key: str) -> None:
+    """Upload, not minding that the server may die under the request."""
+    try:
+        with httpx.Client(base_url=url, timeout=120) as c:
+            _upload(c, data, key=key)
+    except httpx.HTTPError:
+        pass
+
+
 def _wait_processing(c: httpx.Client, run_id: int, timeout: float = 60.0) -> float:
     """Poll until a worker has the run (stage inverting or storing); the time it was seen."""
     deadline = time.monotonic() + timeout
@@ -207,3 +216,44 @@ def test_run_interrupted_too_often_is_failed_with_its_error(settings, long_log) 
     assert "interrupted once" in failed["error"]["message"]
     state = _stored(settings, run_id)
     assert state["profile_points"] == state["soft_spots"] == state["run_inputs"] == 0
+
+
+def test_inline_upload_killed_mid_request_stores_all_or_nothing(settings, long_log) -> None:
+    """A log processed inside the request (under the inline limit) is stored in one
+    transaction with its track: killed at several moments of the request, the server leaves
+    every table exactly as before (nothing) or the run done with all its rows."""
+    import threading
+
+    inline = {"TRACKPROFILE_INLINE_MAX_SAMPLES": 1_000_000}
+    measure = LiveServer(settings, "inline-measure", **inline).start()
+    try:
+        with httpx.Client(base_url=measure.url, timeout=120) as c:
+            t0 = time.monotonic()
+            r = _upload(c, long_log["csv"], key="inline-measure")
+            full = time.monotonic() - t0
+            assert r.status_code == 201, r.text
+            assert c.delete(f"/api/v1/runs/{r.json()['id']}").status_code == 204
+    finally:
+        measure.stop()
+    before = row_counts(settings)
+
+    outcomes = []
+    for k, fraction in enumerate((0.5, 0.8, 0.95)):
+        server = LiveServer(settings, f"inline{k}", **inline).start()
+        sender = threading.Thread(target=_send, args=(server.url, long_log["csv"], f"inline-{k}"))
+        sender.start()
+        time.sleep(fraction * full)
+        server.kill()
+        sender.join(60)
+        after = row_counts(settings)
+        if after == before:
+            outcomes.append("nothing")
+        else:
+            [(run_id,)] = sql(settings, "SELECT id FROM runs WHERE idempotency_key=:k",
+                              k=f"inline-{k}")  # fmt: skip
+            state = _stored(settings, run_id)
+            assert state["status"] == "done", state
+            _assert_whole_or_nothing(state, long_log)
+            outcomes.append("whole")
+            before = after
+    assert "nothing" in outcomes, outcomes  # at least one kill hit the request mid-way
