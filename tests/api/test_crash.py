@@ -228,17 +228,20 @@ def test_inline_upload_killed_mid_request_stores_all_or_nothing(settings, long_l
     measure = LiveServer(settings, "inline-measure", **inline).start()
     try:
         with httpx.Client(base_url=measure.url, timeout=120) as c:
-            t0 = time.monotonic()
-            r = _upload(c, long_log["csv"], key="inline-measure")
-            full = time.monotonic() - t0
-            assert r.status_code == 201, r.text
-            assert c.delete(f"/api/v1/runs/{r.json()['id']}").status_code == 204
+            times = []
+            for j in range(2):  # the first request of a process is slower: take the faster
+                t0 = time.monotonic()
+                r = _upload(c, long_log["csv"], key=f"inline-measure-{j}")
+                times.append(time.monotonic() - t0)
+                assert r.status_code == 201, r.text
+                assert c.delete(f"/api/v1/runs/{r.json()['id']}").status_code == 204
+            full = min(times)
     finally:
         measure.stop()
     before = row_counts(settings)
 
     outcomes = []
-    for k, fraction in enumerate((0.5, 0.8, 0.95)):
+    for k, fraction in enumerate((0.4, 0.7, 0.95)):
         server = LiveServer(settings, f"inline{k}", **inline).start()
         sender = threading.Thread(target=_send, args=(server.url, long_log["csv"], f"inline-{k}"))
         sender.start()
