@@ -17,12 +17,13 @@ import numpy as np
 from .detect import DetectionConfig
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import EngineError
+from .irregularity import SPECTRA, random_profile, read_profile_csv
 from .pipeline import METHODS, ProcessConfig, process_run
 from .runlog import RunLog
 from .sensor import SensorModel
 from .simulate import simulate
-from .track import SoftZone, Track, TrackParams, irregularity_from_samples
-from .vehicle import VehicleParams
+from .track import SoftZone, Track, TrackParams
+from .vehicle import PRESETS, TABLE1, VehicleParams, get_preset
 
 VEHICLE_HELP = {
     "ms": "body mass, kg", "Is": "body pitch inertia, kg m^2", "mu1": "front axle mass, kg",
@@ -39,15 +40,23 @@ TRACK_HELP = {
 
 
 def _add_vehicle(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("vehicle (default: the paper's Table 1)")
-    defaults = VehicleParams()
+    g = p.add_argument_group(
+        "vehicle (default: the paper's Table 1; a preset, then single parameters override it)"
+    )
+    g.add_argument(
+        "--vehicle",
+        choices=sorted(PRESETS),
+        default="table1",
+        help="vehicle preset (default table1; heavy: about twice the wheel load)",
+    )
     for f in fields(VehicleParams):
+        dflt = f"table1 {getattr(TABLE1, f.name):g}"
         g.add_argument(
             f"--{f.name}",
             type=float,
             default=None,
             metavar="X",
-            help=f"{VEHICLE_HELP[f.name]} (default {getattr(defaults, f.name):g})",
+            help=f"{VEHICLE_HELP[f.name]} (default: the preset's; {dflt})",
         )
 
 
@@ -87,8 +96,10 @@ def _add_columns(p: argparse.ArgumentParser) -> None:
 
 
 def _vehicle(ns: argparse.Namespace) -> VehicleParams:
+    base = get_preset(ns.vehicle).to_dict()
     over = {f.name: getattr(ns, f.name) for f in fields(VehicleParams)}
-    return VehicleParams(**{k: v for k, v in over.items() if v is not None})
+    base.update({k: v for k, v in over.items() if v is not None})
+    return VehicleParams(**base)
 
 
 def _track_params(ns: argparse.Namespace) -> TrackParams:
@@ -124,10 +135,20 @@ def _cmd_simulate(ns: argparse.Namespace) -> int:
         rng = np.random.default_rng(ns.seed)
         k = track.k * np.clip(1.0 + ns.jitter * rng.standard_normal(track.n_supports), 0.5, 1.5)
         track = Track(ns.length, params=params, support_stiffness=k, zones=zones)
+    if ns.irregularity and ns.spectrum:
+        raise EngineError("give either --irregularity (a CSV profile) or --spectrum, not both")
+    prof = None
     if ns.irregularity:
-        data = np.loadtxt(ns.irregularity, delimiter=",", skiprows=1, ndmin=2)
-        irr = irregularity_from_samples(data[:, 0], data[:, 1] * 1e-3)
-        track = Track(ns.length, params=params, support_stiffness=track.k, irregularity=irr)
+        prof = read_profile_csv(ns.irregularity)
+    elif ns.spectrum:
+        prof = random_profile(
+            ns.spectrum, ns.length, seed=ns.irregularity_seed, scale=ns.irregularity_scale
+        )
+    if prof is not None:
+        track = Track(
+            ns.length, params=params, support_stiffness=track.k, zones=zones,
+            irregularity=prof.as_irregularity(),
+        )  # fmt: skip
     speed: float | object = ns.speed
     if ns.speed_end is not None:
         if ns.duration is None:
@@ -312,6 +333,22 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument(
         "--irregularity",
         help="CSV with header and columns chainage_m,level_mm: unloaded rail irregularity",
+    )
+    s.add_argument(
+        "--spectrum",
+        choices=sorted(SPECTRA),
+        default=None,
+        help="unloaded rail irregularity drawn from a standard spectrum (1-120 m wavelengths; "
+        "see docs/method.md)",
+    )
+    s.add_argument(
+        "--irregularity-seed", type=int, default=0, help="seed of the --spectrum profile (0)"
+    )
+    s.add_argument(
+        "--irregularity-scale",
+        type=float,
+        default=1.0,
+        help="amplitude multiplier of the --spectrum profile (default 1)",
     )
     s.add_argument("--dt", type=float, default=1e-3, help="simulation time step, s (0.001)")
     s.add_argument("--rate", type=float, default=None, help="output sample rate, Hz")

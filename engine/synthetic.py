@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 
 from .detect import robust_baseline
 from .errors import ParameterError
+from .irregularity import Profile, Spectrum, profile_from_samples, random_profile
 from .results import ProcessResult
 from .runlog import RunLog
 from .sensor import SensorModel
@@ -38,7 +39,15 @@ class SyntheticRun:
     zones : tuple of SoftZone
         The soft zones put in.
     start_chainage_m : float
-        Body-centre chainage at the first sample, m.
+        True body-centre chainage at the first sample, m.
+    direction : str
+        Direction of travel.
+    logged_start_chainage_m : float
+        The start chainage a user would type (true one plus the odometer error), m.
+    vehicle : VehicleParams
+        The simulated vehicle.
+    irregularity : Profile or None
+        The unloaded rail geometry of the track (m), if any.
     """
 
     log: RunLog
@@ -47,6 +56,13 @@ class SyntheticRun:
     zones: tuple[SoftZone, ...]
     start_chainage_m: float
     direction: str
+    logged_start_chainage_m: float = float("nan")
+    vehicle: VehicleParams = TABLE1
+    irregularity: Profile | None = None
+
+    def true_geometry(self, grid: NDArray[np.float64]) -> NDArray[np.float64]:
+        """True unloaded rail level on ``grid`` (m), mm (zero without irregularity)."""
+        return self.track.rail_irregularity(grid) * 1e3
 
     def true_profile(self, grid: NDArray[np.float64]) -> NDArray[np.float64]:
         """True loaded level fused like the engine's (mean of both axles), mm, on ``grid`` (m)."""
@@ -64,6 +80,68 @@ def _interp(
     return np.interp(g, x, y, left=np.nan, right=np.nan)
 
 
+IrregularityInput = str | Spectrum | Profile | tuple[NDArray[np.float64], NDArray[np.float64]]
+"""A spectrum (name or :class:`Spectrum`), a given :class:`Profile`, or ``(x m, level m)``."""
+
+
+def make_track(
+    length: float = 500.0,
+    *,
+    zones: tuple[SoftZone, ...] | list[SoftZone] = (),
+    jitter: float = 0.0,
+    irregularity: IrregularityInput | None = None,
+    irregularity_scale: float = 1.0,
+    params: TrackParams | None = None,
+    seed: int = 0,
+) -> tuple[Track, Profile | None]:
+    """A track with soft zones, support scatter and unloaded rail geometry.
+
+    Parameters
+    ----------
+    length : float
+        Track length, m.
+    zones : sequence of SoftZone
+        Soft zones.
+    jitter : float
+        Support-to-support stiffness scatter, standard deviation as a fraction (clipped to
+        +-50 %).
+    irregularity : str, Spectrum, Profile or (x, level) arrays, optional
+        Unloaded rail level: a spectrum name of :data:`engine.irregularity.SPECTRA` (random
+        profile of 1-120 m wavelengths), or a given profile (m, positive up).
+    irregularity_scale : float
+        Amplitude multiplier of a spectrum's random profile.
+    params : TrackParams, optional
+        Rail and nominal support properties.
+    seed : int
+        Seed of the stiffness scatter and of the random profile.
+
+    Returns
+    -------
+    track, profile
+        The track and its unloaded geometry (None without irregularity).
+    """
+    p = params or TrackParams()
+    rng = np.random.default_rng(seed)
+    track = Track(length, params=p, zones=tuple(zones))
+    k = track.k
+    if jitter > 0:
+        k = track.k * np.clip(1.0 + jitter * rng.standard_normal(track.n_supports), 0.5, 1.5)
+    prof: Profile | None
+    if irregularity is None:
+        prof = None
+    elif isinstance(irregularity, Profile):
+        prof = irregularity
+    elif isinstance(irregularity, tuple):
+        prof = profile_from_samples(*irregularity)
+    else:
+        prof = random_profile(irregularity, length, seed=seed + 7919, scale=irregularity_scale)
+    track = Track(
+        length, params=p, support_stiffness=k, zones=tuple(zones),
+        irregularity=None if prof is None else prof.as_irregularity(),
+    )  # fmt: skip
+    return track, prof
+
+
 def make_run(
     *,
     length: float = 500.0,
@@ -79,6 +157,9 @@ def make_run(
     params: TrackParams | None = None,
     end_margin_m: float = 10.0,
     track_seed: int | None = None,
+    irregularity: IrregularityInput | None = None,
+    track: tuple[Track, Profile | None] | None = None,
+    start_error_m: float = 0.0,
 ) -> SyntheticRun:
     """Simulate a run over a track with soft zones and write it through a sensor.
 
@@ -110,13 +191,23 @@ def make_run(
     track_seed : int, optional
         Seed of the stiffness scatter alone (default ``seed``): the same physical track for
         runs with different sensor noise.
+    irregularity : str, Spectrum, Profile or (x, level) arrays, optional
+        Unloaded rail geometry (see :func:`make_track`); seeded by ``track_seed``/``seed``.
+    track : (Track, Profile or None), optional
+        A track made by :func:`make_track` (fleet studies: many runs over one track); then
+        ``length``, ``zones``, ``jitter``, ``params`` and ``irregularity`` are taken from it.
+    start_error_m : float
+        Error of the logged start chainage, m: ``logged_start_chainage_m`` is the true start
+        plus this (what a user would type; alignment has to correct it).
     """
-    p = params or TrackParams()
-    rng = np.random.default_rng(seed if track_seed is None else track_seed)
-    track = Track(length, params=p, zones=tuple(zones))
-    if jitter > 0:
-        k = track.k * np.clip(1.0 + jitter * rng.standard_normal(track.n_supports), 0.5, 1.5)
-        track = Track(length, params=p, support_stiffness=k, zones=tuple(zones))
+    if track is None:
+        track = make_track(
+            length, zones=zones, jitter=jitter, irregularity=irregularity, params=params,
+            seed=seed if track_seed is None else track_seed,
+        )  # fmt: skip
+    trk, prof = track
+    length = trk.length
+    zones = trk.zones
     lead = vehicle.d1 if direction == "increasing" else vehicle.d2
     if direction == "increasing":
         room = length - end_margin_m - (start_chainage_m + lead)
@@ -132,19 +223,22 @@ def make_run(
             return v0 + (v1 - v0) * np.clip(t / duration, 0.0, 1.0)
 
         sim = simulate(
-            track, vehicle=vehicle, speed=vfun, duration=duration * 0.999,
+            trk, vehicle=vehicle, speed=vfun, duration=duration * 0.999,
             start_chainage_m=start_chainage_m, dt=1.0 / sim_rate_hz,
             direction=direction,  # type: ignore[arg-type]
         )  # fmt: skip
     else:
         sim = simulate(
-            track, vehicle=vehicle, speed=float(speed), duration=room / float(speed),
+            trk, vehicle=vehicle, speed=float(speed), duration=room / float(speed),
             start_chainage_m=start_chainage_m, dt=1.0 / sim_rate_hz,
             direction=direction,  # type: ignore[arg-type]
         )  # fmt: skip
     sens = sensor or SensorModel()
     log = sim.to_runlog(sens, seed=seed + 1)
-    return SyntheticRun(log, sim, track, tuple(zones), start_chainage_m, direction)
+    return SyntheticRun(
+        log, sim, trk, tuple(zones), start_chainage_m, direction,
+        start_chainage_m + start_error_m, vehicle, prof,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)

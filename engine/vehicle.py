@@ -144,3 +144,23 @@ class VehicleParams:
 
 TABLE1 = VehicleParams()
 """The paper's Table 1 vehicle."""
+
+HEAVY = VehicleParams(
+    ms=36000.0, Is=282240.0, mu1=2000.0, mu2=2000.0, ks1=1.6e6, ks2=1.6e6, cs1=40e3,
+    cs2=40e3, kt1=5e6, kt2=5e6, d1=4.5, d2=4.5,
+)  # fmt: skip
+"""A heavy vehicle with about twice Table 1's wheel load (≈ 196 kN per axle): the heavy
+vehicle of the public geometry set (shared/data/geometry, ``vehicle_key`` B)."""
+
+PRESETS: dict[str, VehicleParams] = {"table1": TABLE1, "heavy": HEAVY}
+"""Vehicle presets by name; selectable wherever a vehicle is (CLI ``--vehicle``, API)."""
+
+
+def get_preset(name: str) -> VehicleParams:
+    """A vehicle preset by name; :class:`ParameterError` naming the known ones otherwise."""
+    try:
+        return PRESETS[name]
+    except (KeyError, TypeError):
+        raise ParameterError(
+            f"unknown vehicle preset {name!r}; expected one of {sorted(PRESETS)}"
+        ) from None
