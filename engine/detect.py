@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import median_filter, uniform_filter1d
 
 from .errors import ParameterError
+from .intervals import merge_intervals
 
 
 @dataclass(frozen=True)
@@ -94,7 +95,8 @@ def find_dips(
     """Dips of a residual profile (level minus baseline) below the detection threshold.
 
     Returns the dips ordered by chainage and the threshold used, mm. A dip's extent is where
-    the residual is below half its peak depth; dips closer than ``min_length_m`` merge.
+    the residual is below half its peak depth; dips at most ``min_length_m`` apart merge
+    (:func:`engine.intervals.merge_intervals`).
     """
     step = float(chainage_m[1] - chainage_m[0])
     r = np.where(np.isfinite(residual_mm), residual_mm, 0.0)
@@ -135,13 +137,12 @@ def find_dips(
         if chainage_m[k] < lo_ok or chainage_m[k] > hi_ok:
             continue
         dips.append(Dip(float(xa), float(xb), float(chainage_m[k]), float(-r[k])))
-    dips.sort(key=lambda d: d.start_m)
     merged: list[Dip] = []
-    for d in dips:
-        if merged and d.start_m - merged[-1].end_m < config.min_length_m:
-            p = merged[-1]
-            deeper = p if p.depth_mm >= d.depth_mm else d
-            merged[-1] = Dip(p.start_m, max(p.end_m, d.end_m), deeper.peak_m, deeper.depth_mm)
-        else:
-            merged.append(d)
+    for group in merge_intervals(
+        [d.start_m for d in dips], [d.end_m for d in dips], config.min_length_m
+    ):
+        members = [dips[i] for i in group]
+        deepest = max(members, key=lambda d: d.depth_mm)
+        end = max(d.end_m for d in members)
+        merged.append(Dip(members[0].start_m, end, deepest.peak_m, deepest.depth_mm))
     return merged, thr

@@ -12,6 +12,7 @@ from .chainage import AxlePositions, axle_positions, bandpass_distance, to_grid
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import InversionError, ParameterError
+from .intervals import merge_intervals
 from .optimisation import windowed_least_squares
 from .results import ProcessResult, Quality, SoftSpot
 from .runlog import RunLog
@@ -93,16 +94,24 @@ def _soft_spots(
         f = fit_zone(grid, residual, a, b, trk, load, cfg.lambda_min_m, cfg.lambda_max_m)
         return f.start_m - half, f.end_m + half, f.loss
 
-    fitted = [(d, *fit(d.start_m, d.end_m)) for d in dips]
-    merged: list[tuple[Dip, float, float, float]] = []
-    for d, a, b, loss in sorted(fitted, key=lambda f: f[1]):
-        if merged and a <= merged[-1][2]:
-            pd, pa, pb, _ = merged[-1]
-            deeper = pd if pd.depth_mm >= d.depth_mm else d
-            na, nb, nl = fit(min(pa, a) + half, max(pb, b) - half)
-            merged[-1] = (Dip(na, nb, deeper.peak_m, deeper.depth_mm), na, nb, nl)
-        else:
-            merged.append((d, a, b, loss))
+    merged = [(d, *fit(d.start_m, d.end_m)) for d in dips]
+    # overlapping fitted zones are refitted as one; a refit may grow into a neighbour, so
+    # merge again until every zone stands alone
+    while True:
+        groups = merge_intervals([m[1] for m in merged], [m[2] for m in merged])
+        if all(g.size == 1 for g in groups):
+            merged = [merged[g[0]] for g in groups]
+            break
+        regrouped: list[tuple[Dip, float, float, float]] = []
+        for g in groups:
+            members = [merged[i] for i in g]
+            if len(members) == 1:
+                regrouped.append(members[0])
+                continue
+            deeper = max((m[0] for m in members), key=lambda d: d.depth_mm)
+            na, nb, nl = fit(min(m[1] for m in members) + half, max(m[2] for m in members) - half)
+            regrouped.append((Dip(na, nb, deeper.peak_m, deeper.depth_mm), na, nb, nl))
+        merged = regrouped
     return [
         SoftSpot(
             start_m=float(a),

@@ -15,6 +15,7 @@ from datetime import datetime
 import numpy as np
 
 from .errors import ParameterError
+from .intervals import merge_intervals
 
 DAYS_PER_MONTH = 30.4375
 LEVELS = ("immediate", "intervention", "alert")
@@ -202,15 +203,10 @@ def build_register(
     lim = limits or Limits()
     cfg = config or RegisterConfig()
     obs = sorted(observations, key=lambda o: (o.start_m, o.end_m))
-    clusters: list[list[Observation]] = []
-    reach = -math.inf
-    for o in obs:
-        if clusters and o.start_m <= reach + cfg.join_gap_m:
-            clusters[-1].append(o)
-            reach = max(reach, o.end_m)
-        else:
-            clusters.append([o])
-            reach = o.end_m
+    clusters = [
+        [obs[i] for i in g]
+        for g in merge_intervals([o.start_m for o in obs], [o.end_m for o in obs], cfg.join_gap_m)
+    ]
     defects = []
     for cl in clusters:
         # one observation per run: a run that split a zone in two keeps its deeper part

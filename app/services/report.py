@@ -16,7 +16,11 @@ from html import escape
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.decimate import minmax_indices
 from engine.register import LEVELS, Defect, Limits
+
+REPORT_MAX_POINTS = 1400
+"""Most profile points drawn in the report's SVG (each 700 buckets' lowest and highest)."""
 
 REPORT_CSP = (
     "default-src 'none'; style-src 'unsafe-inline'; img-src data:; base-uri 'none'; "
@@ -103,24 +107,6 @@ def _nice_step(span: float, target: int) -> float:
     return 10 * mag
 
 
-def _decimate(x: NDArray[np.float64], *ys: NDArray[np.float64], buckets: int = 700) -> list[int]:
-    """Indices keeping each bucket's lowest and highest level (dips survive)."""
-    n = x.size
-    if n <= 2 * buckets:
-        return list(range(n))
-    size = -(-n // buckets)
-    keep: list[int] = []
-    y = ys[0]
-    for a in range(0, n, size):
-        block = y[a : a + size]
-        if not np.isfinite(block).any():
-            continue
-        i_min = a + int(np.nanargmin(block))
-        i_max = a + int(np.nanargmax(block))
-        keep.extend(sorted({i_min, i_max}))
-    return keep
-
-
 def _marker(shape: str, x: float, y: float, r: float, fill: str, stroke: str) -> str:
     if shape == "triangle":
         pts = f"{x:.1f},{y - r:.1f} {x + r:.1f},{y + r * 0.8:.1f} {x - r:.1f},{y + r * 0.8:.1f}"
@@ -180,7 +166,7 @@ def chainage_map_svg(
         f'<rect x="{ml}" y="{mt}" width="{pw}" height="{prof_h}" fill="#f8fafc" stroke="#cbd5e1"/>',
     ]
     if finite.any():
-        keep = _decimate(chainage_m, np.where(finite, level_mm, np.nan))
+        keep = minmax_indices(np.where(finite, level_mm, np.nan), REPORT_MAX_POINTS)
         c = chainage_m[keep]
         lv = level_mm[keep]
         sp = np.nan_to_num(spread_mm[keep], nan=0.0)

@@ -15,7 +15,6 @@ import numpy as np
 import orjson
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import HTMLResponse, StreamingResponse
-from numpy.typing import NDArray
 from sqlalchemy import func, select
 
 from app.api.deps import CtxDep, SessionDep
@@ -32,6 +31,7 @@ from app.services.alignment import GRID_STEP_M
 from app.services.context import AppContext
 from app.services.register import LIMIT_FIELDS, load_limits, save_limits, track_register
 from app.services.report import REPORT_CSP, ReportInput, ReportRun, render_report
+from engine.decimate import minmax_indices
 from engine.errors import ParameterError
 from engine.register import Defect, Limits
 
@@ -54,23 +54,6 @@ REPORT_RUNS = 200
 def _check_window(from_m: float | None, to_m: float | None) -> None:
     if from_m is not None and to_m is not None and to_m < from_m:
         raise ApiError(422, f"to_m ({to_m} m) is before from_m ({from_m} m)", field="to_m")
-
-
-def keep_extremes(level: NDArray[np.float64], max_points: int) -> NDArray[np.int64]:
-    """Indices thinning a profile to at most ``max_points``: each bucket keeps its lowest
-    and highest point, in chainage order (dips and bumps survive any thinning)."""
-    n = level.size
-    if n <= max_points:
-        return np.arange(n)
-    buckets = max(1, max_points // 2)
-    size = -(-n // buckets)
-    pad = (-n) % size
-    blocks = np.concatenate([level, np.full(pad, np.nan)]).reshape(-1, size)
-    start = np.arange(blocks.shape[0]) * size
-    i_min = start + np.where(np.isnan(blocks), np.inf, blocks).argmin(axis=1)
-    i_max = start + np.where(np.isnan(blocks), -np.inf, blocks).argmax(axis=1)
-    idx = np.unique(np.concatenate([i_min, i_max]))
-    return idx[idx < n]
 
 
 @router.get(
@@ -109,7 +92,7 @@ def read_aggregated_profile(
     n = len(cols["chainage_m"])
     decimated = False
     if max_points is not None and n > max_points:
-        idx = keep_extremes(np.asarray(cols["level_mm"], dtype=np.float64), max_points)
+        idx = minmax_indices(np.asarray(cols["level_mm"], dtype=np.float64), max_points)
         cols = {k: [v[i] for i in idx.tolist()] for k, v in cols.items()}
         decimated = True
     payload = {

@@ -45,6 +45,8 @@ from app.schemas.views import (
     ZonePublic,
 )
 from app.services.profiles import read_profile
+from engine.decimate import minmax_indices
+from engine.intervals import merge_intervals
 
 router = APIRouter(prefix="/views", tags=["views"])
 
@@ -81,47 +83,20 @@ def _as_array(values: Sequence[float | None]) -> NDArray[np.float64]:
 def minmax_decimate(
     x: NDArray[np.float64], columns: dict[str, NDArray[np.float64]], max_points: int
 ) -> tuple[NDArray[np.float64], dict[str, NDArray[np.float64]], bool]:
-    """Decimate columns sharing one x axis to at most ``max_points`` points each.
+    """Thin columns sharing one x axis to at most ``max_points`` points.
 
-    Each bucket of consecutive points gives two points, at the bucket's first and last x,
-    carrying its lowest and highest value in the order they occur (NaN ignored; a bucket
-    without data gives NaN). Peaks and dips survive any decimation factor.
+    The samples kept are :func:`engine.decimate.minmax_indices` over all columns (each keeps
+    its own extremes; NaN buckets stay NaN).
 
     Returns
     -------
     x, columns, decimated
-        The (possibly) decimated axis and columns, and whether anything was dropped.
+        The (possibly) thinned axis and columns, and whether anything was dropped.
     """
-    n = x.size
-    if n <= max_points:
+    if x.size <= max_points:
         return x, columns, False
-    buckets = max(1, max_points // 2)
-    size = -(-n // buckets)
-    buckets = -(-n // size)
-    first = np.arange(buckets) * size
-    last = np.minimum(first + size - 1, n - 1)
-    xo = np.empty(2 * buckets)
-    xo[0::2] = x[first]
-    xo[1::2] = x[last]
-    pad = buckets * size - n
-    out: dict[str, NDArray[np.float64]] = {}
-    rows = np.arange(buckets)
-    for name, v in columns.items():
-        vv = np.concatenate([v, np.full(pad, np.nan)]) if pad else v
-        blocks = vv.reshape(buckets, size)
-        empty = np.all(np.isnan(blocks), axis=1)
-        i_min = np.where(np.isnan(blocks), np.inf, blocks).argmin(axis=1)
-        i_max = np.where(np.isnan(blocks), -np.inf, blocks).argmax(axis=1)
-        vmin = blocks[rows, i_min]
-        vmax = blocks[rows, i_max]
-        min_first = i_min <= i_max
-        pair = np.empty(2 * buckets)
-        pair[0::2] = np.where(min_first, vmin, vmax)
-        pair[1::2] = np.where(min_first, vmax, vmin)
-        pair[0::2][empty] = np.nan
-        pair[1::2][empty] = np.nan
-        out[name] = pair
-    return xo, out, True
+    idx = minmax_indices(np.vstack(list(columns.values())), max_points)
+    return x[idx], {k: v[idx] for k, v in columns.items()}, True
 
 
 def _run_label(run: Run) -> str:
@@ -257,16 +232,7 @@ def cluster_zones(
     n = len(spots.start_m)
     if n == 0:
         return []
-    order = sorted(range(n), key=lambda i: spots.start_m[i])
-    groups: list[list[int]] = []
-    end = -math.inf
-    for i in order:
-        if groups and spots.start_m[i] <= end + gap_m:
-            groups[-1].append(i)
-            end = max(end, spots.end_m[i])
-        else:
-            groups.append([i])
-            end = spots.end_m[i]
+    groups = [g.tolist() for g in merge_intervals(spots.start_m, spots.end_m, gap_m)]
     extents = [_aligned_extent(r) for r in runs]
     zones: list[ZonePublic] = []
     for k, members in enumerate(groups):

@@ -1,0 +1,49 @@
+"""The one interval merge and the one min/max decimator every zone and chart is built from."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.decimate import minmax_indices
+from engine.intervals import merge_intervals
+
+
+def test_merge_joins_overlaps_and_chains_within_the_gap() -> None:
+    """Overlapping, touching and within-gap intervals join (a chain transitively); others don't."""
+    starts = [10.0, 0.0, 2.5, 30.0, 12.9]
+    ends = [12.0, 2.0, 4.0, 31.0, 14.0]
+    groups = merge_intervals(starts, ends, gap=1.0)
+    assert [g.tolist() for g in groups] == [[1, 2], [0, 4], [3]]
+    assert [g.tolist() for g in merge_intervals(starts, ends, gap=0.0)] == [[1], [2], [0], [4], [3]]
+    # a long member extends the reach over later, shorter ones
+    assert [g.tolist() for g in merge_intervals([0, 1, 9], [10, 2, 9.5])] == [[0, 1, 2]]
+    assert merge_intervals([], []) == []
+    with pytest.raises(ValueError, match="gap"):
+        merge_intervals([0.0], [1.0], gap=-1.0)
+
+
+def test_minmax_keeps_every_extreme_within_budget() -> None:
+    """Each row keeps its extremes, the ends of the axis are kept, the budget holds."""
+    rng = np.random.default_rng(4)
+    y = rng.normal(0.0, 1.0, (2, 50_001))
+    y[0, 12_345] = -40.0
+    y[1, 40_000] = 55.0
+    idx = minmax_indices(y, 1000)
+    assert idx.size <= 1000 and np.all(np.diff(idx) > 0)
+    assert idx[0] == 0 and idx[-1] == y.shape[1] - 1
+    assert 12_345 in idx and 40_000 in idx
+    assert np.array_equal(minmax_indices(y[0, :800], 1000), np.arange(800))
+
+
+def test_minmax_keeps_a_nan_where_a_bucket_has_no_data() -> None:
+    """A bucket without data keeps one NaN sample (a chart line breaks there), not a bridge."""
+    y = np.sin(np.arange(10_000) / 50.0)
+    y[3000:6000] = np.nan
+    idx = minmax_indices(y, 200)
+    kept = y[idx]
+    gap = (idx >= 3000) & (idx < 6000)
+    assert gap.any() and np.all(np.isnan(kept[gap]))
+    assert np.nanmin(kept) == np.nanmin(y) and np.nanmax(kept) == np.nanmax(y)
+    with pytest.raises(ValueError, match="max_points"):
+        minmax_indices(y, 3)
