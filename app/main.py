@@ -19,7 +19,8 @@ from fastapi.openapi.utils import get_openapi
 from pydantic.json_schema import models_json_schema
 
 from app import __version__
-from app.api.main import api_router
+from app.api.access import AccessMiddleware, KeyRegister
+from app.api.main import UPLOAD_PATHS, api_router
 from app.api.routes import health
 from app.core.config import Settings, get_settings
 from app.core.errors import install_error_handlers
@@ -49,6 +50,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or get_settings()
     db = Database(settings.sqlalchemy_url)
     ctx = AppContext(settings=settings, db=db)
+    keys = KeyRegister(db)
+    if settings.require_api_key_for_reads and not settings.require_api_key:
+        log.warning(
+            "TRACKPROFILE_REQUIRE_API_KEY_FOR_READS is set without TRACKPROFILE_REQUIRE_API_KEY: "
+            "API keys are required for reads and writes"
+        )
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
@@ -69,6 +76,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             if ctx.worker is not None:
                 await run_in_threadpool(ctx.worker.stop)
                 ctx.worker = None
+            await run_in_threadpool(keys.flush)
             db.dispose()
 
     app = FastAPI(
@@ -80,12 +88,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
     )
     app.state.ctx = ctx
+    app.state.keys = keys
     install_error_handlers(app)
     app.include_router(health.router)
     app.include_router(api_router)
     install_web(app, settings)
 
-    app.add_middleware(BodySizeLimitMiddleware, limit_bytes=settings.max_upload_bytes)
+    app.add_middleware(
+        BodySizeLimitMiddleware,
+        upload_limit_bytes=settings.max_upload_bytes,
+        body_limit_bytes=settings.max_body_bytes,
+        large_paths=UPLOAD_PATHS,
+    )
+    # Outside the size limit: an unauthorised client is refused before its body is looked at.
+    app.add_middleware(AccessMiddleware, settings=settings, keys=keys)
     if settings.cors_origins:
         app.add_middleware(
             CORSMiddleware,

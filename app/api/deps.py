@@ -7,16 +7,10 @@ from typing import Annotated
 
 from fastapi import Depends, Request, Security
 from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
-from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
-from app.core.errors import ApiError
-from app.core.security import hash_key
-from app.db.base import utcnow
-from app.db.models import ApiKey
+from app.api.access import Caller
 from app.services.context import AppContext
-
-READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 
 api_key_header = APIKeyHeader(name="X-API-Key", auto_error=False, description="Pipeline API key")
 bearer = HTTPBearer(auto_error=False, description="The API key as a bearer token")
@@ -42,34 +36,20 @@ SessionDep = Annotated[Session, Depends(get_session)]
 
 def check_access(
     request: Request,
-    ctx: CtxDep,
     header_key: Annotated[str | None, Security(api_key_header)] = None,
     bearer_key: Annotated[HTTPAuthorizationCredentials | None, Security(bearer)] = None,
-) -> None:
-    """Enforce read-only mode and, when configured, API keys (writes; reads if asked)."""
-    settings = ctx.settings
-    is_read = request.method in READ_METHODS
-    if not is_read and settings.read_only:
-        raise ApiError(403, "this service is read-only: uploads and changes are disabled")
-    if not settings.require_api_key or (is_read and not settings.require_api_key_for_reads):
-        return
-    key = header_key or (bearer_key.credentials if bearer_key else None)
-    if not key:
-        raise ApiError(
-            401,
-            "an API key is required: send it in the X-API-Key header",
-            field="X-API-Key",
-            headers={"WWW-Authenticate": "Bearer"},
-        )
-    digest = hash_key(key)
-    with ctx.db.session() as s:
-        row = s.scalar(select(ApiKey).where(ApiKey.key_hash == digest, ApiKey.revoked_at.is_(None)))
-        if row is None:
-            raise ApiError(
-                401,
-                "the API key is not valid (unknown or revoked)",
-                field="X-API-Key",
-                headers={"WWW-Authenticate": "Bearer"},
-            )
-        s.execute(update(ApiKey).where(ApiKey.id == row.id).values(last_used_at=utcnow()))
-        s.commit()
+) -> Caller:
+    """The caller, as checked by :class:`app.api.access.AccessMiddleware` before the body.
+
+    The key parameters only document the headers in the OpenAPI document; the decision was
+    taken on the headers before FastAPI read the body. Without the middleware's verdict the
+    request is refused (fail closed).
+    """
+    del header_key, bearer_key
+    caller = getattr(request.state, "caller", None)
+    if not isinstance(caller, Caller):
+        raise RuntimeError("the access middleware did not run for this request")
+    return caller
+
+
+CallerDep = Annotated[Caller, Depends(check_access)]

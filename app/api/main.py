@@ -8,6 +8,9 @@ from app.api.deps import check_access
 from app.api.routes import runs, simulate, track_intel, tracks, vehicles, views
 from app.schemas.common import ERROR_RESPONSES
 
+UPLOAD_PATHS = frozenset({"/api/v1/runs"})
+"""Routes whose body may be as large as the upload limit (every other body is small)."""
+
 api_router = APIRouter(
     prefix="/api/v1", dependencies=[Depends(check_access)], responses=ERROR_RESPONSES
 )

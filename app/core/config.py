@@ -27,12 +27,17 @@ class Settings(BaseSettings):
     database_url : str or None
         SQLAlchemy URL (``DATABASE_URL``); default ``sqlite:///<data_dir>/trackprofile.db``.
     max_upload_mb : float
-        Largest accepted request body, MB (10^6 bytes); larger uploads get 413 and store nothing.
+        Largest accepted run upload (``POST /api/v1/runs``), MB (10^6 bytes); larger uploads
+        get 413 and store nothing. The memory an upload takes while it is read and checked is
+        a small multiple of this (see docs/benchmarks.md).
+    max_body_kb : float
+        Largest accepted body of every other request (JSON objects, the CSV preview), kB.
     require_api_key : bool
         When true, every write (POST/DELETE under ``/api/v1``) needs a valid API key.
     require_api_key_for_reads : bool
-        When true (and keys are required), reads need a key too; by default the dashboard
-        reads without one.
+        When true, reads need a key too (and so do writes, even if ``require_api_key`` was
+        left false: closing reads alone would be a mistake; a warning is logged); by default
+        the dashboard reads without one.
     read_only : bool
         Refuse every write with 403 (a read-only replica or a public dashboard).
     cors_origins : list of str
@@ -70,6 +75,7 @@ class Settings(BaseSettings):
         validation_alias=AliasChoices("DATABASE_URL", "TRACKPROFILE_DATABASE_URL", "database_url"),
     )
     max_upload_mb: float = Field(default=512.0, gt=0)
+    max_body_kb: float = Field(default=1024.0, gt=0)
     require_api_key: bool = False
     require_api_key_for_reads: bool = False
     read_only: bool = False
@@ -103,6 +109,11 @@ class Settings(BaseSettings):
     def max_upload_bytes(self) -> int:
         """Upload size limit, bytes."""
         return int(self.max_upload_mb * 1_000_000)
+
+    @property
+    def max_body_bytes(self) -> int:
+        """Size limit of every body but a run upload, bytes."""
+        return int(self.max_body_kb * 1_000)
 
 
 @lru_cache

@@ -14,7 +14,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from sqlalchemy.exc import DataError
+from sqlalchemy.exc import DataError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from engine.errors import EngineError, LogFormatError, ParameterError
@@ -50,6 +50,10 @@ class ApiError(Exception):
         return {"message": self.message} | {k: v for k, v in self.facts.items() if v is not None}
 
 
+RETRY_AFTER_S = 2
+"""Retry-After of a 503 for a busy database, s."""
+
+
 class BodyTooLarge(Exception):
     """The request body went over the upload size limit while it was being read."""
 
@@ -81,6 +85,11 @@ def too_large_detail(limit_bytes: int) -> dict[str, Any]:
     }
 
 
+def internal_error_detail() -> dict[str, Any]:
+    """Detail of a 500 answer (nothing about the cause: that goes to the log)."""
+    return {"message": "internal error: the request was not completed", "kind": "InternalError"}
+
+
 def out_of_range_detail() -> dict[str, Any]:
     """Detail of a 422 for a number the database cannot hold (ids, offsets: 64-bit)."""
     return {
@@ -100,6 +109,16 @@ def data_error_detail(exc: DataError) -> dict[str, Any]:
         f"{reason[:200] or 'invalid value'}",
         "kind": "InvalidValue",
     }
+
+
+def database_busy_error() -> ApiError:
+    """503 for a database that is busy (locked) or unreachable: the client should retry."""
+    return ApiError(
+        503,
+        "the database is busy or unavailable: try again in a moment",
+        headers={"Retry-After": str(RETRY_AFTER_S)},
+        kind="DatabaseBusy",
+    )
 
 
 def _loc_name(loc: Sequence[Any]) -> str:
@@ -176,10 +195,16 @@ def install_error_handlers(app: FastAPI) -> None:
                  request.url.path, exc.orig)  # fmt: skip
         return JSONResponse(status_code=422, content={"detail": data_error_detail(exc)})
 
+    # A locked SQLite file (a long store holds the write lock beyond the busy timeout) or a
+    # lost PostgreSQL connection is a temporary state of the server: 503 with Retry-After.
+    @app.exception_handler(OperationalError)
+    async def _busy(request: Request, exc: OperationalError) -> JSONResponse:
+        log.warning("database busy on %s %s: %s", request.method, request.url.path, exc.orig)
+        busy = database_busy_error()
+        return JSONResponse(status_code=503, content={"detail": busy.detail()},
+                            headers=busy.headers)  # fmt: skip
+
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
         log.exception("unhandled error on %s %s", request.method, request.url.path)
-        return JSONResponse(
-            status_code=500,
-            content={"detail": {"message": "internal error: the request was not completed"}},
-        )
+        return JSONResponse(status_code=500, content={"detail": internal_error_detail()})

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import json
+import logging
 from typing import Any
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from .errors import BodyTooLarge, too_large_detail
+from .errors import BodyTooLarge, internal_error_detail, too_large_detail
+
+log = logging.getLogger(__name__)
 
 CSP = (
     "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
@@ -53,42 +56,106 @@ class SecurityHeadersMiddleware:
                 message["headers"] = headers
             await send(message)
 
-        await self.app(scope, receive, send_with_headers)
+        started = False
+
+        async def tracking_send(message: Message) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+            await send_with_headers(message)
+
+        # Starlette answers an unhandled exception from its outermost layer, outside every
+        # middleware: the 500 is sent from here instead, so that it carries the headers too.
+        try:
+            await self.app(scope, receive, tracking_send)
+        except Exception:
+            if started:
+                raise
+            log.exception("unhandled error on %s %s", scope.get("method"), path)
+            payload = json.dumps({"detail": internal_error_detail()}).encode()
+            await tracking_send(
+                {
+                    "type": "http.response.start",
+                    "status": 500,
+                    "headers": [
+                        (b"content-type", b"application/json"),
+                        (b"content-length", str(len(payload)).encode()),
+                    ],
+                }
+            )
+            await send({"type": "http.response.body", "body": payload})
 
 
 class BodySizeLimitMiddleware:
-    """Refuses request bodies over ``limit_bytes`` with 413, before anything is stored.
+    """Refuses request bodies over their route's limit with 413, before anything is stored.
 
-    A declared ``Content-Length`` over the limit is answered at once without reading the body;
-    a body without one (chunked) is counted while the app reads it, and :class:`BodyTooLarge`
-    is raised into the app, whose error handler answers 413.
+    ``large_paths`` (the run upload) may carry up to ``upload_limit_bytes``; every other body
+    (JSON objects, the CSV preview's head of a file) up to ``body_limit_bytes``. A declared
+    ``Content-Length`` over the limit is answered at once without reading the body; a body
+    without one (chunked) is counted while the app reads it: at the first byte over the limit
+    the 413 is sent from here and the app's reading is stopped (:class:`BodyTooLarge` raised
+    into it; whatever it answers after that is dropped), so a framework that turns a failed
+    read into a 400 cannot hide the 413.
     """
 
-    def __init__(self, app: ASGIApp, limit_bytes: int) -> None:
+    def __init__(
+        self,
+        app: ASGIApp,
+        upload_limit_bytes: int,
+        body_limit_bytes: int,
+        large_paths: frozenset[str] = frozenset(),
+    ) -> None:
         self.app = app
-        self.limit_bytes = limit_bytes
+        self.upload_limit_bytes = upload_limit_bytes
+        self.body_limit_bytes = body_limit_bytes
+        self.large_paths = large_paths
+
+    def limit_for(self, path: str) -> int:
+        """The largest body accepted on ``path``, bytes."""
+        path = path.rstrip("/") or "/"
+        return self.upload_limit_bytes if path in self.large_paths else self.body_limit_bytes
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http" or scope.get("method") in ("GET", "HEAD", "OPTIONS"):
             await self.app(scope, receive, send)
             return
+        limit = self.limit_for(scope.get("path", ""))
         declared = _content_length(scope)
-        if declared is not None and declared > self.limit_bytes:
-            await _send_413(send, self.limit_bytes)
+        if declared is not None and declared > limit:
+            await _send_413(send, limit)
             return
         seen = 0
-        limit = self.limit_bytes
+        refused = False
+        started = False
 
         async def counting_receive() -> Message:
-            nonlocal seen
+            nonlocal seen, refused
+            if refused:
+                raise BodyTooLarge(limit)
             message = await receive()
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
                 if seen > limit:
+                    refused = True
+                    if not started:
+                        await _send_413(send, limit)
                     raise BodyTooLarge(limit)
             return message
 
-        await self.app(scope, counting_receive, send)
+        async def guarded_send(message: Message) -> None:
+            nonlocal started
+            if refused:
+                return  # the 413 went out already
+            if message["type"] == "http.response.start":
+                started = True
+            await send(message)
+
+        try:
+            await self.app(scope, counting_receive, guarded_send)
+        except Exception:
+            if not refused:
+                raise
+            # The app failed on the refused body (after the 413 was sent): nothing to add.
 
 
 def _content_length(scope: Scope) -> int | None:
