@@ -18,6 +18,7 @@ from .detect import DetectionConfig
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import EngineError
 from .irregularity import SPECTRA, random_profile, read_profile_csv
+from .logio import CsvOptions, read_run_csv, write_run_csv
 from .pipeline import METHODS, ProcessConfig, process_run
 from .runlog import RunLog
 from .sensor import SensorModel
@@ -108,8 +109,6 @@ def _track_params(ns: argparse.Namespace) -> TrackParams:
 
 
 def _read_log(ns: argparse.Namespace) -> RunLog:
-    from .logio import CsvOptions, read_run_csv
-
     opts = CsvOptions(
         time_column=ns.time_column,
         accel_column=ns.accel_column,
@@ -126,8 +125,6 @@ def _read_log(ns: argparse.Namespace) -> RunLog:
 
 
 def _cmd_simulate(ns: argparse.Namespace) -> int:
-    from .logio import write_run_csv
-
     params = _track_params(ns)
     zones = tuple(SoftZone.parse(z) for z in ns.zone)
     track = Track(ns.length, params=params, zones=zones)

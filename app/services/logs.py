@@ -15,13 +15,8 @@ import numpy as np
 
 from app.core.errors import ApiError
 from engine.errors import LogFormatError, ParameterError
+from engine.logio import CsvOptions, read_run_csv
 from engine.runlog import RunLog
-
-CSV_OPTION_NAMES = (
-    "time_column", "accel_column", "pitch_rate_column", "speed_column", "chainage_column",
-    "time_unit", "accel_unit", "pitch_rate_unit", "speed_unit", "chainage_unit", "gravity",
-)  # fmt: skip
-"""Form/JSON fields passed to :class:`engine.logio.CsvOptions` unchanged."""
 
 LOG_COLUMNS = ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps", "chainage_m")
 
@@ -87,10 +82,6 @@ def parse_csv(
         422 naming the column, row or unit when the file cannot be read; 413 when a gzip file
         expands to more than ``max_bytes``.
     """
-    # The CSV reader is a separate engine module; imported here so the service starts
-    # even while it is being replaced.
-    from engine.logio import CsvOptions, read_run_csv
-
     try:
         opts = CsvOptions.from_dict({k: v for k, v in options.items() if v is not None})
     except ParameterError as exc:

@@ -473,7 +473,7 @@ def test_rounding_jitter_of_written_times_passes_but_two_percent_does_not() -> N
 
 def test_gzip_bomb_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
     """A gzip file expanding beyond MAX_DECOMPRESSED_BYTES is refused, naming the limit."""
-    monkeypatch.setattr(logio, "MAX_DECOMPRESSED_BYTES", 10_000)
+    monkeypatch.setattr(logio.source, "MAX_DECOMPRESSED_BYTES", 10_000)
     with pytest.raises(LogFormatError, match="MAX_DECOMPRESSED_BYTES"):
         read_run_csv(gzip.compress(BASE))
 

@@ -47,6 +47,7 @@ from app.schemas.views import (
 from app.services.profiles import read_profile
 from engine.decimate import minmax_indices
 from engine.intervals import merge_intervals
+from engine.logio import CsvOptions, preview_csv
 
 router = APIRouter(prefix="/views", tags=["views"])
 
@@ -464,9 +465,6 @@ async def csv_preview(
     column/unit form fields as the upload to see their effect. Nothing is stored. Problems of
     the content come back as ``warnings``; an empty or non-text file answers 422.
     """
-    # Imported here: the reader module is a separate engine piece that may be replaced.
-    from engine.logio import CsvOptions, preview_csv
-
     form = await request.form()
     chosen = {
         k: str(v).strip()

@@ -1,0 +1,447 @@
+"""From a CSV to a :class:`~engine.runlog.RunLog`: columns converted to SI and checked."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import LogFormatError, ParameterError
+from ..runlog import RunLog
+from ..vehicle import GRAVITY
+from .columns import (
+    _map_columns,
+)
+from .header import (
+    _read_header,
+)
+from .options import CsvOptions
+from .roles import (
+    _ROLES,
+    _label,
+)
+from .source import (
+    Source,
+    _detect_encoding,
+    _read_source,
+    _Source,
+)
+from .table import _parse_table, _Table
+from .units import (
+    ACCEL_LIMIT_MPS2,
+    EPOCH_MS_THRESHOLD,
+    GAP_FACTOR,
+    GRAVITY_TOLERANCE_MPS2,
+    MAX_RATE_HZ,
+    MIN_RATE_HZ,
+    PITCH_RATE_LIMIT_RADPS,
+    SPEED_MAX_MPS,
+    SPEED_MIN_MPS,
+    STEP_TOLERANCE,
+    _auto_gravity,
+    resolve_units,
+)
+
+MIN_SAMPLES = 200
+"""Fewest samples a log may have: shorter runs are too short to invert."""
+
+
+@dataclass(frozen=True)
+class ParsedRun:
+    """A run log read from CSV, with what was recognised on the way.
+
+    Attributes
+    ----------
+    log : RunLog
+        The run in SI units, gravity removed.
+    delimiter : str
+        ``','``, ``';'``, ``'\\t'`` or ``' '`` (any whitespace).
+    encoding : str
+        Text encoding the file was read with.
+    columns : dict
+        Role (``time``, ``accel``, ``pitch_rate``, ``speed``, ``chainage``) -> header name, or
+        None when the file has no such column.
+    units : dict
+        Role -> unit the column was read in (``'s'``, ``'ms'``, ``'epoch_s'``, ``'m/s2'``,
+        ``'g'``, ``'rad/s'``, ``'deg/s'``, ``'m/s'``, ``'km/h'``, ``'m'``, ``'km'``) or None.
+    gravity : str
+        ``'included'`` (9.81 m/s² was subtracted) or ``'removed'``.
+    notes : list of str
+        Assumptions worth telling the user (units assumed, encoding).
+    """
+
+    log: RunLog
+    delimiter: str
+    encoding: str
+    columns: dict[str, str | None]
+    units: dict[str, str | None]
+    gravity: str
+    notes: list[str]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Everything but the arrays, JSON-ready."""
+        return {
+            "n_samples": self.log.n,
+            "sample_rate_hz": self.log.sample_rate_hz,
+            "duration_s": self.log.duration_s,
+            "delimiter": self.delimiter,
+            "encoding": self.encoding,
+            "columns": dict(self.columns),
+            "units": dict(self.units),
+            "gravity": self.gravity,
+            "notes": list(self.notes),
+        }
+
+
+def _first(mask: NDArray[np.bool_]) -> int | None:
+    idx = np.flatnonzero(mask)
+    return int(idx[0]) if idx.size else None
+
+
+def _check_finite(table: _Table, j: int, name: str) -> None:
+    v = table.columns[j]
+    i = _first(~np.isfinite(v))
+    if i is not None:
+        ln = table.line(i)
+        raise LogFormatError(
+            f"column {name!r} at line {ln} is {v[i]}: every value must be a finite number",
+            column=name,
+            row=ln,
+        )
+
+
+def _time(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
+    raw = table.columns[j]
+    t = np.asarray(raw, dtype=np.float64)
+    if unit == "epoch_s":
+        t = t - t[0]
+    elif unit == "ms":
+        t = (t - t[0] if abs(t[0]) > EPOCH_MS_THRESHOLD else t) * 1e-3
+    dt = np.diff(t)
+    i = _first(dt <= 0)
+    if i is not None:
+        ln, prev = table.line(i + 1), table.line(i)
+        what = "is the same as" if dt[i] == 0 else "comes before"
+        kind = "duplicated time" if dt[i] == 0 else "time goes backwards"
+        raise LogFormatError(
+            f"{kind} in column {name!r} at line {ln}: {float(raw[i + 1])!r} {what} "
+            f"{float(raw[i])!r} at line {prev}; time must be strictly increasing",
+            column=name,
+            row=ln,
+        )
+    h = float(np.median(dt))
+    i = _first(np.abs(dt - h) > STEP_TOLERANCE * h)
+    if i is not None:
+        ln, prev = table.line(i + 1), table.line(i)
+        step = float(dt[i])
+        if step > GAP_FACTOR * h:
+            msg = (
+                f"gap in the time column {name!r} at line {ln}: {step:.6g} s after line {prev}, "
+                f"{step / h:.3g} times the expected constant step of {h:.6g} s "
+                f"({1 / h:.6g} Hz); the log must be sampled without gaps"
+            )
+        else:
+            msg = (
+                f"irregular sampling in the time column {name!r} at line {ln}: the step from "
+                f"line {prev} is {step:.6g} s, expected a constant step of {h:.6g} s "
+                f"({1 / h:.6g} Hz, within {STEP_TOLERANCE:.0%}); resample the log to a constant "
+                "rate"
+            )
+        raise LogFormatError(msg, column=name, row=ln)
+    rate = 1.0 / h
+    if not (MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
+        raise LogFormatError(
+            f"the time column {name!r} (read in {_label(unit)}) steps by {h:.6g} s, a sample "
+            f"rate of {rate:.6g} Hz, outside the plausible {MIN_RATE_HZ:g} Hz to "
+            f"{MAX_RATE_HZ:g} Hz: is the unit right? (set time_unit to 's', 'ms' or 'epoch_s')",
+            column=name,
+        )
+    return t
+
+
+def _limit_error(
+    table: _Table, i: int, name: str, raw: float, unit: str, si: float, si_unit: str, what: str
+) -> LogFormatError:
+    ln = table.line(i)
+    conv = "" if si == raw else f" ({si:.4g} {si_unit})"
+    return LogFormatError(
+        f"column {name!r} at line {ln} is {raw:g} {_label(unit)}{conv}: {what}",
+        column=name,
+        row=ln,
+    )
+
+
+def _accel(
+    table: _Table, j: int, name: str, unit: str, gravity: str
+) -> tuple[NDArray[np.float64], str]:
+    raw = table.columns[j]
+    a = raw * _ROLES["accel"].factors[unit]
+    alt = "set accel_unit='m/s2'" if unit == "g" else "set accel_unit='g' if it is in g"
+    i = _first(np.abs(a) > ACCEL_LIMIT_MPS2 + GRAVITY)
+    if i is not None:
+        raise _limit_error(
+            table, i, name, float(raw[i]), unit, float(a[i]), "m/s²",
+            f"a vertical body acceleration stays within ±{ACCEL_LIMIT_MPS2:g} m/s², so the unit "
+            f"looks wrong: the column is read in {_label(unit)}, expected m/s² or g ({alt})",
+        )  # fmt: skip
+    mean = float(np.mean(a))
+    if gravity == "auto":
+        found = _auto_gravity(mean)
+        if found is None:
+            down = (
+                " The sensor's z axis may point down (positive must be up)."
+                if abs(mean + GRAVITY) < GRAVITY_TOLERANCE_MPS2
+                else ""
+            )
+            raise LogFormatError(
+                f"the mean of column {name!r} is {mean:.4g} m/s² (read in {_label(unit)}): "
+                f"neither about {GRAVITY} m/s² (gravity included) nor about 0 (gravity removed); "
+                f"the unit may be wrong ({alt}), or set gravity to 'included' or 'removed'.{down}",
+                column=name,
+            )
+        gravity = found
+    elif gravity == "included" and abs(mean - GRAVITY) >= GRAVITY_TOLERANCE_MPS2:
+        raise LogFormatError(
+            f"gravity='included' but the mean of column {name!r} is {mean:.4g} m/s² (read in "
+            f"{_label(unit)}), not about {GRAVITY} m/s²: check gravity and accel_unit",
+            column=name,
+        )
+    elif gravity == "removed" and abs(mean) >= GRAVITY_TOLERANCE_MPS2:
+        raise LogFormatError(
+            f"gravity='removed' but the mean of column {name!r} is {mean:.4g} m/s² (read in "
+            f"{_label(unit)}), not about 0: check gravity and accel_unit",
+            column=name,
+        )
+    if gravity == "included":
+        a = a - GRAVITY
+    i = _first(np.abs(a) > ACCEL_LIMIT_MPS2)
+    if i is not None:
+        raise _limit_error(
+            table, i, name, float(raw[i]), unit, float(a[i]), "m/s² with gravity removed",
+            f"a vertical body acceleration stays within ±{ACCEL_LIMIT_MPS2:g} m/s²; "
+            f"is the unit right? (read in {_label(unit)}, expected m/s² or g)",
+        )  # fmt: skip
+    return a, gravity
+
+
+def _pitch_rate(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
+    raw = table.columns[j]
+    w = raw * _ROLES["pitch_rate"].factors[unit]
+    i = _first(np.abs(w) > PITCH_RATE_LIMIT_RADPS)
+    if i is not None:
+        alt = (
+            "set pitch_rate_unit='deg/s' if it is in deg/s"
+            if unit == "rad/s"
+            else "expected rad/s or deg/s"
+        )
+        raise _limit_error(
+            table, i, name, float(raw[i]), unit, float(w[i]), "rad/s",
+            f"a body pitch rate stays within ±{PITCH_RATE_LIMIT_RADPS:g} rad/s, so the unit "
+            f"looks wrong: the column is read in {_label(unit)} ({alt})",
+        )  # fmt: skip
+    return w
+
+
+def _speed(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
+    raw = table.columns[j]
+    v = raw * _ROLES["speed"].factors[unit]
+    i = _first((v < SPEED_MIN_MPS) | (v > SPEED_MAX_MPS))
+    if i is None:
+        return v
+    if v[i] <= 0:
+        what = (
+            "the speed must be positive at every sample (the vehicle moving, in either "
+            "direction; the direction of travel is given separately)"
+        )
+    elif v[i] < SPEED_MIN_MPS:
+        what = (
+            f"slower than the {SPEED_MIN_MPS:g} m/s ({SPEED_MIN_MPS * 3.6:g} km/h) the "
+            "inversion needs: cut standstills out of the log"
+        )
+    else:
+        alt = "set speed_unit='km/h' if it is km/h" if unit == "m/s" else "expected m/s or km/h"
+        what = (
+            f"faster than {SPEED_MAX_MPS:g} m/s ({SPEED_MAX_MPS * 3.6:g} km/h), so the unit looks "
+            f"wrong: the column is read in {_label(unit)} ({alt})"
+        )
+    raise _limit_error(table, i, name, float(raw[i]), unit, float(v[i]), "m/s", what)
+
+
+def _chainage(
+    table: _Table,
+    j: int,
+    name: str,
+    unit: str,
+    t: NDArray[np.float64],
+    speed: tuple[NDArray[np.float64], str, str] | None,
+) -> NDArray[np.float64]:
+    c = table.columns[j] * _ROLES["chainage"].factors[unit]
+    total = float(c[-1] - c[0])
+    if total == 0:
+        raise LogFormatError(
+            f"column {name!r} does not change: the chainage must move with the vehicle",
+            column=name,
+        )
+    sign = 1.0 if total > 0 else -1.0
+    i = _first(np.diff(c) * sign <= 0)
+    if i is not None:
+        ln = table.line(i + 1)
+        raise LogFormatError(
+            f"column {name!r} at line {ln} is {float(table.columns[j][i + 1])!r}, not beyond "
+            f"{float(table.columns[j][i])!r} at line {table.line(i)}: the chainage must move "
+            "steadily "
+            f"{'up' if sign > 0 else 'down'} through the run",
+            column=name,
+            row=ln,
+        )
+    mean_v = abs(total) / float(t[-1] - t[0])
+    if speed is None:
+        if not (SPEED_MIN_MPS <= mean_v <= SPEED_MAX_MPS):
+            raise LogFormatError(
+                f"column {name!r} (read in {unit}) moves at {mean_v:.4g} m/s on average, "
+                f"outside {SPEED_MIN_MPS:g} to {SPEED_MAX_MPS:g} m/s: is the unit right? "
+                "(set chainage_unit to 'm' or 'km')",
+                column=name,
+            )
+    else:
+        v, vname, vunit = speed
+        ratio = mean_v / float(np.mean(v))
+        if not (0.5 <= ratio <= 2.0):
+            raise LogFormatError(
+                f"column {name!r} (read in {unit}) advances at {mean_v:.4g} m/s on average but "
+                f"the speed column {vname!r} (read in {_label(vunit)}) averages "
+                f"{float(np.mean(v)):.4g} m/s: one of the units is wrong "
+                "(set chainage_unit or speed_unit)",
+                column=name,
+            )
+    return c
+
+
+def _known(units: dict[str, str | None], role: str) -> str:
+    unit = units[role]
+    if unit is None:  # resolve_units decides every unit when given the data
+        raise RuntimeError(f"the {role} unit was left unresolved")
+    return unit
+
+
+def parse_run_csv(source: Source, options: CsvOptions | None = None) -> ParsedRun:
+    """Read a logger's CSV into a :class:`RunLog`, reporting what was recognised.
+
+    Same as :func:`read_run_csv` but also returns the delimiter, the column chosen for each
+    role, the units and the gravity handling, for display to the user.
+
+    Raises
+    ------
+    LogFormatError
+        See :func:`read_run_csv`.
+    """
+    opts = options if options is not None else CsvOptions()
+    if not isinstance(opts, CsvOptions):
+        raise ParameterError(f"options must be CsvOptions, got {type(opts).__name__}")
+    data = _read_source(source)
+    if not data or data.isspace():
+        raise LogFormatError("the file is empty: no header line naming the columns (and no data)")
+    encoding, enc_note = _detect_encoding(data)
+    notes = [enc_note] if enc_note else []
+    src = _Source(data, encoding)
+    with src.lines() as f:
+        header = _read_header(f)
+    mapping = _map_columns(header.names, opts, header.line)
+    if mapping.problems:
+        raise mapping.problems[0]
+    names = header.names
+    idx = {r: j for r, j in mapping.index.items() if j is not None}
+    table = _parse_table(src, header, sorted(set(idx.values())))
+    if table.n == 0:
+        raise LogFormatError(
+            f"the file has a header (line {header.line}) but no data rows", row=header.line
+        )
+    if table.n < MIN_SAMPLES:
+        raise LogFormatError(
+            f"the log has only {table.n} samples: at least MIN_SAMPLES = {MIN_SAMPLES} are "
+            "needed, the run is too short to invert"
+        )
+    for j in idx.values():
+        _check_finite(table, j, names[j])
+
+    jt, ja, jw = idx["time"], idx["accel"], idx["pitch_rate"]
+    units, assumed, unit_notes = resolve_units(
+        {r: names[j] for r, j in idx.items()},
+        opts,
+        mapping.name_unit,
+        t0=float(table.columns[jt][0]),
+        accel_mean=float(np.mean(table.columns[ja])),
+    )
+    notes.extend(unit_notes + assumed)
+    t = _time(table, jt, names[jt], _known(units, "time"))
+    accel, gravity = _accel(table, ja, names[ja], _known(units, "accel"), opts.gravity)
+    pitch = _pitch_rate(table, jw, names[jw], _known(units, "pitch_rate"))
+    speed = None
+    if "speed" in idx:
+        speed = _speed(table, idx["speed"], names[idx["speed"]], _known(units, "speed"))
+    chainage = None
+    if "chainage" in idx:
+        jc = idx["chainage"]
+        sp = (speed, names[idx["speed"]], _known(units, "speed")) if speed is not None else None
+        chainage = _chainage(table, jc, names[jc], _known(units, "chainage"), t, sp)
+
+    log = RunLog(
+        time_s=t,
+        accel_z_mps2=accel,
+        pitch_rate_radps=pitch,
+        speed_mps=speed,
+        chainage_m=chainage,
+    )
+    return ParsedRun(
+        log=log,
+        delimiter=header.delimiter,
+        encoding=encoding,
+        columns={r: (names[j] if j is not None else None) for r, j in mapping.index.items()},
+        units=units,
+        gravity=gravity,
+        notes=notes,
+    )
+
+
+def read_run_csv(source: Source, options: CsvOptions | None = None) -> RunLog:
+    """Read a logger's CSV into a :class:`~engine.runlog.RunLog` (SI units, gravity removed).
+
+    Parameters
+    ----------
+    source : bytes, str, os.PathLike or binary file object
+        The file's content, its path, or an open binary file. Gzip (magic bytes ``1f 8b``) is
+        decompressed; a UTF-8 BOM is dropped; ``\\r\\n`` line ends are fine.
+    options : CsvOptions, optional
+        Column names and units when they are not recognised from the header, and whether the
+        acceleration includes gravity. Explicit options always win.
+
+    Returns
+    -------
+    RunLog
+        ``time_s`` in s (epoch times shifted to start at 0), ``accel_z_mps2`` in m/s² with
+        gravity removed, ``pitch_rate_radps`` in rad/s, ``speed_mps`` in m/s and/or
+        ``chainage_m`` in m.
+
+    Raises
+    ------
+    LogFormatError
+        The file is empty, has only a header, misses a column or has two candidates for one,
+        repeats a column name, holds text, an empty field, NaN or infinity where a number
+        belongs, has a line with the wrong number of fields or a decimal comma, a time column
+        that is not strictly increasing with a constant step (gaps, irregular sampling), fewer
+        than :data:`MIN_SAMPLES` samples, or values implausible in the unit read (acceleration
+        beyond 50 m/s², pitch rate beyond 5 rad/s, speed outside 0.5 to 150 m/s). The message
+        names the column, the 1-based file line (``.row``; the header is line 1 when nothing
+        precedes it) and the unit expected.
+    ParameterError
+        ``options`` is not a :class:`CsvOptions`.
+    OSError
+        A path cannot be opened.
+
+    Examples
+    --------
+    >>> log = read_run_csv(b"timestamp,az_g,gyro_y_dps,speed_kmh\\n...")  # doctest: +SKIP
+    """
+    return parse_run_csv(source, options).log

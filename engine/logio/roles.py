@@ -1,0 +1,153 @@
+"""What each column of a run log means (its role), the names it goes by, and its units."""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+from ..vehicle import GRAVITY
+
+G_UNIT_MPS2 = GRAVITY
+"""Value of 1 g when converting from the unit g, m/s². The model's own gravity is used (not the
+standard 9.80665) so that a logger at rest reading exactly 1 g gives exactly zero once gravity
+is removed."""
+
+ROLES = ("time", "accel", "pitch_rate", "speed", "chainage")
+
+
+@dataclass(frozen=True)
+class _Role:
+    key: str
+    label: str
+    canonical: str
+    aliases: frozenset[str]
+    units: Mapping[str, str]  # compact unit spelling -> canonical unit
+    unsupported: frozenset[str]  # compact unit spellings we recognise but do not convert
+    factors: Mapping[str, float]  # canonical unit -> factor to SI
+    examples: str  # for error messages: names that are recognised
+    alias_units: Mapping[str, str] = field(default_factory=dict)  # names that imply a unit
+
+
+def _words(text: str) -> list[str]:
+    return text.split()
+
+
+def _units(table: Mapping[str, Iterable[str]]) -> dict[str, str]:
+    return {spelling: unit for unit, spellings in table.items() for spelling in spellings}
+
+
+_ROLES: dict[str, _Role] = {
+    "time": _Role(
+        key="time",
+        label="time",
+        canonical="time_s",
+        aliases=frozenset(
+            _words(
+                "time t timestamp time_stamp ts epoch unix_time unixtime epoch_time elapsed "
+                "elapsed_time sample_time"
+            )
+        ),
+        units=_units(
+            {
+                "s": _words("s sec secs second seconds"),
+                "ms": _words("ms msec msecs millis millisecond milliseconds"),
+                "epoch_s": _words("epoch epochs unix unixs epochsec epochseconds unixtime"),
+            }
+        ),
+        unsupported=frozenset(_words("us usec micros ns nsec min mins h hr")),
+        factors={"s": 1.0, "ms": 1e-3, "epoch_s": 1.0},
+        examples="time_s, time_ms, timestamp, time, t",
+        alias_units={"epoch": "epoch_s", "unix_time": "epoch_s", "unixtime": "epoch_s"},
+    ),
+    "accel": _Role(
+        key="accel",
+        label="vertical acceleration",
+        canonical="accel_z_mps2",
+        aliases=frozenset(
+            _words(
+                "accel_z acc_z az a_z accz accelz acceleration_z accel acc acceleration "
+                "vertical_accel vertical_acceleration accel_vertical acc_vertical acc_vert "
+                "accel_vert lin_acc_z linear_acceleration_z z_accel z_acc"
+            )
+        ),
+        units=_units({"m/s2": _words("ms2 mps2 mss mpss msec2 mpersec2"), "g": ["g", "gs"]}),
+        unsupported=frozenset(_words("mg millig mms2 cms2 gal ftps2 fts2 counts lsb")),
+        factors={"m/s2": 1.0, "g": G_UNIT_MPS2},
+        examples="accel_z_mps2, az_g, acc_z_ms2, accel_z, acc_z, az",
+    ),
+    "pitch_rate": _Role(
+        key="pitch_rate",
+        label="pitch rate",
+        canonical="pitch_rate_radps",
+        aliases=frozenset(
+            _words(
+                "pitch_rate pitchrate pitch_velocity gyro_y gyr_y gyroy gy wy w_y omega_y rate_y "
+                "angular_rate_y ang_rate_y angular_velocity_y ang_vel_y gyro"
+            )
+        ),
+        units=_units(
+            {
+                "rad/s": _words("rads radps radsec radpersec radpers"),
+                "deg/s": _words("degs dps degps degsec degpersec degpers"),
+            }
+        ),
+        unsupported=frozenset(_words("rpm mrads mdps counts lsb")),
+        factors={"rad/s": 1.0, "deg/s": math.pi / 180.0},
+        examples="pitch_rate_radps, gyro_y_dps, gyro_y_rads, gyro_y, pitch_rate, gy",
+    ),
+    "speed": _Role(
+        key="speed",
+        label="speed",
+        canonical="speed_mps",
+        aliases=frozenset(
+            _words("speed v vel velocity spd ground_speed gps_speed train_speed vehicle_speed")
+        ),
+        units=_units(
+            {
+                "m/s": _words("ms mps mpersec msec"),
+                "km/h": _words("kmh kph kmph kmhr kmperh kmperhour"),
+            }
+        ),
+        unsupported=frozenset(_words("mph kn kt knots kts fts fps")),
+        factors={"m/s": 1.0, "km/h": 1.0 / 3.6},
+        examples="speed_mps, speed_kmh, speed_kph, speed, v",
+    ),
+    "chainage": _Role(
+        key="chainage",
+        label="chainage",
+        canonical="chainage_m",
+        aliases=frozenset(
+            _words(
+                "chainage km position pos odometer odo distance dist mileage kilometrage "
+                "track_position location"
+            )
+        ),
+        units=_units({"m": _words("m metre meter metres meters"), "km": ["km"]}),
+        unsupported=frozenset(_words("mi mile miles ft feet yd")),
+        factors={"m": 1.0, "km": 1000.0},
+        examples="chainage_m, odometer_m, position, chainage, km",
+        alias_units={"km": "km", "kilometrage": "km"},
+    ),
+}
+
+_OPTION_UNITS: dict[str, tuple[str, ...]] = {
+    "time": ("s", "ms", "epoch_s"),
+    "accel": ("m/s2", "g"),
+    "pitch_rate": ("rad/s", "deg/s"),
+    "speed": ("m/s", "km/h"),
+    "chainage": ("m", "km"),
+}
+_GRAVITY_MODES = ("auto", "included", "removed")
+_UNIT_LABEL = {"m/s2": "m/s²", "epoch_s": "epoch s"}
+
+
+def _unit_key(text: str) -> str:
+    """Compact spelling of a unit: lower case, no separators (``'m/s^2'`` -> ``'ms2'``)."""
+    t = text.lower().replace("²", "2").replace("°", "deg").replace("µ", "u")
+    return re.sub(r"[^a-z0-9]", "", t)
+
+
+def _label(unit: str) -> str:
+    return _UNIT_LABEL.get(unit, unit)

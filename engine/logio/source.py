@@ -1,0 +1,132 @@
+"""Bytes in: a path, bytes or a file; gzip (with a cap on the expanded size); text encoding."""
+
+from __future__ import annotations
+
+import codecs
+import gzip
+import io
+import os
+import zlib
+from dataclasses import dataclass
+from typing import IO, BinaryIO
+
+from ..errors import LogFormatError
+
+MAX_DECOMPRESSED_BYTES = 1 << 30
+"""Largest gzip-decompressed size accepted, bytes (a guard against decompression bombs)."""
+
+Source = str | os.PathLike[str] | bytes | bytearray | memoryview | BinaryIO | IO[bytes]
+
+_GZIP_MAGIC = b"\x1f\x8b"
+# bytes that never occur in text: C0 controls other than tab, LF, VT, FF, CR and DEL
+_CONTROL_BYTES = bytes([*range(0, 9), *range(14, 32), 127])
+_TEXT_BYTES_DELETE = bytes(b for b in range(256) if b not in _CONTROL_BYTES)
+
+
+def _read_source(source: Source) -> bytes:
+    """The bytes of a source, gzip-decompressed when it is gzip."""
+    if isinstance(source, bytes | bytearray | memoryview):
+        data = bytes(source)
+    elif isinstance(source, str | os.PathLike):
+        with open(source, "rb") as fh:
+            data = fh.read()
+    elif hasattr(source, "read"):
+        got = source.read()
+        data = got.encode("utf-8") if isinstance(got, str) else bytes(got)
+    else:
+        raise LogFormatError(
+            f"cannot read a run log from {type(source).__name__}: "
+            "give bytes, a file path or a binary file object"
+        )
+    if data[:2] == _GZIP_MAGIC:
+        data = _gunzip(data)
+    return data
+
+
+def _gunzip(data: bytes, limit: int | None = None) -> bytes:
+    """Decompress gzip data, refusing more than ``limit`` (default MAX_DECOMPRESSED_BYTES)."""
+    cap = MAX_DECOMPRESSED_BYTES if limit is None else limit
+    try:
+        with gzip.GzipFile(fileobj=io.BytesIO(data)) as gz:
+            out = gz.read(cap + 1)
+    except (OSError, EOFError, zlib.error) as e:
+        raise LogFormatError(f"the gzip-compressed file is corrupt or truncated ({e})") from None
+    if len(out) > cap:
+        raise LogFormatError(
+            f"the gzip-compressed file expands to more than {cap} bytes "
+            f"(MAX_DECOMPRESSED_BYTES): split the run into shorter logs"
+        )
+    if out[:2] == _GZIP_MAGIC:
+        raise LogFormatError("the file is gzip-compressed twice: compress the CSV only once")
+    return out
+
+
+def _gunzip_head(data: bytes, size: int) -> tuple[bytes, bool]:
+    """The first ``size`` decompressed bytes of gzip data, and whether there is more."""
+    d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+    try:
+        out = d.decompress(data, size)
+    except zlib.error as e:
+        raise LogFormatError(f"the gzip-compressed file is corrupt ({e})") from None
+    return out, bool(d.unconsumed_tail) or not d.eof
+
+
+def _line_of_offset(data: bytes, offset: int) -> int:
+    return data.count(b"\n", 0, offset) + 1
+
+
+def _detect_encoding(data: bytes, final: bool = True) -> tuple[str, str | None]:
+    """Text encoding of ``data`` and a note when it is not UTF-8.
+
+    Raises
+    ------
+    LogFormatError
+        When the data is not text (binary, zip, spreadsheet).
+    """
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return "utf-16", None
+    if data.startswith(b"PK\x03\x04"):
+        raise LogFormatError(
+            "the file is a zip archive (an .xlsx workbook?), not CSV text: "
+            "export the sheet as CSV, or gzip the CSV"
+        )
+    bad = data[:65536].translate(None, _TEXT_BYTES_DELETE)
+    if bad:
+        i = data.index(bad[:1])
+        raise LogFormatError(
+            f"the file is not CSV text: it holds the binary byte 0x{bad[0]:02x} "
+            f"at line {_line_of_offset(data, i)}",
+            row=_line_of_offset(data, i),
+        )
+    if data.isascii():
+        return "utf-8-sig", None
+    dec = codecs.getincrementaldecoder("utf-8-sig")()
+    view = memoryview(data)
+    step = 1 << 20
+    try:
+        for i in range(0, len(data), step):
+            dec.decode(view[i : i + step], final=final and i + step >= len(data))
+        return "utf-8-sig", None
+    except UnicodeDecodeError:
+        pass
+    bad = data.translate(None, _TEXT_BYTES_DELETE)
+    if bad:
+        i = data.index(bad[:1])
+        line = _line_of_offset(data, i)
+        raise LogFormatError(
+            f"the file is not CSV text: it holds the binary byte 0x{bad[0]:02x} at line {line}",
+            row=line,
+        )
+    # Excel on Windows writes CSV in Windows-1252; its five undefined bytes make it Latin-1
+    enc = "latin-1" if any(bytes([b]) in data for b in b"\x81\x8d\x8f\x90\x9d") else "cp1252"
+    return enc, f"the file is not UTF-8: read as {enc}"
+
+
+@dataclass(frozen=True)
+class _Source:
+    data: bytes
+    encoding: str
+
+    def lines(self) -> io.TextIOWrapper:
+        # universal newlines: \r\n and \r become \n
+        return io.TextIOWrapper(io.BytesIO(self.data), encoding=self.encoding, newline=None)

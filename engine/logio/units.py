@@ -1,0 +1,147 @@
+"""Units: the one resolution of each column's unit (option, name, data) shared by parsing and
+preview, gravity, and the plausibility limits that tell a wrong unit."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from ..vehicle import GRAVITY
+from .options import CsvOptions
+from .roles import ROLES, _label
+
+ACCEL_LIMIT_MPS2 = 50.0
+"""Largest plausible vertical body acceleration, m/s² (gravity removed); beyond it the unit is
+wrong (e.g. counts or mm/s²)."""
+
+PITCH_RATE_LIMIT_RADPS = 5.0
+"""Largest plausible body pitch rate, rad/s; beyond it the unit is wrong (e.g. deg/s)."""
+
+SPEED_MIN_MPS = 0.5
+"""Slowest speed accepted at any sample, m/s (standstills cannot be inverted)."""
+
+SPEED_MAX_MPS = 150.0
+"""Fastest plausible speed, m/s (540 km/h); beyond it the unit is wrong (e.g. km/h)."""
+
+MIN_RATE_HZ = 10.0
+"""Lowest plausible sample rate, Hz; a slower time column is in the wrong unit (ms read as s)."""
+
+MAX_RATE_HZ = 100_000.0
+"""Highest plausible sample rate, Hz."""
+
+EPOCH_THRESHOLD_S = 1e8
+"""Time values above this (about 1973 in Unix seconds) are taken as epoch seconds."""
+
+EPOCH_MS_THRESHOLD = 1e11
+"""Time values above this are taken as epoch milliseconds."""
+
+STEP_TOLERANCE = 0.01
+"""Allowed deviation of a time step from the median step, as a fraction of it."""
+
+GAP_FACTOR = 1.5
+"""A step longer than this many median steps is reported as a gap."""
+
+GRAVITY_TOLERANCE_MPS2 = 1.5
+"""How far the mean acceleration may be from 9.81 (included) or 0 (removed), m/s²."""
+
+
+def _auto_time_unit(t0: float) -> str:
+    if abs(t0) > EPOCH_MS_THRESHOLD:
+        return "ms"
+    if abs(t0) > EPOCH_THRESHOLD_S:
+        return "epoch_s"
+    return "s"
+
+
+def _auto_accel_unit(mean: float, gravity: str) -> str:
+    # a mean of about 1 only makes sense as g with gravity included
+    if gravity != "removed" and abs(mean - 1.0) < 0.15:
+        return "g"
+    return "m/s2"
+
+
+def _auto_gravity(mean_mps2: float) -> str | None:
+    if abs(mean_mps2 - GRAVITY) < GRAVITY_TOLERANCE_MPS2:
+        return "included"
+    if abs(mean_mps2) < GRAVITY_TOLERANCE_MPS2:
+        return "removed"
+    return None
+
+
+DEFAULT_UNITS: dict[str, str] = {"pitch_rate": "rad/s", "speed": "m/s", "chainage": "m"}
+"""Unit assumed for a column whose option and name say nothing (time and acceleration are
+told from their values instead)."""
+
+
+def _assumed(what: str, name: str, unit: str, role: str) -> str:
+    return (
+        f"{what} column {name!r} has no unit in its name: {_label(unit)} assumed "
+        f"(set {role}_unit to be sure)"
+    )
+
+
+def resolve_units(
+    columns: Mapping[str, str],
+    options: CsvOptions,
+    name_units: Mapping[str, str | None],
+    *,
+    t0: float | None,
+    accel_mean: float | None,
+) -> tuple[dict[str, str | None], list[str], list[str]]:
+    """The unit each recognised column is read in: the one rule of parsing and preview.
+
+    The option wins; else the unit the column's name implies; else the data decide (time:
+    epoch seconds or milliseconds by the size of the first value; acceleration: g when its
+    mean is about 1 and gravity may be included) or :data:`DEFAULT_UNITS` is assumed. A name
+    saying seconds over values that are epoch seconds reads as epoch seconds.
+
+    Parameters
+    ----------
+    columns : mapping
+        Role -> header name, for the roles the file has.
+    options : CsvOptions
+        The user's choices.
+    name_units : mapping
+        Role -> unit implied by the column's name, or None.
+    t0 : float or None
+        First value of the time column in the file's unit (None: not known yet).
+    accel_mean : float or None
+        Mean of the acceleration column in the file's unit (None: not known yet).
+
+    Returns
+    -------
+    units : dict
+        Role (every one of ``ROLES``) -> unit, None when the file has no such column or the
+        data needed to tell are missing.
+    assumed : list of str
+        Units assumed because neither an option nor the name said them (worth checking).
+    notes : list of str
+        What was read differently from what the name says (epoch time shifted to start at 0).
+    """
+    units: dict[str, str | None] = dict.fromkeys(ROLES)
+    assumed: list[str] = []
+    notes: list[str] = []
+    for role in ROLES:
+        if role not in columns:
+            continue
+        name = columns[role]
+        chosen: str | None = getattr(options, f"{role}_unit")
+        unit = chosen if chosen is not None else name_units.get(role)
+        if role == "time":
+            if t0 is not None and chosen is None:
+                if unit is None:
+                    unit = _auto_time_unit(t0)
+                elif unit == "s" and abs(t0) > EPOCH_THRESHOLD_S:
+                    unit = "epoch_s"  # seconds by its name, epoch seconds by its values
+                if unit == "epoch_s" or abs(t0) > EPOCH_MS_THRESHOLD:
+                    what = "epoch milliseconds" if unit == "ms" else "epoch seconds"
+                    notes.append(f"time column {name!r} read as {what}, shifted to start at 0")
+        elif unit is None and role == "accel":
+            if accel_mean is not None:
+                unit = _auto_accel_unit(accel_mean, options.gravity)
+            assumed.append(_assumed("acceleration", name, unit or "m/s2", role))
+        elif unit is None:
+            unit = DEFAULT_UNITS[role]
+            if role != "chainage":
+                assumed.append(_assumed(role.replace("_", "-"), name, unit, role))
+        units[role] = unit
+    return units, assumed, notes
