@@ -26,13 +26,6 @@ from .simulate import simulate
 from .track import SoftZone, Track, TrackParams
 from .vehicle import PRESETS, TABLE1, VehicleParams, get_preset
 
-VEHICLE_HELP = {
-    "ms": "body mass, kg", "Is": "body pitch inertia, kg m^2", "mu1": "front axle mass, kg",
-    "mu2": "rear axle mass, kg", "ks1": "front suspension stiffness, N/m",
-    "ks2": "rear suspension stiffness, N/m", "cs1": "front suspension damping, N s/m",
-    "cs2": "rear suspension damping, N s/m", "kt1": "front contact stiffness, N/m",
-    "kt2": "rear contact stiffness, N/m", "d1": "CG to front axle, m", "d2": "CG to rear axle, m",
-}  # fmt: skip
 TRACK_HELP = {
     "spacing": "support (sleeper) spacing, m", "EI": "rail bending stiffness, N m^2",
     "mass_per_m": "rail mass, kg/m", "k_nominal": "nominal support stiffness, N/m",
@@ -57,7 +50,8 @@ def _add_vehicle(p: argparse.ArgumentParser) -> None:
             type=float,
             default=None,
             metavar="X",
-            help=f"{VEHICLE_HELP[f.name]} (default: the preset's; {dflt})",
+            help=f"{f.metadata['description'].lower()}, {f.metadata['unit']} "
+            f"(default: the preset's; {dflt})",
         )
 
 

@@ -160,8 +160,9 @@ def direct_inverse(
     Parameters
     ----------
     accel : array_like, shape (n,)
-        Body vertical acceleration at the centre of gravity, m/s², gravity removed, positive
-        up, starting from static equilibrium.
+        Body vertical acceleration at the accelerometer (``vehicle.sensor_x_m`` ahead of the
+        centre of gravity), m/s², gravity removed, positive up, starting from static
+        equilibrium.
     pitch_rate : array_like, shape (n,)
         Body pitch rate, rad/s, positive nose-up.
     dt : float
@@ -185,12 +186,14 @@ def direct_inverse(
     ``y_i = u_ui + (m_ui u''_ui - S_i) / k_ti`` where ``S_i`` is the suspension force on the
     axle. All quantities are deviations from the static start, so gravity drops out.
     """
-    a_s, qd = _check(accel, pitch_rate)
+    a_m, qd = _check(accel, pitch_rate)
     nm = Newmark(dt, gamma, beta)
     v = vehicle
-    vd_s, u_s = _newmark_integrate(a_s, nm)
     qd = qd - qd[0]
     qdd, th = _newmark_differentiate(qd, nm)
+    # the accelerometer sits sensor_x_m ahead of the CG: remove the pitch acceleration it feels
+    a_s = a_m - v.sensor_x_m * qdd if v.sensor_x_m else a_m
+    vd_s, u_s = _newmark_integrate(a_s, nm)
     d1, d2 = v.d1, v.d2
     RA = (
         v.ms * a_s
@@ -247,11 +250,11 @@ def direct_inverse_loop(
     qd0 = float(qd_in[0])
     a_prev = float(a_s[0])
     for i in range(1, n):
-        a_new = float(a_s[i])
-        us = us + dt * vs + dt * dt * ((0.5 - b) * a_prev + b * a_new)
-        vs = vs + dt * ((1 - g) * a_prev + g * a_new)
         thd_new = float(qd_in[i]) - qd0
         thdd_new = (thd_new - thd - dt * (1 - g) * thdd) / (g * dt)
+        a_new = float(a_s[i]) - v.sensor_x_m * thdd_new  # CG acceleration
+        us = us + dt * vs + dt * dt * ((0.5 - b) * a_prev + b * a_new)
+        vs = vs + dt * ((1 - g) * a_prev + g * a_new)
         th = th + dt * thd + dt * dt * ((0.5 - b) * thdd + b * thdd_new)
         thd, thdd = thd_new, thdd_new
         RA = (

@@ -20,7 +20,8 @@ def _discrete_vehicle(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Bilinear (Newmark average-acceleration) discretisation of the half-car.
 
-    State ``[q, q']`` (8), input ``[y1, y2]`` (m), output ``[a_body (m/s²), pitch rate (rad/s)]``.
+    State ``[q, q']`` (8), input ``[y1, y2]`` (m), output ``[a (m/s²), pitch rate (rad/s)]``
+    with ``a`` the body acceleration at the accelerometer.
     """
     M, C, K = vehicle.matrices()
     Minv = np.linalg.inv(M)
@@ -29,8 +30,10 @@ def _discrete_vehicle(
     F[3, 1] = vehicle.kt2
     A = np.block([[np.zeros((4, 4)), np.eye(4)], [-Minv @ K, -Minv @ C]])
     B = np.vstack([np.zeros((4, 2)), Minv @ F])
-    Cout = np.vstack([A[4], np.eye(8)[5]])
-    Dout = np.vstack([B[4], np.zeros(2)])
+    # measured acceleration: at the accelerometer, sensor_x_m ahead of the CG
+    x = vehicle.sensor_x_m
+    Cout = np.vstack([A[4] + x * A[5], np.eye(8)[5]])
+    Dout = np.vstack([B[4] + x * B[5], np.zeros(2)])
     Ad, Bd, Cd, Dd, _ = cont2discrete((A, B, Cout, Dout), dt, method="bilinear")
     return Ad, Bd, Cd, Dd
 

@@ -51,7 +51,8 @@ class SimulationResult:
     speed : ndarray
         Speed, m/s.
     accel : ndarray
-        Body vertical acceleration at the centre of gravity, m/s², positive up.
+        Body vertical acceleration where the accelerometer sits (``vehicle.sensor_x_m`` ahead
+        of the centre of gravity: ``ü_s + sensor_x_m · θ̈_s``), m/s², positive up.
     pitch_rate : ndarray
         Body pitch rate, rad/s, positive nose-up.
     q, qd, qdd : ndarray, shape (n, 4)
@@ -452,7 +453,7 @@ def simulate(
     t = np.arange(n_steps, dtype=np.float64) * dt
     return SimulationResult(
         t=t, x_body=xb, x_front=x1, x_rear=x2, speed=v,
-        accel=out_qdd[:, 0].copy(), pitch_rate=out_qd[:, 1].copy(),
+        accel=out_qdd[:, 0] + vehicle.sensor_x_m * out_qdd[:, 1], pitch_rate=out_qd[:, 1].copy(),
         q=out_q, qd=out_qd, qdd=out_qdd, y_front=y1, y_rear=y2,
         contact_front=cf1, contact_rear=cf2, start_chainage_m=float(start_chainage_m),
         direction=direction, rail_w=rail_hist,

@@ -34,8 +34,9 @@ def vehicle_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDAr
     Returns
     -------
     H : ndarray, shape (m, 2, 2)
-        ``H[k] @ [Y1, Y2] = [A, Q]``: body acceleration (m/s² per m) and pitch rate
-        (rad/s per m) for unit rail level under axle 1 and axle 2.
+        ``H[k] @ [Y1, Y2] = [A, Q]``: measured body acceleration (at the accelerometer,
+        ``vehicle.sensor_x_m`` ahead of the CG; m/s² per m) and pitch rate (rad/s per m) for
+        unit rail level under axle 1 and axle 2.
     """
     M, C, K = vehicle.matrices()
     w = np.asarray(omega, dtype=float)
@@ -45,7 +46,8 @@ def vehicle_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDAr
     F[3, 1] = vehicle.kt2
     X = np.linalg.solve(Z, np.broadcast_to(F, Z.shape[:1] + F.shape).astype(complex))
     H = np.empty((w.size, 2, 2), dtype=complex)
-    H[:, 0, :] = -(w[:, None] ** 2) * X[:, 0, :]
+    # the accelerometer sits sensor_x_m ahead of the CG: it also feels the pitch acceleration
+    H[:, 0, :] = -(w[:, None] ** 2) * (X[:, 0, :] + vehicle.sensor_x_m * X[:, 1, :])
     H[:, 1, :] = 1j * w[:, None] * X[:, 1, :]
     return H
 

@@ -8,7 +8,7 @@ Degrees of freedom ``[u_s, theta_s, u_u1, u_u2]``: body bounce (m, positive up),
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -18,6 +18,19 @@ from .errors import ParameterError
 
 GRAVITY = 9.81
 """Acceleration of gravity used by the model, m/s²."""
+
+
+SENSOR_X_LIMIT_M = 15.0
+"""Largest accepted distance of the accelerometer from the body CG, m (half a 30 m car body)."""
+
+
+def _param(default: float, unit: str, what: str, kind: str = "positive") -> Any:
+    """A parameter field: default, unit, description and accepted range (``kind``).
+
+    ``kind`` is ``"positive"`` (> 0), ``"nonnegative"`` (>= 0) or ``"position"`` (a signed
+    distance, ``|x| <= SENSOR_X_LIMIT_M``).
+    """
+    return field(default=default, metadata={"unit": unit, "description": what, "kind": kind})
 
 
 @dataclass(frozen=True)
@@ -40,53 +53,63 @@ class VehicleParams:
         Front and rear contact ("tyre") stiffness, N/m.
     d1, d2 : float
         Distance from the body centre of gravity to the front and rear axle, m.
+    sensor_x_m : float
+        Longitudinal position of the accelerometer from the body centre of gravity, m,
+        positive towards the front axle (default 0: at the CG). The accelerometer then
+        measures ``ü_s + sensor_x_m · θ̈_s``; the chainage reference stays the body CG.
 
     Raises
     ------
     ParameterError
-        If a mass, inertia, stiffness or distance is not a finite positive number, or a
-        damping is negative or not finite.
+        If a mass, inertia, stiffness or distance is not a finite positive number, a damping
+        is negative or not finite, or the sensor lies more than ``SENSOR_X_LIMIT_M`` from the
+        CG.
     """
 
-    ms: float = 16200.0
-    Is: float = 111193.0
-    mu1: float = 700.0
-    mu2: float = 1100.0
-    ks1: float = 0.4e6
-    ks2: float = 1.0e6
-    cs1: float = 10e3
-    cs2: float = 20e3
-    kt1: float = 1.75e6
-    kt2: float = 3.5e6
-    d1: float = 4.13
-    d2: float = 4.13
+    ms: float = _param(16200.0, "kg", "Body mass")
+    Is: float = _param(111193.0, "kg m²", "Body pitch inertia")
+    mu1: float = _param(700.0, "kg", "Front axle mass")
+    mu2: float = _param(1100.0, "kg", "Rear axle mass")
+    ks1: float = _param(0.4e6, "N/m", "Front suspension stiffness")
+    ks2: float = _param(1.0e6, "N/m", "Rear suspension stiffness")
+    cs1: float = _param(10e3, "N s/m", "Front suspension damping", "nonnegative")
+    cs2: float = _param(20e3, "N s/m", "Rear suspension damping", "nonnegative")
+    kt1: float = _param(1.75e6, "N/m", "Front contact stiffness")
+    kt2: float = _param(3.5e6, "N/m", "Rear contact stiffness")
+    d1: float = _param(4.13, "m", "Distance body centre to front axle")
+    d2: float = _param(4.13, "m", "Distance body centre to rear axle")
+    sensor_x_m: float = _param(
+        0.0, "m", "Accelerometer position from the body centre, towards the front axle",
+        "position",
+    )  # fmt: skip
 
     def __post_init__(self) -> None:
-        units = {
-            "ms": "kg", "Is": "kg m²", "mu1": "kg", "mu2": "kg", "ks1": "N/m", "ks2": "N/m",
-            "cs1": "N s/m", "cs2": "N s/m", "kt1": "N/m", "kt2": "N/m", "d1": "m", "d2": "m",
-        }  # fmt: skip
         for f in fields(self):
+            unit, kind = f.metadata["unit"], f.metadata["kind"]
             value = getattr(self, f.name)
             try:
                 value = float(value)
             except (TypeError, ValueError):
                 raise ParameterError(
-                    f"vehicle parameter {f.name} must be a number in {units[f.name]}, got {value!r}"
+                    f"vehicle parameter {f.name} must be a number in {unit}, got {value!r}"
                 ) from None
             object.__setattr__(self, f.name, value)
             if not math.isfinite(value):
                 raise ParameterError(f"vehicle parameter {f.name} must be finite, got {value}")
-            if f.name.startswith("cs"):
+            if kind == "position":
+                if abs(value) > SENSOR_X_LIMIT_M:
+                    raise ParameterError(
+                        f"vehicle parameter {f.name} must lie within ±{SENSOR_X_LIMIT_M:g} {unit} "
+                        f"of the body centre, got {value}"
+                    )
+            elif kind == "nonnegative":
                 if value < 0:
                     raise ParameterError(
-                        f"vehicle parameter {f.name} (damping, {units[f.name]}) must be >= 0, "
-                        f"got {value}"
+                        f"vehicle parameter {f.name} ({f.metadata['description'].lower()}, "
+                        f"{unit}) must be >= 0, got {value}"
                     )
             elif value <= 0:
-                raise ParameterError(
-                    f"vehicle parameter {f.name} must be > 0 {units[f.name]}, got {value}"
-                )
+                raise ParameterError(f"vehicle parameter {f.name} must be > 0 {unit}, got {value}")
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> VehicleParams:
@@ -102,6 +125,10 @@ class VehicleParams:
     def to_dict(self) -> dict[str, float]:
         """Parameters as a plain dict (SI units)."""
         return asdict(self)
+
+    def replace(self, **changes: float) -> VehicleParams:
+        """A copy with some parameters changed (validated like a new one)."""
+        return VehicleParams.from_dict({**self.to_dict(), **changes})
 
     @property
     def wheelbase(self) -> float:

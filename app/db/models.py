@@ -9,6 +9,7 @@ profile and soft spots are served.
 
 from __future__ import annotations
 
+from dataclasses import fields
 from datetime import datetime
 from typing import Any
 
@@ -25,6 +26,8 @@ from sqlalchemy import (
     UniqueConstraint,
 )
 from sqlalchemy.orm import Mapped, mapped_column, relationship
+
+from engine.vehicle import VehicleParams
 
 from .base import Base, UTCDateTime, utcnow
 
@@ -69,20 +72,7 @@ class Track(Base):
         }
 
 
-VEHICLE_PARAM_NAMES = (
-    "ms",
-    "Is",
-    "mu1",
-    "mu2",
-    "ks1",
-    "ks2",
-    "cs1",
-    "cs2",
-    "kt1",
-    "kt2",
-    "d1",
-    "d2",
-)
+VEHICLE_PARAM_NAMES = tuple(f.name for f in fields(VehicleParams))
 """The engine's ``VehicleParams`` fields, stored one column each."""
 
 
@@ -106,6 +96,7 @@ class Vehicle(Base):
     kt2: Mapped[float] = mapped_column(Float)  # N/m
     d1: Mapped[float] = mapped_column(Float)  # m
     d2: Mapped[float] = mapped_column(Float)  # m
+    sensor_x_m: Mapped[float] = mapped_column(Float, default=0.0)  # m, ahead of the body CG
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
     def params_dict(self) -> dict[str, float]:

@@ -2,35 +2,44 @@
 
 from __future__ import annotations
 
+import dataclasses
 from datetime import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
+
+from engine.vehicle import SENSOR_X_LIMIT_M, VehicleParams
 
 from .common import StrictModel, UrlName
 
 
-def _p(default: float, unit: str, what: str, *, ge0: bool = False) -> Any:
-    if ge0:
-        return Field(default=default, ge=0, allow_inf_nan=False, description=f"{what}, {unit}")
-    return Field(default=default, gt=0, allow_inf_nan=False, description=f"{what}, {unit}")
+def _schema_field(f: dataclasses.Field[Any]) -> Any:
+    """The pydantic field of one ``VehicleParams`` field: same default, unit and range."""
+    unit, kind, what = f.metadata["unit"], f.metadata["kind"], f.metadata["description"]
+    ranges: dict[str, dict[str, Any]] = {
+        "positive": {"gt": 0.0},
+        "nonnegative": {"ge": 0.0},
+        "position": {"ge": -SENSOR_X_LIMIT_M, "le": SENSOR_X_LIMIT_M},
+    }
+    default: float = f.default  # type: ignore[assignment]
+    field = Field(default, allow_inf_nan=False, description=f"{what}, {unit}", **ranges[kind])
+    return (float, field)
 
 
-class VehicleParamsSchema(StrictModel):
-    """Half-car parameters; defaults are the paper's Table 1 vehicle."""
+# One model per idea: the schema is derived from the engine's dataclass (names, defaults,
+# units, ranges), so a new vehicle parameter appears in the API without being re-typed here.
+if TYPE_CHECKING:
 
-    ms: float = _p(16200.0, "kg", "Body mass")
-    Is: float = _p(111193.0, "kg m²", "Body pitch inertia")
-    mu1: float = _p(700.0, "kg", "Front axle mass")
-    mu2: float = _p(1100.0, "kg", "Rear axle mass")
-    ks1: float = _p(0.4e6, "N/m", "Front suspension stiffness")
-    ks2: float = _p(1.0e6, "N/m", "Rear suspension stiffness")
-    cs1: float = _p(10e3, "N s/m", "Front suspension damping", ge0=True)
-    cs2: float = _p(20e3, "N s/m", "Rear suspension damping", ge0=True)
-    kt1: float = _p(1.75e6, "N/m", "Front contact stiffness")
-    kt2: float = _p(3.5e6, "N/m", "Rear contact stiffness")
-    d1: float = _p(4.13, "m", "Distance body centre to front axle")
-    d2: float = _p(4.13, "m", "Distance body centre to rear axle")
+    class VehicleParamsSchema(StrictModel):
+        """Half-car parameters (fields: those of ``engine.vehicle.VehicleParams``)."""
+
+else:
+    VehicleParamsSchema = create_model(
+        "VehicleParamsSchema",
+        __base__=StrictModel,
+        __doc__="Half-car parameters (SI); defaults are the paper's Table 1 vehicle.",
+        **{f.name: _schema_field(f) for f in dataclasses.fields(VehicleParams)},
+    )
 
 
 PARAM_NAMES = tuple(VehicleParamsSchema.model_fields)

@@ -32,6 +32,15 @@ def test_create_vehicle_nested_and_flat(client: TestClient) -> None:
     assert client.get("/api/v1/vehicles").json()["count"] == 3
 
 
+def test_sensor_position_is_a_vehicle_parameter(client: TestClient) -> None:
+    """``params.sensor_x_m`` (m ahead of the body CG, default 0) is stored and served; a
+    position behind the CG is negative."""
+    assert client.get("/api/v1/vehicles/table1").json()["params"]["sensor_x_m"] == 0.0
+    r = client.post("/api/v1/vehicles", json={"name": "imu-behind", "sensor_x_m": -2.5})
+    assert r.status_code == 201, r.text
+    assert client.get("/api/v1/vehicles/imu-behind").json()["params"]["sensor_x_m"] == -2.5
+
+
 def test_conflicting_nested_and_flat_value_is_refused(client: TestClient) -> None:
     """The same parameter given twice with different values is a 422, not a silent choice."""
     r = client.post("/api/v1/vehicles", json={"name": "x", "ms": 1.0, "params": {"ms": 2.0}})
@@ -47,6 +56,7 @@ def test_conflicting_nested_and_flat_value_is_refused(client: TestClient) -> Non
         ({"name": "damp", "params": {"cs1": -1}}, "params.cs1"),
         ({"name": "text", "params": {"mu1": "heavy"}}, "params.mu1"),
         ({"name": "typo", "params": {"mass": 1}}, "params.mass"),
+        ({"name": "imu", "params": {"sensor_x_m": 20.0}}, "params.sensor_x_m"),
         ({"params": {}}, "name"),
     ],
 )

@@ -26,6 +26,7 @@ const VEHICLE_FIELDS = [
   ["cs1", "Front suspension damping C_s1", "N s/m", 1e4], ["cs2", "Rear suspension damping C_s2", "N s/m", 2e4],
   ["kt1", "Front contact stiffness K_t1", "N/m", 1.75e6], ["kt2", "Rear contact stiffness K_t2", "N/m", 3.5e6],
   ["d1", "Front axle to CG D1", "m", 4.13], ["d2", "Rear axle to CG D2", "m", 4.13],
+  ["sensor_x_m", "Accelerometer ahead of CG (negative: behind)", "m", 0],
 ];
 
 function nowLocalInput() {
