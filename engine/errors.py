@@ -42,5 +42,19 @@ class LogFormatError(EngineError):
         self.row = row
 
 
+class InputTooLarge(LogFormatError):
+    """A run log is larger than the limit it is read under (once decompressed).
+
+    Attributes
+    ----------
+    limit_bytes : int
+        The limit, B.
+    """
+
+    def __init__(self, message: str, *, limit_bytes: int) -> None:
+        super().__init__(message)
+        self.limit_bytes = limit_bytes
+
+
 class InversionError(EngineError):
     """The log cannot be inverted (too short, speed out of range, not enough coverage)."""

@@ -7,15 +7,14 @@ from __future__ import annotations
 
 import hashlib
 import io
-import zlib
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from app.core.errors import ApiError
-from engine.errors import LogFormatError, ParameterError
-from engine.logio import CsvOptions, read_run_csv
+from engine.errors import InputTooLarge, LogFormatError, ParameterError
+from engine.logio import MAX_DECOMPRESSED_BYTES, CsvOptions, read_run_csv
 from engine.runlog import RunLog
 
 LOG_COLUMNS = ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps", "chainage_m")
@@ -34,38 +33,6 @@ def log_format_error(exc: LogFormatError, field: str = "file") -> ApiError:
     return ApiError(
         422, str(exc), field=field, column=exc.column, row=exc.row, kind="LogFormatError"
     )
-
-
-GZIP_MAGIC = b"\x1f\x8b"
-
-
-def gunzipped_size_over(data: bytes, limit_bytes: int) -> int | None:
-    """For gzip ``data``: the size it expands to once that passes ``limit_bytes`` (counted
-    in 1 MiB steps, nothing kept), else None. None too for plain or corrupt data (the CSV
-    reader reports those)."""
-    if not data.startswith(GZIP_MAGIC):
-        return None
-    d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
-    pending, total = data, 0
-    try:
-        while pending:
-            out = d.decompress(pending, 1 << 20)
-            total += len(out)
-            if total > limit_bytes:
-                return total
-            if d.eof:  # the next member of a multi-member file, if any
-                pending = d.unused_data
-                if not pending.startswith(GZIP_MAGIC):
-                    break
-                d = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
-                continue
-            if not out and pending == d.unconsumed_tail:
-                break
-            pending = d.unconsumed_tail
-        total += len(d.flush())
-    except zlib.error:
-        return None
-    return total if total > limit_bytes else None
 
 
 def parse_csv(
@@ -89,17 +56,18 @@ def parse_csv(
         raise ApiError(422, str(exc), field=exc.field, kind="ParameterError") from None
     if not data:
         raise ApiError(422, "the uploaded file is empty", field=field)
-    if max_bytes is not None and (size := gunzipped_size_over(data, max_bytes)) is not None:
+    try:
+        return read_run_csv(
+            data, opts, max_bytes=MAX_DECOMPRESSED_BYTES if max_bytes is None else max_bytes
+        )
+    except InputTooLarge as exc:
         raise ApiError(
             413,
-            f"the gzip-compressed file expands to more than {size / 1e6:.3g} MB, over the upload "
-            f"limit of {max_bytes / 1e6:g} MB (TRACKPROFILE_MAX_UPLOAD_MB), which applies to "
-            "the CSV itself: split the run into shorter logs",
+            f"{exc} (TRACKPROFILE_MAX_UPLOAD_MB)",
             field=field,
-            limit_bytes=max_bytes,
-        )
-    try:
-        return read_run_csv(data, opts)
+            limit_bytes=exc.limit_bytes,
+            kind="InputTooLarge",
+        ) from None
     except LogFormatError as exc:
         raise log_format_error(exc, field) from None
 

@@ -17,6 +17,7 @@ from .columns import (
 from .header import (
     _read_header,
 )
+from .limits import check_lines
 from .options import CsvOptions
 from .roles import (
     _ROLES,
@@ -326,7 +327,9 @@ def _known(units: dict[str, str | None], role: str) -> str:
     return unit
 
 
-def parse_run_csv(source: Source, options: CsvOptions | None = None) -> ParsedRun:
+def parse_run_csv(
+    source: Source, options: CsvOptions | None = None, *, max_bytes: int | None = None
+) -> ParsedRun:
     """Read a logger's CSV into a :class:`RunLog`, reporting what was recognised.
 
     Same as :func:`read_run_csv` but also returns the delimiter, the column chosen for each
@@ -340,10 +343,11 @@ def parse_run_csv(source: Source, options: CsvOptions | None = None) -> ParsedRu
     opts = options if options is not None else CsvOptions()
     if not isinstance(opts, CsvOptions):
         raise ParameterError(f"options must be CsvOptions, got {type(opts).__name__}")
-    data = _read_source(source)
+    data = _read_source(source, max_bytes)
     if not data or data.isspace():
         raise LogFormatError("the file is empty: no header line naming the columns (and no data)")
     encoding, enc_note = _detect_encoding(data)
+    check_lines(data, char_bytes=2 if encoding == "utf-16" else 1)
     notes = [enc_note] if enc_note else []
     src = _Source(data, encoding)
     with src.lines() as f:
@@ -405,7 +409,9 @@ def parse_run_csv(source: Source, options: CsvOptions | None = None) -> ParsedRu
     )
 
 
-def read_run_csv(source: Source, options: CsvOptions | None = None) -> RunLog:
+def read_run_csv(
+    source: Source, options: CsvOptions | None = None, *, max_bytes: int | None = None
+) -> RunLog:
     """Read a logger's CSV into a :class:`~engine.runlog.RunLog` (SI units, gravity removed).
 
     Parameters
@@ -416,6 +422,9 @@ def read_run_csv(source: Source, options: CsvOptions | None = None) -> RunLog:
     options : CsvOptions, optional
         Column names and units when they are not recognised from the header, and whether the
         acceleration includes gravity. Explicit options always win.
+    max_bytes : int, optional
+        Largest size of a gzip source once decompressed, B (default
+        :data:`MAX_DECOMPRESSED_BYTES`).
 
     Returns
     -------
@@ -434,7 +443,10 @@ def read_run_csv(source: Source, options: CsvOptions | None = None) -> RunLog:
         than :data:`MIN_SAMPLES` samples, or values implausible in the unit read (acceleration
         beyond 50 m/s², pitch rate beyond 5 rad/s, speed outside 0.5 to 150 m/s). The message
         names the column, the 1-based file line (``.row``; the header is line 1 when nothing
-        precedes it) and the unit expected.
+        precedes it) and the unit expected. A line too long for the header's columns (see
+        :mod:`engine.logio.limits`) is refused before it is split.
+    InputTooLarge
+        A gzip source expands to more than ``max_bytes``.
     ParameterError
         ``options`` is not a :class:`CsvOptions`.
     OSError
@@ -444,4 +456,4 @@ def read_run_csv(source: Source, options: CsvOptions | None = None) -> RunLog:
     --------
     >>> log = read_run_csv(b"timestamp,az_g,gyro_y_dps,speed_kmh\\n...")  # doctest: +SKIP
     """
-    return parse_run_csv(source, options).log
+    return parse_run_csv(source, options, max_bytes=max_bytes).log

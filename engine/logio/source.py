@@ -10,7 +10,7 @@ import zlib
 from dataclasses import dataclass
 from typing import IO, BinaryIO
 
-from ..errors import LogFormatError
+from ..errors import InputTooLarge, LogFormatError
 
 MAX_DECOMPRESSED_BYTES = 1 << 30
 """Largest gzip-decompressed size accepted, bytes (a guard against decompression bombs)."""
@@ -23,8 +23,8 @@ _CONTROL_BYTES = bytes([*range(0, 9), *range(14, 32), 127])
 _TEXT_BYTES_DELETE = bytes(b for b in range(256) if b not in _CONTROL_BYTES)
 
 
-def _read_source(source: Source) -> bytes:
-    """The bytes of a source, gzip-decompressed when it is gzip."""
+def _read_source(source: Source, max_bytes: int | None = None) -> bytes:
+    """The bytes of a source, gzip-decompressed when it is gzip (at most ``max_bytes``)."""
     if isinstance(source, bytes | bytearray | memoryview):
         data = bytes(source)
     elif isinstance(source, str | os.PathLike):
@@ -39,12 +39,17 @@ def _read_source(source: Source) -> bytes:
             "give bytes, a file path or a binary file object"
         )
     if data[:2] == _GZIP_MAGIC:
-        data = _gunzip(data)
+        data = _gunzip(data, max_bytes)
     return data
 
 
 def _gunzip(data: bytes, limit: int | None = None) -> bytes:
-    """Decompress gzip data, refusing more than ``limit`` (default MAX_DECOMPRESSED_BYTES)."""
+    """Decompress gzip data, refusing more than ``limit`` (default MAX_DECOMPRESSED_BYTES).
+
+    :mod:`gzip` reads every member of a multi-member file and skips zero padding between
+    them; the limit counts exactly what it yields (a pre-check that stopped at the padding
+    let the rest through unmeasured), after at most ``limit + 1`` bytes.
+    """
     cap = MAX_DECOMPRESSED_BYTES if limit is None else limit
     try:
         with gzip.GzipFile(fileobj=io.BytesIO(data)) as gz:
@@ -52,9 +57,11 @@ def _gunzip(data: bytes, limit: int | None = None) -> bytes:
     except (OSError, EOFError, zlib.error) as e:
         raise LogFormatError(f"the gzip-compressed file is corrupt or truncated ({e})") from None
     if len(out) > cap:
-        raise LogFormatError(
-            f"the gzip-compressed file expands to more than {cap} bytes "
-            f"(MAX_DECOMPRESSED_BYTES): split the run into shorter logs"
+        raise InputTooLarge(
+            f"the gzip-compressed file expands to more than {cap / 1e6:g} MB, over "
+            f"{'MAX_DECOMPRESSED_BYTES' if limit is None else 'the upload limit'}, which applies "
+            "to the CSV itself: split the run into shorter logs",
+            limit_bytes=cap,
         )
     if out[:2] == _GZIP_MAGIC:
         raise LogFormatError("the file is gzip-compressed twice: compress the CSV only once")
