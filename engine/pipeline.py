@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -16,10 +16,12 @@ from .intervals import merge_intervals
 from .optimisation import windowed_least_squares
 from .results import ProcessResult, Quality, SoftSpot
 from .runlog import RunLog
+from .separation import is_smooth_rail
 from .spectral import estimate_white_noise, spectral_inverse
 from .stiffness import fit_zone
 from .track import TrackParams
 from .vehicle import TABLE1, VehicleParams
+from .wheel_force import dynamic_wheel_forces
 
 Method = Literal["spectral", "filtered-direct", "least-squares", "direct"]
 METHODS: tuple[str, ...] = ("spectral", "filtered-direct", "least-squares", "direct")
@@ -265,6 +267,8 @@ def process_run(
         )  # fmt: skip
         prof = prof if pos.sign > 0 else prof[::-1]
         front = rear = bandpass_distance(prof, step, cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper)
+        filled = np.where(np.isfinite(front), front, 0.0) * 1e-3
+        y1, y2 = np.interp(pos.front, grid, filled), np.interp(pos.rear, grid, filled)
     else:
         front = bandpass_distance(
             to_grid(pos.front, y1 * 1e3, grid), step, cfg.lambda_min_m, cfg.lambda_max_m,
@@ -274,6 +278,11 @@ def process_run(
             to_grid(pos.rear, y2 * 1e3, grid), step, cfg.lambda_min_m, cfg.lambda_max_m,
             cfg.taper,
         )  # fmt: skip
+    # wheel force per axle: static load + dynamic part from the vehicle equations, on the grid
+    static = vehicle.static_axle_loads()
+    f1, f2 = dynamic_wheel_forces(y1, y2, dt, vehicle)
+    front_force = static[0] + to_grid(pos.front, f1, grid)
+    rear_force = static[1] + to_grid(pos.rear, f2, grid)
     both = np.isfinite(front) & np.isfinite(rear)
     with np.errstate(invalid="ignore"):
         fused = np.where(both, 0.5 * (front + rear), np.where(np.isfinite(front), front, rear))
@@ -283,6 +292,10 @@ def process_run(
     loads = vehicle.static_axle_loads()
     load = 0.5 * (loads[0] + loads[1])
     spots = _soft_spots(grid, residual, dips, cfg, trk, load)
+    geometry_check = is_smooth_rail(robust_sigma(residual))
+    if not geometry_check.smooth:
+        # a dip may be rail geometry: depth only, never a stiffness-loss figure
+        spots = [replace(s, stiffness_loss_pct=float("nan")) for s in spots]
     agreement = (
         float(np.sqrt(np.mean((front[both] - rear[both]) ** 2))) if both.any() else float("nan")
     )
@@ -305,4 +318,7 @@ def process_run(
         quality=quality,
         method=cfg.method,
         extras={"band_hz": (f_lo, f_hi), "residual_sigma_mm": robust_sigma(residual)},
+        front_force_n=front_force,
+        rear_force_n=rear_force,
+        geometry_check=geometry_check,
     )

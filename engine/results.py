@@ -70,6 +70,36 @@ class Quality:
 
 
 @dataclass(frozen=True)
+class GeometryCheck:
+    """Whether a single pass's stiffness-loss figures are valid: is the rail smooth?
+
+    One loaded pass cannot tell a geometric dip of the rail from a soft spot. Where the pass
+    itself shows the rail smooth at the noise level (straight-rail simulations, the paper's
+    case) its stiffness figures stay valid; otherwise they are withheld.
+
+    Attributes
+    ----------
+    smooth : bool
+        The residual's robust spread is at or below the threshold.
+    residual_sigma_mm : float
+        Robust spread (1.4826 MAD) of the level minus its 40 m baseline, mm.
+    threshold_mm : float
+        The criterion's threshold, mm (see :data:`engine.separation.SMOOTH_RAIL_SIGMA_MM`).
+    message : str or None
+        Plain words when not smooth.
+    """
+
+    smooth: bool
+    residual_sigma_mm: float
+    threshold_mm: float
+    message: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict of the fields."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
 class ProcessResult:
     """Everything the pipeline derives from one run log.
 
@@ -91,6 +121,13 @@ class ProcessResult:
         Name of the inversion method used.
     extras : dict
         Method-specific diagnostics.
+    front_force_n, rear_force_n : ndarray or None
+        Each axle's wheel-rail contact force on the same grid, N, compression positive:
+        static axle load plus the dynamic part the vehicle equations give from the recovered
+        levels (NaN where that axle did not pass; None only for results built by hand).
+    geometry_check : GeometryCheck or None
+        Whether the rail is smooth at the noise level, i.e. the soft spots' stiffness-loss
+        figures are valid (they are NaN when not; None only for results built by hand).
     """
 
     chainage_m: NDArray[np.float64]
@@ -102,3 +139,6 @@ class ProcessResult:
     quality: Quality
     method: str
     extras: dict[str, Any] = field(default_factory=dict)
+    front_force_n: NDArray[np.float64] | None = None
+    rear_force_n: NDArray[np.float64] | None = None
+    geometry_check: GeometryCheck | None = None

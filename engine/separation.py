@@ -1,0 +1,683 @@
+"""Rail geometry vs support stiffness from many passes with different wheel loads.
+
+The loaded level a pass recovers is ``y_j(x) = g(x) - F_j(x) c(x)`` (levels positive up,
+``g`` the unloaded geometry common to every pass, ``F_j`` the pass's wheel force, ``c`` the
+track's compliance, m/N). In the product's band ``B`` (3-40 m), with ``F_j = Fbar_j + dF_j(x)``
+and ``c = c0 + dc(x)`` (``c0`` the nominal compliance),
+
+    B[y_j] + c0 B[dF_j] = B[g] - Fbar_j B[dc] + (second order)
+
+so per chainage point a weighted straight-line fit of the force-corrected levels against the
+passes' mean forces gives the geometry (intercept) and the compliance variation (slope). The
+pass weights are the inverse variances of each pass's residual (run-to-run scatter: speed,
+dynamics, sensor noise), estimated from the fit itself when there are more passes than
+distinct unknowns. Soft spots are dips of the compliance (as the level dip they cause under a
+reference load) fitted with the beam-on-discrete-supports model (:func:`engine.stiffness
+.fit_zone`, same band-pass as the profile). Details and assumptions: docs/method.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .align import align_profiles
+from .chainage import bandpass_distance
+from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
+from .errors import ParameterError
+from .results import GeometryCheck, ProcessResult
+from .stiffness import InfluenceLine, fit_zone
+from .track import TrackParams
+
+NOT_SEPARABLE_MESSAGE = (
+    "dips: geometry and stiffness not separable here — needs a pass with a different wheel "
+    "load or a survey"
+)
+"""What the product says where the passes do not span enough wheel load."""
+
+PRECISION_MESSAGE = (
+    "stiffness not resolved here: the passes' levels are too uncertain (near the ends of "
+    "runs, or too few passes) to separate geometry from stiffness"
+)
+"""What the product says where the loads differ enough but the levels are too uncertain."""
+
+SMOOTH_RAIL_SIGMA_MM = 0.05
+"""Largest robust spread (mm) of a single pass's residual (level minus its 40 m baseline, in
+the 3-40 m band) for which the rail counts as smooth at the noise level: single-pass
+stiffness-loss figures stay valid. Measured (docs/method.md, "Rail geometry"): straight-rail
+runs give 0.011-0.016 mm (shared samples) and up to 0.036 mm at four times their sensor
+noise; a geometry of 0.05 mm SD moves a zone's fitted loss by about 5-8 pp; real track
+(German low-disturbance, FRA class 6) gives 1-2 mm."""
+
+SMOOTH_RAIL_MESSAGE = (
+    "rail not smooth at the noise level: a dip may be rail geometry, so no stiffness-loss "
+    "figure from this pass alone (needs passes with different wheel loads or a survey)"
+)
+
+
+@dataclass(frozen=True)
+class Pass:
+    """One aligned pass over the track (a run or a survey).
+
+    Attributes
+    ----------
+    chainage_m : ndarray
+        Regular grid on the track's chainage, m, increasing (already aligned).
+    level_mm : ndarray
+        Loaded level in the product's band (3-40 m), mm, positive up; NaN = not covered.
+    force_n : ndarray or float
+        Wheel force along the grid (static + dynamic), N, compression positive; or a constant.
+    kind : str
+        ``"run"`` or ``"survey"``.
+    label : str
+        E.g. the run id, for "which runs contributed".
+    """
+
+    chainage_m: NDArray[np.float64]
+    level_mm: NDArray[np.float64]
+    force_n: NDArray[np.float64] | float
+    kind: str = "run"
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class SeparationConfig:
+    """Thresholds of the separation.
+
+    Parameters
+    ----------
+    min_passes : int
+        Fewest passes covering a point for it to be separable.
+    min_load_ratio : float
+        Smallest ratio of the largest to the smallest mean wheel force among a point's passes.
+    max_detectable_loss : float
+        A point is separable only if the passes would detect a support loss of this fraction
+        over a 6 m zone (the uncertainty of the compliance is small enough), 0-1.
+    noise_factor : float
+        A compliance dip must be deeper than this many standard deviations (the larger of the
+        estimator's own and the robust spread of the compliance profile).
+    min_loss : float
+        Smallest fitted loss reported as a soft spot (fraction).
+    confidence_z : float
+        Normal quantile of the reported bands (1.96: 95 %).
+    prior_noise_mm : float
+        Per-pass level noise assumed where the fit has no degrees of freedom left to estimate
+        it (two passes or two loads only), mm: the run-to-run floor measured in geometry.md.
+    reference_load_n : float
+        Load at which compliance dips are expressed as level dips for detection, N.
+    edge_factor, edge_decay_m : float
+        Error of a pass's level near its ends: ``edge_factor`` times the rail's roughness
+        (robust spread of the level about its baseline) at the end, decaying over
+        ``edge_decay_m`` (default 1.15 ``lambda_max_m``); measured, docs/method.md.
+    lambda_min_m, lambda_max_m, taper : float
+        The band of the passes' levels (the product's, 3-40 m).
+    grid_step_m : float or None
+        Step of the common grid, m (default: the first pass's).
+    """
+
+    min_passes: int = 2
+    min_load_ratio: float = 1.1
+    max_detectable_loss: float = 0.5
+    noise_factor: float = 4.5
+    min_loss: float = 0.15
+    confidence_z: float = 1.96
+    prior_noise_mm: float = 0.04
+    reference_load_n: float = 100e3
+    edge_factor: float = 0.3
+    edge_decay_m: float | None = None
+    lambda_min_m: float = 3.0
+    lambda_max_m: float = 40.0
+    taper: float = 0.3
+    grid_step_m: float | None = None
+
+    def __post_init__(self) -> None:
+        checks = {
+            "min_passes": self.min_passes >= 2,
+            "min_load_ratio": self.min_load_ratio > 1.0,
+            "max_detectable_loss": 0.0 < self.max_detectable_loss < 1.0,
+            "noise_factor": self.noise_factor > 0,
+            "min_loss": 0.0 <= self.min_loss < 1.0,
+            "confidence_z": self.confidence_z > 0,
+            "prior_noise_mm": self.prior_noise_mm > 0,
+            "reference_load_n": self.reference_load_n > 0,
+            "edge_factor": self.edge_factor >= 0,
+            "edge_decay_m": self.edge_decay_m is None or self.edge_decay_m > 0,
+            "lambda_max_m": 0 < self.lambda_min_m < self.lambda_max_m,
+            "grid_step_m": self.grid_step_m is None or 0 < self.grid_step_m <= 1.0,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ParameterError(
+                    f"separation {name} out of range: {getattr(self, name)!r} (see "
+                    "SeparationConfig for the allowed values)"
+                )
+
+
+@dataclass(frozen=True)
+class SeparatedSpot:
+    """A soft spot found from the separated compliance.
+
+    Attributes
+    ----------
+    start_m, end_m : float
+        Extent (track carried by the softened supports), m.
+    peak_m : float
+        Chainage of the deepest compliance dip, m.
+    loss_pct : float
+        Fitted support-stiffness loss, % of nominal.
+    loss_lo_pct, loss_hi_pct : float
+        Its band at the configured confidence, %.
+    confidence : float
+        Probability (0-1) that the dip is not estimator noise, from its depth in standard
+        deviations.
+    depth_mm : float
+        Depth of the compliance dip as a level dip under the reference load, mm.
+    """
+
+    start_m: float
+    end_m: float
+    peak_m: float
+    loss_pct: float
+    loss_lo_pct: float
+    loss_hi_pct: float
+    confidence: float
+    depth_mm: float = float("nan")
+
+    def to_dict(self) -> dict[str, float]:
+        """Plain dict of the fields (floats)."""
+        return {k: float(getattr(self, k)) for k in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True)
+class SeparationResult:
+    """Per-chainage geometry, compliance and relative stiffness from the passes.
+
+    Attributes
+    ----------
+    chainage_m : ndarray
+        Common grid, m.
+    geometry_mm, geometry_sd_mm : ndarray
+        Unloaded geometry in the band (mm, positive up) and its standard deviation. Where not
+        separable, the mean force-corrected loaded level assuming nominal stiffness.
+    k_rel, k_rel_lo, k_rel_hi : ndarray
+        Support stiffness over nominal and its band (NaN where not separable). Outside soft
+        spots ``k_rel`` is 1 and ``k_rel_lo`` is 1 minus the smallest loss the passes would
+        have detected there.
+    compliance_mm_per_kn : ndarray
+        Nominal compliance plus its estimated variation in the band, mm/kN (NaN where not
+        separable).
+    compliance_sd_mm_per_kn : ndarray
+        Standard deviation of the compliance variation, mm/kN.
+    n_passes : ndarray of int
+        Passes covering each point.
+    load_ratio : ndarray
+        Largest over smallest mean wheel force of the passes covering each point.
+    separable : ndarray of bool
+        Whether geometry and stiffness are separable at each point.
+    message : str or None
+        Plain words when some covered point is not separable.
+    soft_spots : list of SeparatedSpot
+        Significant support-stiffness losses.
+    contributors : list of (label, kind, mean_force_n)
+        The passes used.
+    dips : list of Dip
+        Where not separable: dips of the mean loaded level by depth only (no loss figure).
+    config : SeparationConfig
+        The thresholds used.
+    """
+
+    chainage_m: NDArray[np.float64]
+    geometry_mm: NDArray[np.float64]
+    geometry_sd_mm: NDArray[np.float64]
+    k_rel: NDArray[np.float64]
+    k_rel_lo: NDArray[np.float64]
+    k_rel_hi: NDArray[np.float64]
+    compliance_mm_per_kn: NDArray[np.float64]
+    compliance_sd_mm_per_kn: NDArray[np.float64]
+    n_passes: NDArray[np.int64]
+    load_ratio: NDArray[np.float64]
+    separable: NDArray[np.bool_]
+    message: str | None
+    soft_spots: list[SeparatedSpot]
+    contributors: list[tuple[str, str, float]]
+    dips: list[Dip] = field(default_factory=list)
+    config: SeparationConfig = field(default_factory=lambda: SeparationConfig())
+
+    def window(self, from_m: float, to_m: float) -> SeparationResult:
+        """The part of the result in ``[from_m, to_m]`` (m); spots and dips that overlap it."""
+        lo, hi = np.searchsorted(self.chainage_m, [from_m, to_m + 1e-9])
+        sl = slice(int(lo), int(hi))
+        arrays = {
+            name: getattr(self, name)[sl]
+            for name in (
+                "chainage_m", "geometry_mm", "geometry_sd_mm", "k_rel", "k_rel_lo", "k_rel_hi",
+                "compliance_mm_per_kn", "compliance_sd_mm_per_kn", "n_passes", "load_ratio",
+                "separable",
+            )
+        }  # fmt: skip
+        return replace(
+            self,
+            **arrays,
+            message=_message(
+                arrays["n_passes"], arrays["load_ratio"], arrays["separable"], self.config
+            ),  # fmt: skip
+            soft_spots=[s for s in self.soft_spots if s.end_m >= from_m and s.start_m <= to_m],
+            dips=[d for d in self.dips if d.end_m >= from_m and d.start_m <= to_m],
+        )
+
+
+def _message(
+    n_passes: NDArray[np.int64],
+    load_ratio: NDArray[np.float64],
+    separable: NDArray[np.bool_],
+    cfg: SeparationConfig,
+) -> str | None:
+    """The plain-words message for the covered points that are not separable (None if all are)."""
+    lacking = (n_passes > 0) & ~separable
+    if not lacking.any():
+        return None
+    with np.errstate(invalid="ignore"):
+        load_limited = (n_passes < cfg.min_passes) | ~(load_ratio >= cfg.min_load_ratio)
+    return NOT_SEPARABLE_MESSAGE if np.any(lacking & load_limited) else PRECISION_MESSAGE
+
+
+def pass_from_result(
+    result: ProcessResult, *, offset_m: float = 0.0, kind: str = "run", label: str = ""
+) -> Pass:
+    """A pass from one processed run: fused level and the mean of both axles' wheel forces.
+
+    ``offset_m`` (m) is added to the run's chainage (its alignment to the track).
+    """
+    if result.front_force_n is None or result.rear_force_n is None:
+        raise ParameterError("the processed run has no wheel force (front_force_n) to separate")
+    f1, f2 = result.front_force_n, result.rear_force_n
+    both = np.isfinite(f1) & np.isfinite(f2)
+    with np.errstate(invalid="ignore"):
+        force = np.where(both, 0.5 * (f1 + f2), np.where(np.isfinite(f1), f1, f2))
+    return Pass(result.chainage_m + offset_m, result.level_mm, force, kind, label)
+
+
+def align_passes(
+    passes: Sequence[Pass], *, max_shift_m: float = 10.0, recentre: bool = True
+) -> tuple[list[Pass], list[float]]:
+    """Align passes to one another by cross-correlating their levels.
+
+    Each pass is aligned to the median of the passes already aligned (the aggregate). With
+    ``recentre`` the common frame is then shifted so that the offsets average zero: each
+    logged start chainage is an independent estimate of the true one, so their mean is the
+    best estimate of the track's frame. Returns the shifted passes and the offsets, m.
+    """
+    if not passes:
+        return [], []
+    step = float(passes[0].chainage_m[1] - passes[0].chainage_m[0])
+    grid, levels, _ = _on_grid(passes[:1], step)
+    ref = levels[0]
+    offsets = [0.0]
+    stack = [levels[0]]
+    for p in passes[1:]:
+        a = align_profiles(grid, ref, p.chainage_m, p.level_mm, max_shift_m=max_shift_m)
+        off = a.offset_m if a.ok else 0.0
+        offsets.append(off)
+        shifted = np.interp(grid, p.chainage_m + off, _filled(p.level_mm), left=np.nan,
+                            right=np.nan)  # fmt: skip
+        stack.append(shifted)
+        ref = _column_median(np.vstack(stack))
+        # keep the reference defined where only the first pass covers
+        ref = np.where(np.isfinite(ref), ref, levels[0])
+    shift = -float(np.mean(offsets)) if recentre else 0.0
+    out = [
+        replace(p, chainage_m=p.chainage_m + o + shift)
+        for p, o in zip(passes, offsets, strict=True)
+    ]
+    return out, [o + shift for o in offsets]
+
+
+def _filled(y: NDArray[np.float64]) -> NDArray[np.float64]:
+    """NaN stays NaN under np.interp only if neighbours are NaN: keep NaN explicitly."""
+    return np.asarray(y, dtype=float)
+
+
+def _column_mean_sd(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Mean and standard deviation of each column over its finite values (NaN if none)."""
+    ok = np.isfinite(x)
+    n = ok.sum(axis=0)
+    xs = np.where(ok, x, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(n > 0, xs.sum(axis=0) / n, np.nan)
+        var = np.where(n > 0, (np.where(ok, x - mean, 0.0) ** 2).sum(axis=0) / n, np.nan)
+    return mean, np.sqrt(var)
+
+
+def _column_median(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Median of each column over its finite values (NaN if none), without warnings."""
+    ok = np.isfinite(x).any(axis=0)
+    out = np.full(x.shape[1], np.nan)
+    if ok.any():
+        out[ok] = np.nanmedian(x[:, ok], axis=0)
+    return out
+
+
+def _on_grid(
+    passes: Sequence[Pass], step: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Common grid and every pass's level (mm) and force (N) on it (NaN where not covered)."""
+    lo = min(float(np.nanmin(p.chainage_m)) for p in passes)
+    hi = max(float(np.nanmax(p.chainage_m)) for p in passes)
+    grid = np.arange(math.floor(lo / step) * step, hi + 1e-9, step)
+    levels = np.full((len(passes), grid.size), np.nan)
+    forces = np.full((len(passes), grid.size), np.nan)
+    for j, p in enumerate(passes):
+        x = np.asarray(p.chainage_m, dtype=float)
+        y = np.asarray(p.level_mm, dtype=float)
+        if x.shape != y.shape or x.ndim != 1 or x.size < 2:
+            raise ParameterError(
+                f"pass {j} ({p.label or p.kind}): chainage_m and level_mm must be 1-D arrays of "
+                "the same length >= 2"
+            )
+        if np.any(np.diff(x) <= 0):
+            raise ParameterError(f"pass {j} ({p.label or p.kind}): chainage_m must increase")
+        try:
+            f = np.broadcast_to(np.asarray(p.force_n, dtype=float), x.shape)
+        except ValueError:
+            raise ParameterError(
+                f"pass {j} ({p.label or p.kind}): force_n must be a number of N or one value "
+                f"per chainage point ({x.size}), got shape {np.shape(p.force_n)}"
+            ) from None
+        if np.any(np.isfinite(f) & (f <= 0)):
+            raise ParameterError(
+                f"pass {j} ({p.label or p.kind}): wheel force must be > 0 N (compression)"
+            )
+        ok = np.isfinite(y) & np.isfinite(f)
+        if ok.sum() < 2:
+            continue
+        inside = (grid >= x[ok][0]) & (grid <= x[ok][-1])
+        # a gap inside the pass stays a gap: interpolate the validity too
+        valid = np.interp(grid, x, ok.astype(float)) > 0.999
+        sel = inside & valid
+        levels[j, sel] = np.interp(grid[sel], x[ok], y[ok])
+        forces[j, sel] = np.interp(grid[sel], x[ok], f[ok])
+    return grid, levels, forces
+
+
+@lru_cache(maxsize=8)
+def _detectable_depth(
+    params: TrackParams, load: float, lambda_min: float, lambda_max: float, taper: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Peak level dip (mm, > 0) of a 6 m zone against its loss, under ``load``, in the band."""
+    from .stiffness import QuasiStaticModel
+
+    step = 0.25
+    grid = np.arange(-60.0, 60.0 + step / 2, step)
+    model = QuasiStaticModel(params, grid[0], grid[-1], grid, load)
+    base = model.level(np.ones(model.node_x.size))
+    losses = np.linspace(0.0, 0.9, 19)
+    depths = np.zeros(losses.size)
+    for i, loss in enumerate(losses[1:], start=1):
+        d = (model.level(model.factors(-3.0, 3.0, float(loss))) - base) * 1e3
+        db = bandpass_distance(d, step, lambda_min, lambda_max, taper)
+        depths[i] = -float(np.nanmin(db))
+    return losses, depths
+
+
+def _edge_variance(
+    grid: NDArray[np.float64], levels: NDArray[np.float64], step: float, cfg: SeparationConfig
+) -> NDArray[np.float64]:
+    """Variance of each pass's level error near its ends, mm² (passes x points).
+
+    ``(edge_factor * sigma_j * exp(-d / edge_decay_m))²`` with ``d`` the distance to the
+    nearer end of the pass's coverage and ``sigma_j`` the robust spread of its level about
+    a 40 m baseline (the rail's roughness as this pass sees it).
+    """
+    out = np.zeros_like(levels)
+    decay = cfg.edge_decay_m if cfg.edge_decay_m is not None else 1.15 * cfg.lambda_max_m
+    for j in range(levels.shape[0]):
+        ok = np.isfinite(levels[j])
+        if not ok.any():
+            continue
+        idx = np.flatnonzero(ok)
+        d = np.minimum(grid - grid[idx[0]], grid[idx[-1]] - grid)
+        y = levels[j]
+        sigma = robust_sigma(y - robust_baseline(y, step, 40.0))
+        out[j] = np.where(ok, (cfg.edge_factor * sigma * np.exp(-np.maximum(d, 0) / decay)) ** 2, 0)
+    return out
+
+
+def _weighted_fit(
+    z: NDArray[np.float64], fbar: NDArray[np.float64], weights: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], ...]:
+    """Per point, weighted least squares of ``z_j = a - Fbar_j b`` over the covering passes.
+
+    ``weights`` (passes x points) are inverse variances, 1/mm². Returns a, b (mm/N), their
+    variances, the weighted mean force, the residuals and the count of covering passes.
+    """
+    cov = np.isfinite(z)
+    W = np.where(cov, weights, 0.0)
+    F = np.broadcast_to(fbar[:, None], z.shape)
+    zz = np.where(cov, z, 0.0)
+    sw = W.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fm = (W * F).sum(axis=0) / sw
+        zm = (W * zz).sum(axis=0) / sw
+        dF = np.where(cov, F - fm, 0.0)
+        sxx = (W * dF**2).sum(axis=0)
+        b = -(W * dF * (zz - zm)).sum(axis=0) / sxx
+        a = zm + b * fm
+        var_b = 1.0 / sxx
+        var_a = 1.0 / sw + fm**2 * var_b
+    resid = np.where(cov, z - (a - F * b), np.nan)
+    return a, b, var_a, var_b, fm, resid, cov.sum(axis=0)
+
+
+def separate(
+    passes: Sequence[Pass], track: TrackParams | None = None, config: SeparationConfig | None = None
+) -> SeparationResult:
+    """Separate unloaded geometry from support stiffness over aligned passes.
+
+    Parameters
+    ----------
+    passes : sequence of Pass
+        Aligned passes (runs and surveys), levels in mm in the band, forces in N.
+    track : TrackParams, optional
+        Nominal rail and support properties (default UIC60 on 80 kN/mm).
+    config : SeparationConfig, optional
+        Thresholds.
+
+    Returns
+    -------
+    SeparationResult
+    """
+    cfg = config or SeparationConfig()
+    trk = track or TrackParams()
+    if len(passes) == 0:
+        raise ParameterError("separation needs at least one pass")
+    step = cfg.grid_step_m or float(passes[0].chainage_m[1] - passes[0].chainage_m[0])
+    grid, levels, forces = _on_grid(passes, step)
+    n_pass = len(passes)
+    fbar = np.array([float(np.nanmean(f)) if np.isfinite(f).any() else np.nan for f in forces])
+    c0 = float(InfluenceLine(trk)(np.zeros(1))[0]) * 1e3  # mm/N
+    # force correction: the nominal track's deflection under each pass's dynamic force
+    z = levels.copy()
+    for j in range(n_pass):
+        df = forces[j] - fbar[j]
+        if np.isfinite(df).sum() >= 8:
+            z[j] = levels[j] + c0 * bandpass_distance(
+                df, step, cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper
+            )
+    cov = np.isfinite(z)
+    n_cov = cov.sum(axis=0)
+    with np.errstate(invalid="ignore"):
+        fmax = np.nanmax(np.where(cov, fbar[:, None], np.nan), axis=0, initial=-np.inf)
+        fmin = np.nanmin(np.where(cov, fbar[:, None], np.nan), axis=0, initial=np.inf)
+        ratio = np.where(n_cov > 0, fmax / fmin, np.nan)
+
+    # near a pass's ends the inversion's band edges ring over ~lambda_max: an error growing
+    # with the rail's roughness (docs/method.md, measured) enters as extra variance
+    edge_var = _edge_variance(grid, levels, step, cfg)
+    # per-pass noise from the residuals (two rounds); the prior where no dof is left
+    noise_mm = np.full(n_pass, cfg.prior_noise_mm)
+    fit_ok = (n_cov >= 2) & (ratio > 1.0 + 1e-6)
+    for _ in range(2):
+        weights = 1.0 / (noise_mm[:, None] ** 2 + edge_var)
+        a, b, var_a, var_b, fm, resid, _n = _weighted_fit(z, fbar, weights)
+        dof = n_cov - 2
+        new = np.empty(n_pass)
+        for j in range(n_pass):
+            use = cov[j] & fit_ok & (dof > 0) & (edge_var[j] < noise_mm[j] ** 2)
+            if use.sum() < 40:
+                new[j] = cfg.prior_noise_mm
+                continue
+            # residual variance scaled up for the fitted parameters' share (n / (n - 2))
+            scale = float(np.mean(n_cov[use] / np.maximum(dof[use], 1)))
+            new[j] = max(robust_sigma(resid[j, use]) * math.sqrt(scale), 0.25 * cfg.prior_noise_mm)
+        noise_mm = new
+
+    sd_b = np.sqrt(var_b)  # mm/N
+    losses, depths = _detectable_depth(
+        trk, cfg.reference_load_n, cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper
+    )
+    dip_mm = -cfg.reference_load_n * b  # level dip under the reference load (negative = soft)
+    dip_sd = cfg.reference_load_n * sd_b
+    with np.errstate(invalid="ignore"):
+        min_loss = np.interp(cfg.noise_factor * dip_sd, depths, losses, right=1.0)
+    separable = (
+        (n_cov >= cfg.min_passes)
+        & (ratio >= cfg.min_load_ratio)
+        & np.isfinite(b)
+        & (min_loss <= cfg.max_detectable_loss)
+    )
+
+    # geometry: the intercept where separable; else the mean corrected level (nominal stiffness)
+    zmean, zsd = _column_mean_sd(z)
+    geometry = np.where(separable, a, zmean)
+    geometry_sd = np.where(separable, np.sqrt(var_a), np.maximum(zsd, noise_mm.mean()))
+    geometry = np.where(n_cov > 0, geometry, np.nan)
+    geometry_sd = np.where(n_cov > 0, geometry_sd, np.nan)
+
+    spots: list[SeparatedSpot] = []
+    k_rel = np.where(separable, 1.0, np.nan)
+    k_lo = np.where(separable, 1.0 - min_loss, np.nan)
+    k_hi = np.where(separable, 1.0, np.nan)
+    if separable.any():
+        spots = _soft_spots(grid, np.where(separable, dip_mm, np.nan), dip_sd, trk, cfg)
+        for s in spots:
+            inside = (grid >= s.start_m) & (grid <= s.end_m)
+            k_rel[inside] = 1.0 - s.loss_pct / 100
+            k_lo[inside] = 1.0 - s.loss_hi_pct / 100
+            k_hi[inside] = 1.0 - s.loss_lo_pct / 100
+
+    compliance = np.where(separable, (c0 + b) * 1e3, np.nan)
+    compliance_sd = np.where(separable, sd_b * 1e3, np.nan)
+    covered = n_cov > 0
+    message = _message(n_cov, ratio, separable, cfg)
+    dips: list[Dip] = []
+    if message is not None:
+        mean_level = np.where(covered & ~separable, _column_mean_sd(levels)[0], np.nan)
+        det = DetectionConfig()
+        resid_level = mean_level - robust_baseline(mean_level, step, det.baseline_window_m)
+        dips, _ = find_dips(grid, resid_level, det)
+    contributors = [(p.label, p.kind, float(fbar[j])) for j, p in enumerate(passes)]
+    return SeparationResult(
+        chainage_m=grid,
+        geometry_mm=geometry,
+        geometry_sd_mm=geometry_sd,
+        k_rel=k_rel,
+        k_rel_lo=k_lo,
+        k_rel_hi=k_hi,
+        compliance_mm_per_kn=compliance,
+        compliance_sd_mm_per_kn=compliance_sd,
+        n_passes=n_cov.astype(np.int64),
+        load_ratio=ratio,
+        separable=separable,
+        message=message,
+        soft_spots=spots,
+        contributors=contributors,
+        dips=dips,
+        config=cfg,
+    )
+
+
+def _soft_spots(
+    grid: NDArray[np.float64],
+    dip_mm: NDArray[np.float64],
+    dip_sd: NDArray[np.float64],
+    trk: TrackParams,
+    cfg: SeparationConfig,
+) -> list[SeparatedSpot]:
+    """Significant compliance dips, fitted with the beam-on-supports model."""
+    step = float(grid[1] - grid[0])
+    resid = dip_mm - robust_baseline(dip_mm, step, 40.0)
+    spread = robust_sigma(resid)
+    sd_eff = np.maximum(np.where(np.isfinite(dip_sd), dip_sd, np.inf), spread)
+    det = DetectionConfig(noise_factor=cfg.noise_factor, min_depth_mm=1e-6)
+    # local threshold: scale by the local standard deviation before the detector
+    scaled = resid / sd_eff
+    cand, _ = find_dips(grid, scaled, replace(det, noise_factor=1.0, min_depth_mm=cfg.noise_factor))
+    load = cfg.reference_load_n
+    half = 0.5 * trk.spacing
+    out: list[SeparatedSpot] = []
+    for d in cand:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = fit_zone(grid, resid, d.start_m, d.end_m, trk, load, cfg.lambda_min_m,
+                         cfg.lambda_max_m, taper=cfg.taper)  # fmt: skip
+        if not math.isfinite(f.loss) or f.loss < cfg.min_loss:
+            continue
+        zone = (grid >= f.start_m - 3.0) & (grid <= f.end_m + 3.0)
+        sd_zone = float(np.nanmedian(sd_eff[zone])) if zone.any() else spread
+        shift = cfg.confidence_z * sd_zone
+        near = np.abs(grid - 0.5 * (f.start_m + f.end_m)) <= 0.5 * (f.end_m - f.start_m) + 3.0
+        deeper = np.where(near, resid - shift, resid)
+        shallower = np.where(near, resid + shift, resid)
+        with np.errstate(divide="ignore", invalid="ignore"):  # a loss scanned down to 0
+            hi = fit_zone(grid, deeper, f.start_m, f.end_m, trk, load, cfg.lambda_min_m,
+                          cfg.lambda_max_m, taper=cfg.taper, refine_extent=False)  # fmt: skip
+            lo = fit_zone(grid, shallower, f.start_m, f.end_m, trk, load, cfg.lambda_min_m,
+                          cfg.lambda_max_m, taper=cfg.taper, refine_extent=False)  # fmt: skip
+        if lo.loss <= 0.0:
+            continue
+        k = int(np.argmin(np.abs(grid - d.peak_m)))
+        depth = float(-resid[k])
+        z = depth / sd_zone
+        conf = 0.5 * (1.0 + math.erf((z - cfg.noise_factor / 2) / math.sqrt(2.0)))
+        out.append(
+            SeparatedSpot(
+                start_m=f.start_m - half,
+                end_m=f.end_m + half,
+                peak_m=d.peak_m,
+                loss_pct=100.0 * f.loss,
+                loss_lo_pct=100.0 * min(lo.loss, f.loss),
+                loss_hi_pct=100.0 * max(hi.loss, f.loss),
+                confidence=conf,
+                depth_mm=depth,
+            )
+        )
+    return out
+
+
+def is_smooth_rail(
+    result: ProcessResult | float, threshold_mm: float = SMOOTH_RAIL_SIGMA_MM
+) -> GeometryCheck:
+    """Whether one pass shows the rail smooth at the noise level (single-pass figures valid).
+
+    Parameters
+    ----------
+    result : ProcessResult or float
+        A processed run, or directly the robust spread of its residual, mm.
+    threshold_mm : float
+        Largest robust spread of the residual (level minus 40 m baseline) of a smooth rail, mm.
+
+    Returns
+    -------
+    GeometryCheck
+        ``smooth`` true when the spread is at or below the threshold; a message otherwise.
+    """
+    if isinstance(result, ProcessResult):
+        sigma = float(result.extras.get("residual_sigma_mm", float("nan")))
+    else:
+        sigma = float(result)
+    smooth = bool(math.isfinite(sigma) and sigma <= threshold_mm)
+    return GeometryCheck(smooth, sigma, threshold_mm, None if smooth else SMOOTH_RAIL_MESSAGE)
