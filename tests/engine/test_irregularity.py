@@ -16,7 +16,7 @@ from engine.irregularity import (
 )
 from engine.synthetic import make_run, make_track
 from engine.track import SoftZone, TrackParams
-from engine.vehicle import HEAVY, PRESETS, TABLE1, get_preset
+from engine.vehicle import HEAVY, PRESETS, TABLE1, VehicleParams, get_preset
 from support.samples import shared_data_dir
 
 
@@ -87,7 +87,7 @@ def test_presets_heavy_is_the_public_sets_vehicle_with_twice_the_load():
     truth = d / "geometry" / "geo_heavy_1.truth.json" if d else None
     if truth is None or not truth.exists():
         pytest.skip("public geometry set not available")
-    assert json.loads(truth.read_text())["vehicle"] == HEAVY.to_dict()
+    assert HEAVY == VehicleParams.from_dict(json.loads(truth.read_text())["vehicle"])
 
 
 def test_forward_model_rides_on_the_unloaded_geometry():
