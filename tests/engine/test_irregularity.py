@@ -87,7 +87,7 @@ def test_presets_heavy_is_the_public_sets_vehicle_with_twice_the_load():
     truth = d / "geometry" / "geo_heavy_1.truth.json" if d else None
     if truth is None or not truth.exists():
         pytest.skip("public geometry set not available")
-    assert HEAVY == VehicleParams.from_dict(json.loads(truth.read_text())["vehicle"])
+    assert VehicleParams.from_dict(json.loads(truth.read_text())["vehicle"]) == HEAVY
 
 
 def test_forward_model_rides_on_the_unloaded_geometry():
