@@ -20,7 +20,6 @@ from collections.abc import Sequence
 from sqlalchemy import select
 
 from app.core.config import get_settings
-from app.core.errors import ApiError
 from app.core.security import generate_key, hash_key, key_prefix
 from app.db.base import utcnow
 from app.db.migrate import upgrade
@@ -28,8 +27,10 @@ from app.db.models import ApiKey, Track
 from app.db.session import Database
 from app.schemas.simulate import SimulateRequest
 from app.services.context import AppContext
+from app.services.errors import DomainError
 from app.services.integrate import realign_track
 from app.services.simulation import simulate_and_submit
+from engine.errors import EngineError
 
 
 def _db() -> Database:
@@ -48,9 +49,9 @@ def cmd_demo(ns: argparse.Namespace) -> int:
     ctx = AppContext(settings=get_settings(), db=_db())
     body = SimulateRequest(track=ns.track, name="Demo run (simulated, two soft zones)")
     try:
-        run_id, created, truth = simulate_and_submit(ctx, body)
-    except ApiError as exc:
-        print(f"demo run not stored: {exc.message}", file=sys.stderr)
+        run_id, created, truth = simulate_and_submit(ctx, body.to_spec())
+    except (DomainError, EngineError) as exc:
+        print(f"demo run not stored: {exc}", file=sys.stderr)
         return 2
     zones = ", ".join(f"{z.start_m:g}-{z.end_m:g} m ({z.loss:.0%} loss)" for z in truth.zones)
     state = "stored" if created else "already stored"

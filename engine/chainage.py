@@ -13,6 +13,10 @@ from .runlog import RunLog
 from .spectral import band_window
 from .vehicle import VehicleParams
 
+GRID_STEP_M = 0.25
+"""The product's chainage grid step, m: profiles are resampled to it (the finest allowed), the
+track grid of aligned runs is its multiples, and heatmap bins are never narrower."""
+
 
 @dataclass(frozen=True)
 class AxlePositions:

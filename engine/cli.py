@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .chainage import GRID_STEP_M
 from .detect import DetectionConfig
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import EngineError
@@ -418,7 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pr.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
     pr.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")
-    pr.add_argument("--grid-step", type=float, default=0.25, help="chainage grid step, m")
+    pr.add_argument("--grid-step", type=float, default=GRID_STEP_M, help="chainage grid step, m")
     d = DetectionConfig()
     pr.add_argument(
         "--baseline-window", type=float, default=d.baseline_window_m, help="baseline median, m"

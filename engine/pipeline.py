@@ -8,7 +8,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .chainage import AxlePositions, axle_positions, bandpass_distance, to_grid
+from .chainage import GRID_STEP_M, AxlePositions, axle_positions, bandpass_distance, to_grid
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import InversionError, ParameterError
@@ -60,7 +60,7 @@ class ProcessConfig:
     method: Method = "spectral"
     lambda_min_m: float = 3.0
     lambda_max_m: float = 40.0
-    grid_step_m: float = 0.25
+    grid_step_m: float = GRID_STEP_M
     taper: float = 0.3
     detection: DetectionConfig = field(default_factory=DetectionConfig)
     fit_stiffness: bool = True
@@ -73,8 +73,10 @@ class ProcessConfig:
                 "wavelength band must satisfy 0 < lambda_min_m < lambda_max_m, got "
                 f"{self.lambda_min_m} m, {self.lambda_max_m} m"
             )
-        if not (0 < self.grid_step_m <= 0.25):
-            raise ParameterError(f"grid_step_m must be in (0, 0.25] m, got {self.grid_step_m}")
+        if not (0 < self.grid_step_m <= GRID_STEP_M):
+            raise ParameterError(
+                f"grid_step_m must be in (0, {GRID_STEP_M}] m, got {self.grid_step_m}"
+            )
         if not (0 < self.taper <= 1):
             raise ParameterError(f"taper must be in (0, 1], got {self.taper}")
 

@@ -40,16 +40,21 @@ class Limits:
 
     def __post_init__(self) -> None:
         for kind, unit in (("depth_mm", "mm"), ("loss_pct", "%")):
-            vals = [getattr(self, f"{lv}_{kind}") for lv in ("alert", "intervention", "immediate")]
-            for lv, v in zip(("alert", "intervention", "immediate"), vals, strict=True):
-                if v is not None and not (math.isfinite(v) and v > 0):
-                    raise ParameterError(f"limit {lv}_{kind} must be > 0 {unit} or null")
-            given = [v for v in vals if v is not None]
-            if given != sorted(given):
-                raise ParameterError(
-                    f"limits on {kind} must grow from alert to intervention to immediate, got "
-                    f"{vals}"
-                )
+            prev: tuple[str, float] | None = None
+            for lv in ("alert", "intervention", "immediate"):
+                name = f"{lv}_{kind}"
+                v = getattr(self, name)
+                if v is None:
+                    continue
+                if not (math.isfinite(v) and v > 0):
+                    raise ParameterError(f"limit {name} must be > 0 {unit} or null", field=name)
+                if prev is not None and v < prev[1]:
+                    raise ParameterError(
+                        f"{name} ({v:g} {unit}) is below {prev[0]} ({prev[1]:g} {unit}): limits "
+                        "must grow from alert to intervention to immediate",
+                        field=name,
+                    )
+                prev = (name, v)
 
     def level(self, depth_mm: float, loss_pct: float | None) -> str | None:
         """The most urgent level reached, or None."""

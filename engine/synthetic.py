@@ -8,12 +8,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .detect import robust_baseline
-from .errors import ParameterError
 from .irregularity import Profile, Spectrum, profile_from_samples, random_profile
 from .results import ProcessResult
 from .runlog import RunLog
 from .sensor import SensorModel
-from .simulate import SimulationResult, simulate
+from .simulate import END_MARGIN_M, SimulationResult, room_to_run, simulate
 from .track import SoftZone, Track, TrackParams
 from .vehicle import TABLE1, VehicleParams
 
@@ -155,7 +154,7 @@ def make_run(
     seed: int = 0,
     vehicle: VehicleParams = TABLE1,
     params: TrackParams | None = None,
-    end_margin_m: float = 10.0,
+    end_margin_m: float = END_MARGIN_M,
     track_seed: int | None = None,
     irregularity: IrregularityInput | None = None,
     track: tuple[Track, Profile | None] | None = None,
@@ -208,13 +207,7 @@ def make_run(
     trk, prof = track
     length = trk.length
     zones = trk.zones
-    lead = vehicle.d1 if direction == "increasing" else vehicle.d2
-    if direction == "increasing":
-        room = length - end_margin_m - (start_chainage_m + lead)
-    else:
-        room = start_chainage_m - lead - end_margin_m
-    if room <= 0:
-        raise ParameterError("no room to run: start chainage too close to the track end")
+    room = room_to_run(length, start_chainage_m, direction, vehicle, end_margin_m)
     if isinstance(speed, tuple):
         v0, v1 = speed
         duration = 2.0 * room / (v0 + v1)

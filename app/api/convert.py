@@ -12,7 +12,7 @@ _PROGRESS = {"queued": 0.05, "inverting": 0.35, "storing": 0.85}
 
 def run_public(run: Run) -> RunPublic:
     """The public view of a run."""
-    off = run.chainage_offset_m or 0.0
+    lo, hi = run.aligned_extent()
     progress = 1.0 if run.status != "processing" else _PROGRESS.get(run.stage or "queued", 0.05)
     return RunPublic(
         id=run.id,
@@ -33,9 +33,9 @@ def run_public(run: Run) -> RunPublic:
         duration_s=run.duration_s,
         speed_min_mps=run.speed_min_mps,
         speed_max_mps=run.speed_max_mps,
-        chainage_min_m=None if run.chainage_min_m is None else run.chainage_min_m + off,
-        chainage_max_m=None if run.chainage_max_m is None else run.chainage_max_m + off,
-        chainage_offset_m=off,
+        chainage_min_m=lo,
+        chainage_max_m=hi,
+        chainage_offset_m=run.offset_m,
         alignment=_alignment(run),
         status=run.status,  # type: ignore[arg-type]
         stage=run.stage if run.status == "processing" else None,  # type: ignore[arg-type]
@@ -55,7 +55,7 @@ def _alignment(run: Run) -> RunAlignmentPublic | None:
         return None
     return RunAlignmentPublic(
         status=run.alignment_status,  # type: ignore[arg-type]
-        offset_m=run.chainage_offset_m or 0.0,
+        offset_m=run.offset_m,
         correlation=run.alignment_correlation,
         overlap_m=run.alignment_overlap_m,
         reason=run.alignment_reason,

@@ -17,37 +17,34 @@ from fastapi.responses import JSONResponse
 from sqlalchemy.exc import DataError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from engine.errors import EngineError, LogFormatError, ParameterError
+from app.services.errors import (
+    Conflict,
+    DomainError,
+    Invalid,
+    NotFound,
+    TooLarge,
+    engine_error_facts,
+)
+from engine.errors import EngineError
 
 log = logging.getLogger(__name__)
 
 
-class ApiError(Exception):
-    """An error answered to the client with ``status_code`` and a structured detail."""
+class ApiError(DomainError):
+    """An error of the HTTP layer itself (a body that is not JSON, a missing file part, an
+    unsupported content type), answered with ``status_code``; services raise domain errors."""
 
     def __init__(
         self,
         status_code: int,
         message: str,
         *,
-        field: str | None = None,
-        column: str | None = None,
-        row: int | None = None,
-        unit: str | None = None,
         headers: dict[str, str] | None = None,
-        **extra: Any,
+        **facts: Any,
     ) -> None:
-        super().__init__(message)
+        super().__init__(message, **facts)
         self.status_code = status_code
-        self.message = message
         self.headers = headers
-        self.facts: dict[str, Any] = {
-            "field": field, "column": column, "row": row, "unit": unit, **extra
-        }  # fmt: skip
-
-    def detail(self) -> dict[str, Any]:
-        """The ``detail`` object of the answer (facts that are None left out)."""
-        return {"message": self.message} | {k: v for k, v in self.facts.items() if v is not None}
 
 
 RETRY_AFTER_S = 2
@@ -62,18 +59,21 @@ class BodyTooLarge(Exception):
         self.limit_bytes = limit_bytes
 
 
-def engine_error_detail(exc: EngineError) -> dict[str, Any]:
-    """The structured detail of an engine input error (message, column, row, field)."""
-    detail: dict[str, Any] = {"message": str(exc)}
-    if isinstance(exc, LogFormatError):
-        if exc.column is not None:
-            detail["column"] = exc.column
-        if exc.row is not None:
-            detail["row"] = exc.row
-    if isinstance(exc, ParameterError) and exc.field is not None:
-        detail["field"] = exc.field
-    detail["kind"] = type(exc).__name__
-    return detail
+DOMAIN_STATUS: dict[type[DomainError], int] = {
+    NotFound: 404,
+    Conflict: 409,
+    Invalid: 422,
+    TooLarge: 413,
+}
+"""Status code of each domain error of the services (the only place that knows them)."""
+
+
+def domain_status(exc: DomainError) -> int:
+    """The status code of a domain error (its nearest class in :data:`DOMAIN_STATUS`)."""
+    for cls in type(exc).__mro__:
+        if cls in DOMAIN_STATUS:
+            return DOMAIN_STATUS[cls]
+    return 422
 
 
 def too_large_detail(limit_bytes: int) -> dict[str, Any]:
@@ -160,9 +160,13 @@ def install_error_handlers(app: FastAPI) -> None:
             status_code=exc.status_code, content={"detail": exc.detail()}, headers=exc.headers
         )
 
+    @app.exception_handler(DomainError)
+    async def _domain_error(_request: Request, exc: DomainError) -> JSONResponse:
+        return JSONResponse(status_code=domain_status(exc), content={"detail": exc.detail()})
+
     @app.exception_handler(EngineError)
     async def _engine_error(_request: Request, exc: EngineError) -> JSONResponse:
-        return JSONResponse(status_code=422, content={"detail": engine_error_detail(exc)})
+        return JSONResponse(status_code=422, content={"detail": engine_error_facts(exc)})
 
     @app.exception_handler(BodyTooLarge)
     async def _too_large(_request: Request, exc: BodyTooLarge) -> JSONResponse:

@@ -164,6 +164,19 @@ class Run(Base):
         order_by="SoftSpot.start_m", passive_deletes=True, cascade="all, delete-orphan"
     )
 
+    @property
+    def offset_m(self) -> float:
+        """Offset from the run's stored chainage to the track's (aligned), m; 0 until aligned."""
+        return self.chainage_offset_m or 0.0
+
+    def aligned_extent(self) -> tuple[float | None, float | None]:
+        """First and last chainage of the run's profile on the track (aligned), m; None
+        before the run is processed."""
+        off = self.offset_m
+        lo = None if self.chainage_min_m is None else self.chainage_min_m + off
+        hi = None if self.chainage_max_m is None else self.chainage_max_m + off
+        return lo, hi
+
 
 class RunInput(Base):
     """The parsed log of a run waiting for the worker (deleted once the run is done or failed).

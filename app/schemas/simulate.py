@@ -7,6 +7,11 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
+from app.services.simulation import SimulationSpec
+from engine.sensor import SensorModel
+from engine.synthetic import REALISTIC_SENSOR
+from engine.track import SoftZone
+
 from .common import Name, StrictModel
 from .runs import Direction, RunCreated
 
@@ -81,6 +86,30 @@ class SimulateRequest(StrictModel):
     @classmethod
     def _zones_sorted(cls, zones: list[ZoneSpec]) -> list[ZoneSpec]:
         return sorted(zones, key=lambda z: z.start_m)
+
+    def to_spec(self) -> SimulationSpec:
+        """The service's plain description of this request (engine types, the sensor chosen)."""
+        if self.sensor == "ideal":
+            sensor = SensorModel()
+        elif self.sensor == "realistic":
+            sensor = REALISTIC_SENSOR
+        else:
+            sensor = SensorModel(**self.sensor.model_dump())
+        return SimulationSpec(
+            track=self.track,
+            vehicle=self.vehicle,
+            name=self.name,
+            length_m=self.length_m,
+            speed_mps=self.speed_mps,
+            zones=tuple(SoftZone(z.start_m, z.end_m, z.loss) for z in self.zones),
+            start_chainage_m=self.start_chainage_m,
+            direction=self.direction,
+            sensor=sensor,
+            jitter=self.jitter,
+            seed=self.seed,
+            recorded_at=self.recorded_at,
+            record=self.model_dump(mode="json"),
+        )
 
 
 class TruthPublic(BaseModel):

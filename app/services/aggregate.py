@@ -18,8 +18,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import TrackProfilePoint, TrackRunLevels
 from engine.aggregate import aggregate_levels
-
-from .alignment import GRID_STEP_M
+from engine.chainage import GRID_STEP_M
 
 CHUNK_POINTS = 1000
 """Grid points per stored chunk of a run's aligned levels (250 m)."""

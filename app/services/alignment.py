@@ -22,10 +22,10 @@ from sqlalchemy.orm import Session
 
 from app.db.models import TrackProfilePoint
 from engine.align import align_profiles
+from engine.chainage import GRID_STEP_M
 from engine.errors import EngineError
 
-GRID_STEP_M = 0.25
-"""Step of the track grid, m: grid point ``i`` is at chainage ``i * GRID_STEP_M``."""
+# The track grid: grid point ``i`` is at chainage ``i * GRID_STEP_M`` (the engine's step).
 
 MAX_SHIFT_M = 10.0
 """Largest chainage offset searched, m (either way): twice the start-chainage errors seen."""

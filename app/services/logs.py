@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from app.core.errors import ApiError
+from app.services.errors import Invalid, TooLarge
 from engine.errors import InputTooLarge, LogFormatError, ParameterError
 from engine.logio import MAX_DECOMPRESSED_BYTES, CsvOptions, read_run_csv
 from engine.runlog import RunLog
@@ -28,13 +28,6 @@ def sha256_hex(*chunks: bytes) -> str:
     return h.hexdigest()
 
 
-def log_format_error(exc: LogFormatError, field: str = "file") -> ApiError:
-    """A 422 naming the column and row of a file that cannot be read."""
-    return ApiError(
-        422, str(exc), field=field, column=exc.column, row=exc.row, kind="LogFormatError"
-    )
-
-
 def parse_csv(
     data: bytes, options: dict[str, Any], field: str = "file", max_bytes: int | None = None
 ) -> RunLog:
@@ -45,31 +38,31 @@ def parse_csv(
 
     Raises
     ------
-    ApiError
-        422 naming the column, row or unit when the file cannot be read; 413 when a gzip file
-        expands to more than ``max_bytes``.
+    Invalid
+        Naming the column, row or unit when the file cannot be read, or the option at fault.
+    TooLarge
+        A gzip file expands to more than ``max_bytes``.
     """
     try:
         opts = CsvOptions.from_dict({k: v for k, v in options.items() if v is not None})
     except ParameterError as exc:
         # The reader names the option at fault (ParameterError.field).
-        raise ApiError(422, str(exc), field=exc.field, kind="ParameterError") from None
+        raise Invalid.from_engine(exc) from None
     if not data:
-        raise ApiError(422, "the uploaded file is empty", field=field)
+        raise Invalid("the uploaded file is empty", field=field)
     try:
         return read_run_csv(
             data, opts, max_bytes=MAX_DECOMPRESSED_BYTES if max_bytes is None else max_bytes
         )
     except InputTooLarge as exc:
-        raise ApiError(
-            413,
+        raise TooLarge(
             f"{exc} (TRACKPROFILE_MAX_UPLOAD_MB)",
             field=field,
             limit_bytes=exc.limit_bytes,
             kind="InputTooLarge",
         ) from None
     except LogFormatError as exc:
-        raise log_format_error(exc, field) from None
+        raise Invalid.from_engine(exc, field) from None
 
 
 def log_from_columns(columns: dict[str, list[float] | None]) -> RunLog:
@@ -77,8 +70,8 @@ def log_from_columns(columns: dict[str, list[float] | None]) -> RunLog:
 
     Raises
     ------
-    ApiError
-        422 naming the column and row (line 2 = first sample, as in a CSV) on bad values.
+    Invalid
+        Naming the column and row (line 2 = first sample, as in a CSV) on bad values.
     """
     arrays = {
         k: (None if v is None else np.asarray(v, dtype=np.float64)) for k, v in columns.items()
@@ -86,7 +79,7 @@ def log_from_columns(columns: dict[str, list[float] | None]) -> RunLog:
     try:
         return RunLog(**arrays)  # type: ignore[arg-type]
     except LogFormatError as exc:
-        raise log_format_error(exc, "columns") from None
+        raise Invalid.from_engine(exc, "columns") from None
 
 
 def hash_columns(log: RunLog) -> str:

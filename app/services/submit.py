@@ -16,7 +16,6 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.core.errors import ApiError, engine_error_detail
 from app.db.models import Run, RunInput, RunSignals, Track, Vehicle
 from app.schemas.common import url_name_problem
 from app.schemas.tracks import TrackParamsFields
@@ -27,6 +26,7 @@ from engine.track import TrackParams
 from engine.vehicle import VehicleParams
 
 from .context import AppContext
+from .errors import Conflict, Invalid
 from .logs import pack_log, summarize
 from .processing import Processed, invert, store_result
 from .signals import log_signals
@@ -66,18 +66,17 @@ def clean_filename(name: str | None) -> str | None:
 
 
 def resolve_vehicle(session: Session, name: str | None, vehicle_id: int | None) -> Vehicle:
-    """The vehicle named or numbered (default: the Table 1 vehicle); 422 when unknown."""
+    """The vehicle named or numbered (default: the Table 1 vehicle); Invalid when unknown."""
     if vehicle_id is not None:
         v = session.get(Vehicle, vehicle_id)
         if v is None:
-            raise ApiError(422, f"vehicle_id {vehicle_id} does not exist", field="vehicle_id")
+            raise Invalid(f"vehicle_id {vehicle_id} does not exist", field="vehicle_id")
         return v
     wanted = name or DEFAULT_VEHICLE
     v = session.scalar(select(Vehicle).where(Vehicle.name == wanted))
     if v is None:
         known = session.scalars(select(Vehicle.name).order_by(Vehicle.name).limit(20)).all()
-        raise ApiError(
-            422,
+        raise Invalid(
             f"vehicle {wanted!r} does not exist; known vehicles: {', '.join(known)} "
             "(create it with POST /api/v1/vehicles)",
             field="vehicle",
@@ -86,11 +85,11 @@ def resolve_vehicle(session: Session, name: str | None, vehicle_id: int | None) 
 
 
 def resolve_track(session: Session, name: str | None, track_id: int | None) -> Track | None:
-    """The track numbered (422 when unknown) or named (None: a new track of that name)."""
+    """The track numbered (Invalid when unknown) or named (None: a new track of that name)."""
     if track_id is not None:
         t = session.get(Track, track_id)
         if t is None:
-            raise ApiError(422, f"track_id {track_id} does not exist", field="track_id")
+            raise Invalid(f"track_id {track_id} does not exist", field="track_id")
         return t
     return session.scalar(select(Track).where(Track.name == name))
 
@@ -102,8 +101,7 @@ def _existing(session: Session, sub: Submission, track: Track | None) -> Run | N
         if prev is not None:
             same_track = track is not None and prev.track_id == track.id
             if prev.content_hash != sub.content_hash or not same_track:
-                raise ApiError(
-                    409,
+                raise Conflict(
                     f"Idempotency-Key {sub.idempotency_key!r} was already used for run {prev.id} "
                     "with different content or track; use a new key for a new run",
                     field="Idempotency-Key",
@@ -122,7 +120,7 @@ def _check_new_track_name(name: str | None) -> None:
     # already exist are found by their stored name whatever it is.
     problem = url_name_problem(name or "")
     if problem is not None:
-        raise ApiError(422, f"track name {name!r} {problem}", field="track")
+        raise Invalid(f"track name {name!r} {problem}", field="track")
 
 
 def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
@@ -130,8 +128,7 @@ def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
     # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
     # queued run does not fail later for a reason the client could have been told now.
     if sub.log.chainage_m is None and sub.start_chainage_m is None:
-        raise ApiError(
-            422,
+        raise Invalid(
             "start_chainage_m is required when the log has no chainage column: give the "
             "chainage of the body centre at the first sample, m",
             field="start_chainage_m",
@@ -144,12 +141,7 @@ def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
             vehicle=vehicle,
         )
     except EngineError as exc:
-        raise ApiError(422, **_engine_kwargs(exc)) from None
-
-
-def _engine_kwargs(exc: EngineError) -> dict[str, Any]:
-    detail = engine_error_detail(exc)
-    return {"message": detail.pop("message"), **detail}
+        raise Invalid.from_engine(exc) from None
 
 
 def submit(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
@@ -160,9 +152,10 @@ def submit(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
 
     Raises
     ------
-    ApiError
-        422 for unknown vehicles/tracks, missing start chainage and logs the engine rejects;
-        409 for a reused Idempotency-Key. Nothing is stored in either case.
+    Invalid
+        Unknown vehicles/tracks, missing start chainage and logs the engine rejects.
+    Conflict
+        A reused Idempotency-Key. Nothing is stored in either case.
     """
     for attempt in range(3):
         try:
@@ -170,8 +163,8 @@ def submit(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         except IntegrityError:
             # A concurrent request stored the same track name or content first: look again.
             if attempt == 2:
-                raise ApiError(
-                    409, "the run conflicts with one being stored at the same time; retry"
+                raise Conflict(
+                    "the run conflicts with one being stored at the same time; retry"
                 ) from None
     raise AssertionError("unreachable")
 
@@ -210,7 +203,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
                     track=tp,
                 )
             except EngineError as exc:
-                raise ApiError(422, **_engine_kwargs(exc)) from None
+                raise Invalid.from_engine(exc) from None
         packed = None
     else:
         packed = pack_log(sub.log)

@@ -21,9 +21,9 @@ from typing import Any, cast
 from sqlalchemy import CursorResult, Update, delete, or_, select, update
 from sqlalchemy.orm import Session
 
-from app.core.errors import engine_error_detail
 from app.db.base import utcnow
 from app.db.models import Run, RunInput
+from app.services.errors import engine_error_facts
 from engine.errors import EngineError
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
@@ -240,7 +240,7 @@ class Worker:
                 del runlog
         except EngineError as exc:
             with self.ctx.db.session() as s:
-                self._fail(s, run_id, engine_error_detail(exc))
+                self._fail(s, run_id, engine_error_facts(exc))
             return
         except Exception as exc:
             log.exception("processing run %s failed", run_id)

@@ -109,3 +109,19 @@ def test_axle_leaving_track_is_an_error():
     """A duration that would run an axle off the end is refused with the span in the message."""
     with pytest.raises(ParameterError, match="leaves the track"):
         simulate(Track(100.0), speed=30.0, duration=5.0, start_chainage_m=20.0)
+
+
+def test_room_to_run_is_one_rule_for_both_directions():
+    """The leading (front) axle keeps END_MARGIN_M to the end in either direction; a start off
+    the track, a rear axle off it or no room left are refused naming start_chainage_m."""
+    from engine.simulate import END_MARGIN_M, room_to_run
+
+    v = TABLE1
+    assert room_to_run(500.0, 30.0, "increasing", v) == pytest.approx(
+        500.0 - END_MARGIN_M - (30.0 + v.d1)
+    )
+    assert room_to_run(500.0, 470.0, "decreasing", v) == pytest.approx(470.0 - v.d1 - END_MARGIN_M)
+    for start, direction in ((600.0, "increasing"), (0.5, "increasing"), (499.0, "increasing")):
+        with pytest.raises(ParameterError) as err:
+            room_to_run(500.0, start, direction, v)
+        assert err.value.field == "start_chainage_m"

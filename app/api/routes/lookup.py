@@ -5,8 +5,8 @@ from __future__ import annotations
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.core.errors import ApiError
 from app.db.models import Track, Vehicle
+from app.services.errors import NotFound
 
 
 def get_track(session: Session, ref: str) -> Track:
@@ -15,7 +15,7 @@ def get_track(session: Session, ref: str) -> Track:
     if track is None:
         track = session.scalar(select(Track).where(Track.name == ref))
     if track is None:
-        raise ApiError(404, f"track {ref!r} not found (give its id or its name)", field="track")
+        raise NotFound(f"track {ref!r} not found (give its id or its name)", field="track")
     return track
 
 
@@ -25,5 +25,5 @@ def get_vehicle(session: Session, ref: str) -> Vehicle:
     if vehicle is None:
         vehicle = session.scalar(select(Vehicle).where(Vehicle.name == ref))
     if vehicle is None:
-        raise ApiError(404, f"vehicle {ref!r} not found (give its id or its name)", field="vehicle")
+        raise NotFound(f"vehicle {ref!r} not found (give its id or its name)", field="vehicle")
     return vehicle

@@ -11,6 +11,7 @@ from typing import Annotated, Any, Literal
 import orjson
 from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import StreamingResponse
 from pydantic import ValidationError
 from sqlalchemy import func, select
@@ -19,7 +20,7 @@ from starlette.datastructures import UploadFile
 
 from app.api.convert import run_public
 from app.api.deps import CtxDep, SessionDep
-from app.core.errors import ApiError, validation_detail
+from app.core.errors import ApiError
 from app.db.models import Run, RunSignals, SoftSpot
 from app.schemas.runs import (
     ProfilePublic,
@@ -84,12 +85,7 @@ def _validate(model: type[RunUploadForm], data: Any) -> RunUploadForm:
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        raise ApiError(422, **_vd(exc)) from None
-
-
-def _vd(exc: ValidationError) -> dict[str, Any]:
-    detail = validation_detail(exc.errors(include_url=False, include_input=False))
-    return {"message": detail.pop("message"), **detail}
+        raise RequestValidationError(exc.errors(include_url=False, include_input=False)) from None
 
 
 def _submission(
@@ -134,7 +130,7 @@ def _from_json(body: bytes, key: str | None) -> Submission:
     except ValidationError as exc:
         if any(e.get("type") == "json_invalid" for e in exc.errors()):
             raise ApiError(400, "the request body is not valid JSON", **_facts(exc)) from None
-        raise ApiError(422, **_vd(exc)) from None
+        raise RequestValidationError(exc.errors(include_url=False, include_input=False)) from None
     if meta.csv is not None:
         options = meta.csv_options()
         data = meta.csv.encode("utf-8")

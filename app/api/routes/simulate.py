@@ -9,7 +9,7 @@ from fastapi.concurrency import run_in_threadpool
 
 from app.api.deps import CtxDep
 from app.schemas.runs import RunCreated
-from app.schemas.simulate import SimulatePublic, SimulateRequest
+from app.schemas.simulate import SimulatePublic, SimulateRequest, TruthPublic
 from app.services.simulation import simulate_and_submit
 
 from .runs import answer_submission
@@ -37,6 +37,6 @@ async def simulate_run(
     Lets a new user try the product without a logger: the answer carries the run (its
     profile and soft spots are at the usual run endpoints) and the truth to compare with.
     """
-    run_id, created, truth = await run_in_threadpool(simulate_and_submit, ctx, body)
+    run_id, created, truth = await run_in_threadpool(simulate_and_submit, ctx, body.to_spec())
     run: RunCreated = await answer_submission(ctx, response, run_id, created, wait)
-    return SimulatePublic(run=run, truth=truth)
+    return SimulatePublic(run=run, truth=TruthPublic.model_validate(truth.to_dict()))

@@ -27,12 +27,11 @@ from app.schemas.track_intel import (
     TrackProfileAggregatePublic,
 )
 from app.services.aggregate import read_track_profile
-from app.services.alignment import GRID_STEP_M
 from app.services.context import AppContext
 from app.services.register import LIMIT_FIELDS, load_limits, save_limits, track_register
 from app.services.report import REPORT_CSP, ReportInput, ReportRun, render_report
+from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
-from engine.errors import ParameterError
 from engine.register import Defect, Limits
 
 from .lookup import get_track
@@ -231,36 +230,13 @@ def read_limits(session: SessionDep, track: str) -> LimitsPublic:
     return _limits_public(trk, limits, row.updated_at if row is not None else None)
 
 
-def check_limit_order(body: LimitsUpdate) -> None:
-    """422 naming the first limit below a less urgent one (limits grow with urgency)."""
-    for kind, unit in (("depth_mm", "mm"), ("loss_pct", "%")):
-        prev: tuple[str, float] | None = None
-        for level in ("alert", "intervention", "immediate"):
-            name = f"{level}_{kind}"
-            value = getattr(body, name)
-            if value is None:
-                continue
-            if prev is not None and value < prev[1]:
-                raise ApiError(
-                    422,
-                    f"{name} ({value:g} {unit}) is below {prev[0]} ({prev[1]:g} {unit}): limits "
-                    "must grow from alert to intervention to immediate",
-                    field=name,
-                )
-            prev = (name, value)
-
-
 @router.put("/{track}/limits", response_model=LimitsPublic)
 def update_limits(session: SessionDep, track: str, body: LimitsUpdate) -> LimitsPublic:
     """Set the track's limits (fields left out take their default; null switches a criterion
     off). Answers 422 naming the field when a value is not > 0 or the levels do not grow from
     alert to intervention to immediate."""
     trk = get_track(session, track)
-    check_limit_order(body)
-    try:
-        limits = Limits(**{k: getattr(body, k) for k in LIMIT_FIELDS})
-    except ParameterError as exc:
-        raise ApiError(422, str(exc), field=getattr(exc, "field", None)) from None
+    limits = Limits(**{k: getattr(body, k) for k in LIMIT_FIELDS})  # checks values and order
     row = save_limits(session, trk.id, limits)
     session.commit()
     return _limits_public(trk, limits, row.updated_at)

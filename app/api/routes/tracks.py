@@ -10,10 +10,9 @@ from sqlalchemy.exc import IntegrityError
 
 from app.api.convert import track_public
 from app.api.deps import SessionDep
-from app.core.errors import ApiError
 from app.db.models import Run, Track
 from app.schemas.tracks import TrackCreate, TrackPublic, TracksPublic
-from engine.errors import ParameterError
+from app.services.errors import Conflict
 from engine.track import TrackParams
 
 from .lookup import get_track
@@ -47,19 +46,16 @@ def list_tracks(
 def create_track(session: SessionDep, body: TrackCreate) -> TrackPublic:
     """Create a track; 409 if the name is taken."""
     params = body.model_dump(include=set(TrackParams.__dataclass_fields__))
-    try:
-        TrackParams.from_dict(params)
-    except ParameterError as exc:
-        raise ApiError(422, str(exc)) from None
+    TrackParams.from_dict(params)  # the engine's checks (a ParameterError names the field)
     if session.scalar(select(Track.id).where(Track.name == body.name)) is not None:
-        raise ApiError(409, f"a track named {body.name!r} already exists", field="name")
+        raise Conflict(f"a track named {body.name!r} already exists", field="name")
     track = Track(name=body.name, description=body.description, rail=body.rail, **params)
     session.add(track)
     try:
         session.commit()
     except IntegrityError:
         session.rollback()
-        raise ApiError(409, f"a track named {body.name!r} already exists", field="name") from None
+        raise Conflict(f"a track named {body.name!r} already exists", field="name") from None
     return track_public(track, 0)
 
 

@@ -10,9 +10,9 @@ from sqlalchemy.exc import IntegrityError
 
 from app.api.convert import vehicle_public
 from app.api.deps import SessionDep
-from app.core.errors import ApiError
 from app.db.models import Vehicle
 from app.schemas.vehicles import VehicleCreate, VehiclePublic, VehiclesPublic
+from app.services.errors import Conflict, Invalid
 from engine.errors import ParameterError
 from engine.vehicle import VehicleParams
 
@@ -40,16 +40,16 @@ def create_vehicle(session: SessionDep, body: VehicleCreate) -> VehiclePublic:
     try:
         VehicleParams.from_dict(params)
     except ParameterError as exc:
-        raise ApiError(422, str(exc), field="params") from None
+        raise Invalid.from_engine(exc, field="params") from None
     if session.scalar(select(Vehicle.id).where(Vehicle.name == body.name)) is not None:
-        raise ApiError(409, f"a vehicle named {body.name!r} already exists", field="name")
+        raise Conflict(f"a vehicle named {body.name!r} already exists", field="name")
     vehicle = Vehicle(name=body.name, description=body.description, **params)
     session.add(vehicle)
     try:
         session.commit()
     except IntegrityError:
         session.rollback()
-        raise ApiError(409, f"a vehicle named {body.name!r} already exists", field="name") from None
+        raise Conflict(f"a vehicle named {body.name!r} already exists", field="name") from None
     return vehicle_public(vehicle)
 
 

@@ -45,6 +45,7 @@ from app.schemas.views import (
     ZonePublic,
 )
 from app.services.profiles import read_profile
+from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
 from engine.intervals import merge_intervals
 from engine.logio import CsvOptions, preview_csv
@@ -57,7 +58,7 @@ only: binning 50 runs x 400 000 points per request would not fit the 2 s budget 
 runs, 2 million rows, take ~0.5 s), and at one bin per 80 m the lowest level of a bin says
 little that the spots do not."""
 
-HEATMAP_MIN_BIN_M = 0.25
+HEATMAP_MIN_BIN_M = GRID_STEP_M
 """Narrowest heatmap bin, m (the profile grid step)."""
 
 ZONE_GAP_M = 2.0

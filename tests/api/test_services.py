@@ -1,0 +1,73 @@
+"""Services without HTTP: they take plain arguments and raise domain errors, and the HTTP layer
+(app.core.errors) alone turns those into status codes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from app.core.errors import DOMAIN_STATUS, domain_status
+from app.db.migrate import upgrade
+from app.db.session import Database
+from app.services.context import AppContext
+from app.services.errors import Conflict, DomainError, Invalid, NotFound, TooLarge
+from app.services.logs import parse_csv
+from app.services.simulation import SimulationSpec, simulate_and_submit
+from app.services.window import Window
+from engine.errors import LogFormatError
+from engine.sensor import SensorModel
+from engine.track import SoftZone
+
+from .conftest import database_url_for, make_settings
+
+
+def _ctx(tmp_path: Path) -> AppContext:
+    settings = make_settings(tmp_path, start_worker=False)
+    db = Database(database_url_for(tmp_path))
+    upgrade(db)
+    return AppContext(settings=settings, db=db)
+
+
+def test_status_codes_live_in_one_table() -> None:
+    """Each domain error class has one status code; subclasses inherit their parent's."""
+    assert {cls: DOMAIN_STATUS[cls] for cls in (NotFound, Conflict, Invalid, TooLarge)} == {
+        NotFound: 404, Conflict: 409, Invalid: 422, TooLarge: 413,
+    }  # fmt: skip
+
+    class Gone(NotFound):
+        pass
+
+    assert domain_status(Gone("x")) == 404
+
+
+def test_simulation_without_room_is_invalid_and_stores_nothing(tmp_path: Path) -> None:
+    """simulate_and_submit takes a plain spec and raises Invalid naming the field."""
+    ctx = _ctx(tmp_path)
+    spec = SimulationSpec(
+        track="t", vehicle=None, name=None, length_m=100.0, speed_mps=20.0,
+        zones=(SoftZone(40.0, 44.0, 0.5),), start_chainage_m=95.0, direction="increasing",
+        sensor=SensorModel(), jitter=0.0, seed=0,
+    )  # fmt: skip
+    with pytest.raises(Invalid) as err:
+        simulate_and_submit(ctx, spec)
+    assert err.value.facts["field"] == "start_chainage_m"
+    assert isinstance(err.value, DomainError) and "room to run" in err.value.message
+
+
+def test_unreadable_csv_is_invalid_with_the_file_facts() -> None:
+    """A log the engine refuses becomes Invalid carrying field, column, row and kind."""
+    with pytest.raises(Invalid) as err:
+        parse_csv(b"time_s,accel_z_mps2,pitch_rate_radps,speed_mps\n0,1,2,x\n", {})
+    detail = err.value.detail()
+    assert detail["field"] == "file" and detail["kind"] == LogFormatError.__name__
+    assert "row" in detail or "column" in detail
+
+
+def test_window_rule() -> None:
+    """to_m before from_m is refused naming to_m; equal ends are a one-point window."""
+    assert Window(5.0, 5.0).span_m == 0.0
+    assert Window(None, 3.0).stored(1.0) == (None, 2.0)
+    with pytest.raises(Invalid) as err:
+        Window(5.0, 4.0)
+    assert err.value.facts["field"] == "to_m"
