@@ -119,6 +119,49 @@ def estimate_white_noise(x: NDArray[np.float64], dt: float, f_min: float = 150.0
     return float(np.sqrt(np.median(psd[sel])))
 
 
+def edge_padding(n: int, dt: float, f_lo: float, taper: float) -> int:
+    """Samples padded at each end against wrap-around: one longest period of the band."""
+    return int(min(n, 2.0 / (f_lo / (1 + taper)) / dt))
+
+
+def padded_spectrum(x: NDArray[np.float64], pad: int, nfft: int) -> NDArray[np.complex128]:
+    """Real FFT of ``x`` detrended (line through its ends) and mirror-padded by ``pad``."""
+    n = x.size
+    # remove the straight line through the ends, so the periodic extension is continuous
+    xx = x - np.linspace(x[:64].mean(), x[-64:].mean(), n)
+    buf = np.zeros(nfft)
+    buf[pad : pad + n] = xx
+    # mirror-pad with a taper to soften the edges
+    ramp = 0.5 - 0.5 * np.cos(np.linspace(0, np.pi, pad)) if pad > 0 else np.zeros(0)
+    buf[:pad] = xx[pad:0:-1][:pad] * ramp if pad < n else 0.0
+    buf[pad + n : pad + n + pad] = xx[-2 : -pad - 2 : -1] * ramp[::-1] if pad < n - 1 else 0.0
+    return sfft.rfft(buf)
+
+
+def solve_bins(
+    H: NDArray[np.complex128],
+    A: NDArray[np.complex128],
+    Q: NDArray[np.complex128],
+    noise_accel: float,
+    noise_gyro: float,
+    mu_scale: float,
+) -> NDArray[np.complex128]:
+    """Noise-weighted Tikhonov inverse, bin by bin: ``(Hᴴ W H + μ I)⁻¹ Hᴴ W [A; Q]``.
+
+    ``W = diag(1/σ_a², 1/σ_g²)`` from the noise estimates (unknown: the typical MEMS ratio);
+    ``μ = mu_scale / (1 mm)²``, the prior of a ~1 mm² track level scale per bin (``mu_scale``
+    is ``regularisation / nfft`` for an unnormalised FFT). ``A``, ``Q`` may carry leading
+    batch axes before the bin axis; returns ``Y[..., bin, axle]``.
+    """
+    wa = 1.0 / (noise_accel if np.isfinite(noise_accel) and noise_accel > 0 else 5e-3) ** 2
+    wg = 1.0 / (noise_gyro if np.isfinite(noise_gyro) and noise_gyro > 0 else 1e-4) ** 2
+    Wd = np.array([wa, wg])
+    HW = np.conj(np.transpose(H, (0, 2, 1))) * Wd[None, None, :]
+    N = HW @ H + mu_scale / (1e-3) ** 2 * np.eye(2)[None]
+    G = np.linalg.solve(N, HW)  # (m, 2, 2): the inverse operator per bin
+    return np.einsum("mij,...mj->...mi", G, np.stack([A, Q], axis=-1))
+
+
 def spectral_inverse(
     accel: NDArray[np.float64],
     pitch_rate: NDArray[np.float64],
@@ -163,39 +206,15 @@ def spectral_inverse(
         )
     sa = estimate_white_noise(accel, dt)
     sg = estimate_white_noise(pitch_rate, dt)
-    # pad against wrap-around of the band-limited impulse response (longest period)
-    pad = int(min(n, 2.0 / (f_lo / (1 + taper)) / dt))
+    pad = edge_padding(n, dt, f_lo, taper)
     nfft = sfft.next_fast_len(n + 2 * pad, real=True)
-
-    def prepared(x: NDArray[np.float64]) -> NDArray[np.complex128]:
-        # remove the straight line through the ends, so the periodic extension is continuous
-        xx = x - np.linspace(x[:64].mean(), x[-64:].mean(), n)
-        buf = np.zeros(nfft)
-        buf[pad : pad + n] = xx
-        # mirror-pad with a taper to soften the edges
-        ramp = 0.5 - 0.5 * np.cos(np.linspace(0, np.pi, pad)) if pad > 0 else np.zeros(0)
-        buf[:pad] = xx[pad:0:-1][:pad] * ramp if pad < n else 0.0
-        buf[pad + n : pad + n + pad] = xx[-2 : -pad - 2 : -1] * ramp[::-1] if pad < n - 1 else 0.0
-        return sfft.rfft(buf)
-
-    A = prepared(accel)
-    Q = prepared(pitch_rate)
+    A = padded_spectrum(accel, pad, nfft)
+    Q = padded_spectrum(pitch_rate, pad, nfft)
     f = sfft.rfftfreq(nfft, dt)
     wband = band_window(f, f_lo, f_hi, taper)
     sel = wband > 0
     H = vehicle_response(vehicle, 2 * np.pi * f[sel])
-    # noise-weighted Tikhonov inverse: (H^H W H + mu I)^-1 H^H W, W = diag(1/sa², 1/sg²)
-    # unknown noise (slow logs): the typical MEMS ratio of accelerometer to gyro noise
-    wa = 1.0 / (sa if np.isfinite(sa) and sa > 0 else 5e-3) ** 2
-    wg = 1.0 / (sg if np.isfinite(sg) and sg > 0 else 1e-4) ** 2
-    Wd = np.array([wa, wg])
-    HW = np.conj(np.transpose(H, (0, 2, 1))) * Wd[None, None, :]
-    N = HW @ H
-    # prior: track level spectrum ~ 1 mm² scale in band; mu = 1/prior variance per bin
-    mu = regularisation * (1.0 / (1e-3) ** 2) / nfft
-    N = N + mu * np.eye(2)[None]
-    rhs = HW @ np.stack([A[sel], Q[sel]], axis=-1)[..., None]
-    Y = np.linalg.solve(N, rhs)[..., 0]  # (m, 2)
+    Y = solve_bins(H, A[sel], Q[sel], sa, sg, regularisation / nfft)
     out = []
     for j in range(2):
         spec = np.zeros(f.size, dtype=complex)

@@ -1,0 +1,718 @@
+"""Vehicle calibration from its own runs: fit what the logs identify.
+
+The front and rear axle ride over the same rail, the rear ``d1 + d2`` later. Inverted with the
+right vehicle, both axles' recovered levels agree on chainage up to the sensor noise; with a
+wrong pitch inertia or suspension the inverse leaves ghost dips that differ between the axles.
+The objective is that disagreement, in the product's wavelength band, normalised by the level's
+energy, summed over many runs:
+
+``J(θ) = Σ_k ‖y_front,k − y_rear,k‖² / Σ_k ½(‖y_front,k‖² + ‖y_rear,k‖²)``
+
+over segments ``k`` of the runs, both levels on the front axle's chainage samples. The half-car
+is linear: the inverse is ``Y(ω) = G(ω; θ) [A(ω); Q(ω)]``, so the signals are decimated to the
+band, cut into segments and Fourier-transformed once; each evaluation only rebuilds the 2x2
+operator ``G`` per frequency bin and transforms back (:func:`engine.spectral.solve_bins`).
+
+What the data identify: ``H(ω)`` is unchanged when every mass, stiffness and damping is scaled
+by the same factor, so only ratios are observable. The body mass is held (registered value or
+a given load figure) and the pitch inertia, the suspension stiffnesses and the sensor position
+are fitted against it; damping and contact stiffness barely change the disagreement in the band
+and are held too.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.fft as sfft
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+from scipy.signal import resample_poly
+
+from .errors import EngineError, ParameterError
+from .pipeline import ProcessConfig, check_run
+from .runlog import RunLog
+from .spectral import (
+    band_window,
+    edge_padding,
+    estimate_white_noise,
+    padded_spectrum,
+    solve_bins,
+    vehicle_response,
+)
+from .vehicle import VehicleParams
+
+
+@dataclass(frozen=True)
+class Fittable:
+    """How one fitted quantity moves the vehicle: ``apply(params, theta) -> changes``.
+
+    ``theta`` is dimensionless (log of a factor) for ``scale`` quantities, m for positions.
+    """
+
+    name: str
+    description: str
+    unit: str
+    kind: str  # "scale" (theta = log factor) | "offset" (theta in the parameter's unit)
+    targets: tuple[str, ...]
+
+    def apply(self, base: VehicleParams, theta: float) -> dict[str, float]:
+        """Parameter values of ``base`` moved by ``theta``."""
+        if self.kind == "scale":
+            f = math.exp(theta)
+            return {t: getattr(base, t) * f for t in self.targets}
+        return {t: getattr(base, t) + theta for t in self.targets}
+
+
+FITTABLE: dict[str, Fittable] = {
+    f.name: f
+    for f in (
+        Fittable("Is", "body pitch inertia", "kg m²", "scale", ("Is",)),
+        Fittable("ks", "both suspension stiffnesses (one factor)", "N/m", "scale", ("ks1", "ks2")),
+        Fittable("ks1", "front suspension stiffness", "N/m", "scale", ("ks1",)),
+        Fittable("ks2", "rear suspension stiffness", "N/m", "scale", ("ks2",)),
+        Fittable("cs", "both suspension dampings (one factor)", "N s/m", "scale", ("cs1", "cs2")),
+        Fittable("sensor_x_m", "accelerometer position ahead of the CG", "m", "offset",
+                 ("sensor_x_m",)),
+    )
+}  # fmt: skip
+"""Quantities calibration can fit, by name (registry: add one here to make it fittable)."""
+
+DEFAULT_FIT: tuple[str, ...] = ("Is", "ks1", "ks2")
+"""What is fitted unless told otherwise: pitch inertia and both suspension stiffnesses."""
+
+SYSTEMATIC_SD: dict[str, float] = {"scale": 0.02, "offset": 0.05}
+"""Systematic part of the uncertainty (relative for scales, m for positions), added to the
+statistical one: on runs of a vehicle that matches its registration the fit still moves the
+parameters by up to ~2-4 % (the front and rear loaded levels differ a little: different axle
+loads, dynamic wheel force), far more than the segment scatter says."""
+
+NOT_IDENTIFIABLE: dict[str, str] = {
+    "ms": "absolute body mass: the response depends only on ratios of masses, stiffnesses "
+    "and dampings (scaling all of them changes nothing); held at the registered value or the "
+    "given load figure",
+    "kt1/kt2": "contact stiffness: barely changes the response in the 3-40 m band; held",
+    "mu1/mu2": "axle masses: barely change the response in the band; held",
+}
+"""Parameters the logs cannot fix, and why (reported in every result)."""
+
+
+@dataclass(frozen=True)
+class CalibrationRun:
+    """One run to calibrate from.
+
+    Attributes
+    ----------
+    log : RunLog
+        The log, canonical SI units.
+    start_chainage_m : float, optional
+        Body-centre chainage at the first sample, m (needed without a chainage column).
+    direction : {"increasing", "decreasing"}
+        Direction of travel.
+    label : str
+        How the result names the run (e.g. its id).
+    """
+
+    log: RunLog
+    start_chainage_m: float | None = None
+    direction: str = "increasing"
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """Settings of :func:`calibrate`.
+
+    Parameters
+    ----------
+    fit : sequence of str
+        Quantities to fit, names of :data:`FITTABLE`.
+    load_kg : float, optional
+        Known body mass (load/tare figure), kg: replaces the registered ``ms`` before fitting.
+    lambda_min_m, lambda_max_m : float
+        Wavelength band compared, m (the product's band by default).
+    segment_s : float
+        Length of the segments runs are cut into, s.
+    max_seconds_per_run : float, optional
+        Use at most this much of each run (evenly spread segments), s; None: all of it.
+    significance : float
+        A fitted value is a significant change when it differs from the registered one by
+        more than this many standard uncertainties and by more than ``min_change`` (and the
+        objective improves by ``min_improvement``).
+    min_change : float
+        Smallest change that matters: relative for scale quantities; ten times it in m for
+        the sensor position (0.05: 5 %, 0.5 m).
+    min_improvement : float
+        Relative objective decrease below which a calibration is "no significant change".
+    max_relative_sd : float
+        A scale quantity whose relative uncertainty exceeds this is reported as not identified.
+    """
+
+    fit: tuple[str, ...] = DEFAULT_FIT
+    load_kg: float | None = None
+    lambda_min_m: float = 3.0
+    lambda_max_m: float = 40.0
+    segment_s: float = 40.0
+    max_seconds_per_run: float | None = None
+    significance: float = 3.0
+    min_change: float = 0.05
+    min_improvement: float = 0.05
+    max_relative_sd: float = 0.15
+
+    def __post_init__(self) -> None:
+        fit = tuple(self.fit)
+        object.__setattr__(self, "fit", fit)
+        if not fit:
+            raise ParameterError("calibration needs at least one quantity to fit")
+        unknown = [f for f in fit if f not in FITTABLE]
+        if unknown:
+            raise ParameterError(
+                f"cannot fit {unknown}; fittable quantities are {sorted(FITTABLE)}"
+            )
+        if len(set(fit)) != len(fit):
+            raise ParameterError(f"quantities to fit are repeated: {list(fit)}")
+        targets = [t for f in fit for t in FITTABLE[f].targets]
+        if len(set(targets)) != len(targets):
+            raise ParameterError(f"fitted quantities overlap (e.g. 'ks' with 'ks1'): {list(fit)}")
+        if self.load_kg is not None and not (math.isfinite(self.load_kg) and self.load_kg > 0):
+            raise ParameterError(f"load_kg must be a positive body mass in kg, got {self.load_kg}")
+        if not (0 < self.lambda_min_m < self.lambda_max_m):
+            raise ParameterError("wavelength band must satisfy 0 < lambda_min_m < lambda_max_m")
+        if not (5.0 <= self.segment_s <= 600.0):
+            raise ParameterError(f"segment_s must be 5..600 s, got {self.segment_s}")
+        if self.max_seconds_per_run is not None and not self.max_seconds_per_run >= self.segment_s:
+            raise ParameterError("max_seconds_per_run must be at least one segment_s")
+
+
+@dataclass(frozen=True)
+class FittedParameter:
+    """One fitted quantity.
+
+    Attributes
+    ----------
+    name, description, unit : str
+        Which quantity (a name of :data:`FITTABLE`).
+    before, after : dict of str to float
+        Registered and fitted values of the vehicle parameters it moves (SI).
+    change : float
+        Relative change (scale quantities, fraction) or shift (positions, m).
+    sd : float
+        Standard uncertainty of ``change`` (same unit): the segment-to-segment scatter
+        combined with the systematic floor :data:`SYSTEMATIC_SD`.
+    identified : bool
+        False when the uncertainty is too large for the data to fix it.
+    significant : bool
+        ``|change| > significance * sd`` (and identified).
+    """
+
+    name: str
+    description: str
+    unit: str
+    before: dict[str, float]
+    after: dict[str, float]
+    change: float
+    sd: float
+    identified: bool
+    significant: bool
+
+
+@dataclass(frozen=True)
+class RunFit:
+    """How well one run's axles agree, before and after (relative disagreement, fraction)."""
+
+    label: str
+    seconds_used: float
+    objective_before: float
+    objective_after: float
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """What :func:`calibrate` found.
+
+    Attributes
+    ----------
+    params : VehicleParams
+        The calibrated vehicle (the registered one where nothing was fitted).
+    registered : VehicleParams
+        The vehicle calibration started from (after a given load figure, if any).
+    fitted : list of FittedParameter
+        One per fitted quantity.
+    objective_before, objective_after : float
+        Relative front/rear disagreement ``sqrt(J)`` with the registered and the calibrated
+        vehicle (fraction of the level's RMS).
+    disagreement_before_mm, disagreement_after_mm : float
+        RMS front/rear difference, mm.
+    significant : bool
+        The calibration changes something beyond its uncertainty and improves the objective.
+    message : str
+        Plain-words summary.
+    runs : list of RunFit
+        The runs used.
+    skipped : list of (label, reason)
+        Runs that could not be used.
+    not_identified : dict of str to str
+        Parameters the data could not fix, and why.
+    n_evaluations : int
+        Objective evaluations.
+    seconds : float
+        Wall time, s.
+    scans : dict of str to (values, objective)
+        The objective along each fitted quantity through the optimum (for plots).
+    """
+
+    params: VehicleParams
+    registered: VehicleParams
+    fitted: list[FittedParameter]
+    objective_before: float
+    objective_after: float
+    disagreement_before_mm: float
+    disagreement_after_mm: float
+    significant: bool
+    message: str
+    runs: list[RunFit]
+    skipped: list[tuple[str, str]]
+    not_identified: dict[str, str]
+    n_evaluations: int
+    seconds: float
+    scans: dict[str, tuple[list[float], list[float]]] = field(default_factory=dict)
+
+    def estimates(self) -> dict[str, tuple[float, float]]:
+        """Fitted vehicle parameters with absolute standard uncertainties, SI: name -> (value,
+        sd) (what the suspension-health history records)."""
+        out: dict[str, tuple[float, float]] = {}
+        for f in self.fitted:
+            for name, value in f.after.items():
+                sd = f.sd * value if FITTABLE[f.name].kind == "scale" else f.sd
+                out[name] = (value, abs(sd))
+        return out
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-safe plain dict (SI units)."""
+        return {
+            "params": self.params.to_dict(),
+            "registered": self.registered.to_dict(),
+            "fitted": [vars(f) | {} for f in self.fitted],
+            "objective_before": self.objective_before,
+            "objective_after": self.objective_after,
+            "disagreement_before_mm": self.disagreement_before_mm,
+            "disagreement_after_mm": self.disagreement_after_mm,
+            "significant": self.significant,
+            "message": self.message,
+            "runs": [vars(r) | {} for r in self.runs],
+            "skipped": [{"label": a, "reason": b} for a, b in self.skipped],
+            "not_identified": dict(self.not_identified),
+            "n_evaluations": self.n_evaluations,
+            "seconds": self.seconds,
+            "scans": {k: {"change": v[0], "objective": v[1]} for k, v in self.scans.items()},
+        }
+
+
+@dataclass
+class _Segment:
+    """A piece of one run, decimated; noise levels at the decimated step (same density)."""
+
+    a: NDArray[np.float64]
+    g: NDArray[np.float64]
+    f_lo: float
+    f_hi: float
+    sa: float
+    sg: float
+    front_idx: NDArray[np.intp]
+    rear_idx: NDArray[np.intp]
+    rear_w: NDArray[np.float64]
+    run: int
+
+
+@dataclass
+class _Group:
+    """Segments sharing one sample step and FFT length (one frequency grid)."""
+
+    dt: float
+    nfft: int
+    pad: int
+    n: int
+    sel: NDArray[np.bool_]  # bins used (inside any segment's band)
+    omega: NDArray[np.float64]  # rad/s of the used bins
+    A: NDArray[np.complex128]  # (n_seg, n_used)
+    Q: NDArray[np.complex128]
+    wband: NDArray[np.float64]  # (n_seg, n_used)
+    sa: NDArray[np.float64]  # (n_seg,) accelerometer noise at this step
+    sg: NDArray[np.float64]
+    # front samples compared (indices in the segment) and the rear level there (cubic weights)
+    front_idx: list[NDArray[np.intp]]
+    rear_idx: list[NDArray[np.intp]]  # (m, 4) indices
+    rear_w: list[NDArray[np.float64]]  # (m, 4) weights
+    run: list[int]  # run index of each segment
+
+
+def _cubic_weights(
+    x: NDArray[np.float64], xq: NDArray[np.float64]
+) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """Four-point Lagrange interpolation of samples at increasing ``x`` onto ``xq``."""
+    i = np.clip(np.searchsorted(x, xq) - 1, 1, x.size - 3)
+    idx = i[:, None] + np.arange(-1, 3)[None, :]
+    xs = x[idx]
+    w = np.ones_like(xs)
+    for j in range(4):
+        for m in range(4):
+            if m != j:
+                w[:, j] *= (xq - xs[:, m]) / (xs[:, j] - xs[:, m])
+    return idx, w
+
+
+def _prepare(
+    runs: Sequence[CalibrationRun], vehicle: VehicleParams, cfg: CalibrationConfig
+) -> tuple[list[_Group], list[tuple[str, str]], list[tuple[str, float]]]:
+    """Decimate, segment and transform every usable run once."""
+    pcfg = ProcessConfig(lambda_min_m=cfg.lambda_min_m, lambda_max_m=cfg.lambda_max_m)
+    taper = pcfg.taper
+    skipped: list[tuple[str, str]] = []
+    used: list[tuple[str, float]] = []
+    pieces: dict[tuple[float, int], list[_Segment]] = {}
+    for r_i, run in enumerate(runs):
+        label = run.label or f"run {r_i + 1}"
+        try:
+            chk = check_run(
+                run.log, start_chainage_m=run.start_chainage_m, direction=run.direction,
+                vehicle=vehicle, config=pcfg,
+            )  # fmt: skip
+        except EngineError as exc:
+            skipped.append((label, str(exc)))
+            continue
+        log = run.log
+        dt = log.dt
+        fs = 1.0 / dt
+        # decimate to 2.5x the band's upper edge (Nyquist), zero-phase polyphase FIR
+        q = max(1, int(fs / (5.0 * chk.f_hi_hz * (1 + taper))))
+        sa = estimate_white_noise(log.accel_z_mps2, dt)
+        sg = estimate_white_noise(log.pitch_rate_radps, dt)
+        a = log.accel_z_mps2 - log.accel_z_mps2.mean()
+        g = log.pitch_rate_radps - log.pitch_rate_radps.mean()
+        if q > 1:
+            a, g = resample_poly(a, 1, q), resample_poly(g, 1, q)
+        xf = chk.positions.front[::q][: a.size] * chk.positions.sign
+        xr = chk.positions.rear[::q][: a.size] * chk.positions.sign
+        dtd = dt * q
+        nseg = int(round(cfg.segment_s / dtd))
+        total = a.size
+        if total < nseg:  # short run: one segment of its own length
+            nseg = total
+        n_avail = max(1, total // nseg)
+        n_take = n_avail
+        if cfg.max_seconds_per_run is not None:
+            n_take = max(1, min(n_avail, int(cfg.max_seconds_per_run / (nseg * dtd))))
+        starts = np.linspace(0, total - nseg, n_take).round().astype(int) if n_take > 1 else [0]
+        trim = int(math.ceil(1.0 / (chk.f_lo_hz / (1 + taper)) / dtd))  # one longest period
+        lag = int(math.ceil(vehicle.wheelbase / max(chk.speed.min(), 1e-3) / dtd)) + 2
+        n_used = 0
+        for s0 in starts:
+            sl = slice(int(s0), int(s0) + nseg)
+            f_pos, r_pos = xf[sl], xr[sl]
+            lo, hi = trim, nseg - trim
+            if hi - lo < 4 * lag:
+                continue
+            # front samples whose chainage the rear axle also reaches inside the kept part
+            k = np.arange(lo, hi)
+            keep = (f_pos[k] >= r_pos[lo + 2]) & (f_pos[k] <= r_pos[hi - 3])
+            k = k[keep]
+            if k.size < 16:
+                continue
+            idx, w = _cubic_weights(r_pos, f_pos[k])
+            pieces.setdefault((dtd, nseg), []).append(
+                _Segment(a[sl], g[sl], chk.f_lo_hz, chk.f_hi_hz, sa / math.sqrt(q),
+                         sg / math.sqrt(q), k, idx, w, r_i)
+            )  # fmt: skip
+            n_used += 1
+        if n_used == 0:
+            skipped.append((label, "too short to compare the two axles after edge trimming"))
+            continue
+        used.append((label, n_used * nseg * dtd))
+    groups = []
+    for (dtd, nseg), segs in pieces.items():
+        pad = edge_padding(nseg, dtd, min(sg.f_lo for sg in segs), taper)
+        nfft = sfft.next_fast_len(nseg + 2 * pad, real=True)
+        f = sfft.rfftfreq(nfft, dtd)
+        wb = np.array([band_window(f, sg.f_lo, sg.f_hi, taper) for sg in segs])
+        sel = wb.max(axis=0) > 0
+        groups.append(
+            _Group(
+                dt=dtd, nfft=nfft, pad=pad, n=nseg, sel=sel, omega=2 * np.pi * f[sel],
+                A=np.array([padded_spectrum(sg.a, pad, nfft)[sel] for sg in segs]),
+                Q=np.array([padded_spectrum(sg.g, pad, nfft)[sel] for sg in segs]),
+                wband=wb[:, sel],
+                sa=np.array([sg.sa for sg in segs]), sg=np.array([sg.sg for sg in segs]),
+                front_idx=[sg.front_idx for sg in segs],
+                rear_idx=[sg.rear_idx for sg in segs],
+                rear_w=[sg.rear_w for sg in segs],
+                run=[sg.run for sg in segs],
+            )
+        )  # fmt: skip
+    return groups, skipped, used
+
+
+@dataclass
+class _Eval:
+    """Residuals of one evaluation: per segment the difference and the level energy."""
+
+    diff: list[NDArray[np.float64]]
+    energy: NDArray[np.float64]
+    run: NDArray[np.intp]
+
+
+def _evaluate(groups: list[_Group], vehicle: VehicleParams) -> _Eval:
+    diffs: list[NDArray[np.float64]] = []
+    energy: list[float] = []
+    runs: list[int] = []
+    for g in groups:
+        H = vehicle_response(vehicle, g.omega)
+        full = np.zeros((g.A.shape[0], 2, g.sel.size), dtype=complex)
+        for i in range(g.A.shape[0]):
+            Y = solve_bins(H, g.A[i], g.Q[i], g.sa[i], g.sg[i], 1.0 / g.nfft)
+            full[i, :, g.sel] = Y * g.wband[i][:, None]
+        y = sfft.irfft(full, g.nfft, axis=-1)[..., g.pad : g.pad + g.n]
+        for i in range(y.shape[0]):
+            yf = y[i, 0, g.front_idx[i]]
+            yr = np.sum(y[i, 1][g.rear_idx[i]] * g.rear_w[i], axis=1)
+            diffs.append(yf - yr)
+            energy.append(0.5 * float(np.sum(yf**2) + np.sum(yr**2)))
+            runs.append(g.run[i])
+    return _Eval(diffs, np.array(energy), np.array(runs))
+
+
+def _vehicle_at(
+    base: VehicleParams, fit: tuple[str, ...], theta: NDArray[np.float64]
+) -> VehicleParams:
+    changes: dict[str, float] = {}
+    for name, t in zip(fit, theta, strict=True):
+        changes |= FITTABLE[name].apply(base, float(t))
+    return base.replace(**changes)
+
+
+def calibrate(
+    runs: Sequence[CalibrationRun],
+    vehicle: VehicleParams,
+    config: CalibrationConfig | None = None,
+    *,
+    progress: Callable[[int], None] | None = None,
+) -> CalibrationResult:
+    """Fit the vehicle's identifiable parameters to its runs (front/rear axle agreement).
+
+    Parameters
+    ----------
+    runs : sequence of CalibrationRun
+        The vehicle's runs (many together: the fit is joint).
+    vehicle : VehicleParams
+        The registered vehicle (starting point; held parameters keep its values).
+    config : CalibrationConfig, optional
+        What to fit, band, segmenting, significance thresholds.
+    progress : callable, optional
+        Called with the number of objective evaluations so far (e.g. a heartbeat).
+
+    Returns
+    -------
+    CalibrationResult
+
+    Raises
+    ------
+    ParameterError
+        If no run can be used, or the configuration is invalid.
+    """
+    t0 = time.perf_counter()
+    cfg = config or CalibrationConfig()
+    base = vehicle if cfg.load_kg is None else vehicle.replace(ms=cfg.load_kg)
+    if not runs:
+        raise ParameterError("calibration needs at least one run")
+    groups, skipped, used = _prepare(runs, base, cfg)
+    if not groups:
+        reasons = "; ".join(f"{a}: {b}" for a, b in skipped)
+        raise ParameterError(f"no run can be used for calibration ({reasons})")
+    fit = cfg.fit
+    k = len(fit)
+    n_eval = 0
+    cache: dict[bytes, _Eval] = {}
+
+    def evaluate(theta: NDArray[np.float64]) -> _Eval:
+        nonlocal n_eval
+        key = np.asarray(theta, float).tobytes()
+        if key not in cache:
+            try:
+                veh = _vehicle_at(base, fit, theta)
+            except ParameterError:  # outside the physical range: a wall
+                veh = None
+            if veh is None:
+                ev0 = cache[np.zeros(k).tobytes()]
+                cache[key] = _Eval([d * 0 + 1e3 for d in ev0.diff], ev0.energy, ev0.run)
+            else:
+                cache[key] = _evaluate(groups, veh)
+            n_eval += 1
+            if progress is not None:
+                progress(n_eval)
+        return cache[key]
+
+    def residual(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        ev = evaluate(theta)
+        return np.concatenate(ev.diff) / math.sqrt(float(ev.energy.sum()))
+
+    theta0 = np.zeros(k)
+    r0 = residual(theta0)
+    scale = np.array([0.1 if FITTABLE[f].kind == "scale" else 0.5 for f in fit])
+    lower = np.array([-1.2 if FITTABLE[f].kind == "scale" else -10.0 for f in fit])
+    upper = -lower
+    sol = least_squares(
+        residual, theta0, x_scale=scale, bounds=(lower, upper), diff_step=1e-3,
+        xtol=1e-4, ftol=1e-6, max_nfev=60,
+    )  # fmt: skip
+    theta = sol.x
+    r1 = residual(theta)
+    ev0, ev1 = evaluate(theta0), evaluate(theta)
+    sd = _uncertainty(sol.jac, ev1)
+    J0 = float(np.sum(r0**2))
+    J1 = float(np.sum(r1**2))
+    if J1 > J0:  # never worse than the registered vehicle
+        theta, J1, ev1 = theta0, J0, ev0
+    params = _vehicle_at(base, fit, theta)
+    improvement = 1.0 - J1 / J0 if J0 > 0 else 0.0
+    fitted: list[FittedParameter] = []
+    not_identified = dict(NOT_IDENTIFIABLE)
+    for i, name in enumerate(fit):
+        fdef = FITTABLE[name]
+        change = math.expm1(theta[i]) if fdef.kind == "scale" else float(theta[i])
+        scale_kind = fdef.kind == "scale"
+        s_stat = float(sd[i]) * (math.exp(theta[i]) if scale_kind else 1.0)
+        s_i = math.hypot(s_stat, SYSTEMATIC_SD[fdef.kind])
+        limit = cfg.max_relative_sd if scale_kind else 0.5
+        identified = bool(np.isfinite(s_i) and s_i <= limit)
+        if not identified:
+            not_identified[name] = (
+                f"{fdef.description}: uncertainty ±{s_i:.3g}"
+                f"{'' if fdef.kind == 'scale' else ' m'} is too large for these runs"
+            )
+        floor = cfg.min_change * (1.0 if scale_kind else 10.0)
+        significant = identified and abs(change) > max(cfg.significance * s_i, floor)
+        fitted.append(
+            FittedParameter(
+                name=name, description=fdef.description, unit=fdef.unit,
+                before={t: float(getattr(base, t)) for t in fdef.targets},
+                after={t: float(getattr(params, t)) for t in fdef.targets},
+                change=float(change), sd=s_i, identified=identified, significant=significant,
+            )
+        )  # fmt: skip
+    significant = any(f.significant for f in fitted) and improvement >= cfg.min_improvement
+    per_run = []
+    for r_i, (label, secs) in enumerate(used):
+        per_run.append(RunFit(label, secs, _run_objective(ev0, r_i), _run_objective(ev1, r_i)))
+    mm0 = _rms_mm(ev0)
+    mm1 = _rms_mm(ev1)
+    if significant:
+        changed = ", ".join(
+            f"{f.name} {f.change:+.1%} ± {f.sd:.1%}"
+            if FITTABLE[f.name].kind == "scale"
+            else f"{f.name} {f.change:+.2f} ± {f.sd:.2f} m"
+            for f in fitted
+            if f.significant
+        )
+        message = (
+            f"calibrated: {changed}; front/rear disagreement {math.sqrt(J0):.1%} -> "
+            f"{math.sqrt(J1):.1%} of the level over {len(used)} run(s)"
+        )
+    else:
+        message = (
+            "no significant change: the registered parameters fit these runs "
+            f"(disagreement {math.sqrt(J0):.1%} -> {math.sqrt(J1):.1%}, every fitted change "
+            "within its uncertainty or too small to matter)"
+        )
+    # params reported only when significant: otherwise the registered vehicle stands
+    result_params = params if significant else base
+    scans = _scans(evaluate, theta, sd, fit)
+    return CalibrationResult(
+        params=result_params,
+        registered=base,
+        fitted=fitted,
+        objective_before=math.sqrt(J0),
+        objective_after=math.sqrt(J1),
+        disagreement_before_mm=mm0,
+        disagreement_after_mm=mm1,
+        significant=significant,
+        message=message,
+        runs=per_run,
+        skipped=skipped,
+        not_identified=not_identified,
+        n_evaluations=n_eval,
+        seconds=time.perf_counter() - t0,
+        scans=scans,
+    )
+
+
+def _run_objective(ev: _Eval, run_index: int) -> float:
+    sel = np.flatnonzero(ev.run == run_index)
+    d = sum(float(np.sum(ev.diff[i] ** 2)) for i in sel)
+    e = float(ev.energy[sel].sum())
+    return math.sqrt(d / e) if e > 0 else float("nan")
+
+
+def _rms_mm(ev: _Eval) -> float:
+    d = np.concatenate(ev.diff)
+    return float(np.sqrt(np.mean(d**2)) * 1e3)
+
+
+def _uncertainty(jac: NDArray[np.float64], ev: _Eval) -> NDArray[np.float64]:
+    """Standard uncertainty of the fitted ``theta`` from the segment-to-segment scatter.
+
+    Each segment's own Gauss-Newton optimum ``theta_k = theta - H_k⁻¹ g_k`` (its rows of the
+    final Jacobian) is an independent estimate; the joint fit is their (curvature-weighted)
+    mean, so its uncertainty is the weighted scatter over ``sqrt(n)``. With fewer than three
+    segments: the curvature of the whole objective with the residual variance.
+    """
+    k = jac.shape[1]
+    sizes = [d.size for d in ev.diff]
+    bounds = np.cumsum([0, *sizes])
+    r = np.concatenate(ev.diff) / math.sqrt(float(ev.energy.sum()))
+    Htot = jac.T @ jac
+    if len(sizes) < 3:
+        dof = max(1, r.size - k)
+        cov = np.linalg.pinv(Htot) * float(r @ r) / dof
+        return np.sqrt(np.clip(np.diag(cov), 0, None))
+    est = []
+    weights = []
+    for i in range(len(sizes)):
+        Ji = jac[bounds[i] : bounds[i + 1]]
+        ri = r[bounds[i] : bounds[i + 1]]
+        Hi = Ji.T @ Ji
+        est.append(-np.linalg.pinv(Hi) @ (Ji.T @ ri))
+        weights.append(np.diag(Hi))
+    E = np.array(est)
+    W = np.array(weights)
+    W = W / W.sum(axis=0, keepdims=True)
+    mean = np.sum(W * E, axis=0)
+    var = np.sum(W * (E - mean) ** 2, axis=0)
+    n_eff = 1.0 / np.sum(W**2, axis=0)
+    return np.sqrt(var / np.maximum(n_eff - 1.0, 1.0))
+
+
+def _scans(
+    evaluate: Callable[[NDArray[np.float64]], _Eval],
+    theta: NDArray[np.float64],
+    sd: NDArray[np.float64],
+    fit: tuple[str, ...],
+) -> dict[str, tuple[list[float], list[float]]]:
+    """The objective along each fitted quantity through the optimum (5 points, ±30 % / ±2 m)."""
+    out: dict[str, tuple[list[float], list[float]]] = {}
+    for i, name in enumerate(fit):
+        scale = FITTABLE[name].kind == "scale"
+        span = 0.3 if scale else 2.0
+        xs, js = [], []
+        for step in np.linspace(-span, span, 5):
+            th = theta.copy()
+            th[i] = theta[i] + (math.log1p(step) if scale else step)
+            ev = evaluate(th)
+            d = sum(float(np.sum(x**2)) for x in ev.diff)
+            e = float(ev.energy.sum())
+            xs.append(float(math.expm1(th[i]) if scale else th[i]))
+            js.append(math.sqrt(d / e))
+        out[name] = (xs, js)
+    return out
