@@ -303,43 +303,58 @@ def pass_from_result(
 
 
 def align_passes(
-    passes: Sequence[Pass], *, max_shift_m: float = 10.0, recentre: bool = True
+    passes: Sequence[Pass],
+    *,
+    max_shift_m: float = 10.0,
+    recentre: bool = True,
+    stretch_m: float = 2000.0,
 ) -> tuple[list[Pass], list[float]]:
     """Align passes to one another by cross-correlating their levels.
 
-    Each pass is aligned to the median of the passes already aligned (the aggregate). With
-    ``recentre`` the common frame is then shifted so that the offsets average zero: each
+    Each pass is aligned to the mean of the passes already aligned (the aggregate), on at
+    most ``stretch_m`` metres of their common stretch (cost independent of the run length).
+    With ``recentre`` the common frame is then shifted so that the offsets average zero: each
     logged start chainage is an independent estimate of the true one, so their mean is the
-    best estimate of the track's frame. Returns the shifted passes and the offsets, m.
+    best estimate of the track's frame. A pass whose alignment is not trusted keeps its
+    logged chainage. Returns the shifted passes and the offsets, m.
     """
     if not passes:
         return [], []
     step = float(passes[0].chainage_m[1] - passes[0].chainage_m[0])
-    grid, levels, _ = _on_grid(passes[:1], step)
-    ref = levels[0]
+    grid, levels, _ = _on_grid(passes, step)
+    total = np.where(np.isfinite(levels[0]), levels[0], 0.0)
+    count = np.isfinite(levels[0]).astype(float)
     offsets = [0.0]
-    stack = [levels[0]]
-    for p in passes[1:]:
-        a = align_profiles(grid, ref, p.chainage_m, p.level_mm, max_shift_m=max_shift_m)
-        off = a.offset_m if a.ok else 0.0
+    for j, p in enumerate(passes[1:], start=1):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ref = np.where(count > 0, total / count, np.nan)
+        both = np.flatnonzero(np.isfinite(ref) & np.isfinite(levels[j]))
+        off = 0.0
+        if both.size:
+            mid = 0.5 * (grid[both[0]] + grid[both[-1]])
+            lo, hi = np.searchsorted(grid, [mid - 0.5 * stretch_m, mid + 0.5 * stretch_m])
+            lo, hi = max(lo, both[0]), min(hi, both[-1] + 1)
+            if hi - lo >= 8:
+                sel = slice(int(lo), int(hi))
+                pl = np.asarray(p.level_mm, dtype=float)
+                k0, k1 = np.searchsorted(
+                    p.chainage_m, [grid[lo] - max_shift_m, grid[hi - 1] + max_shift_m]
+                )
+                a = align_profiles(grid[sel], ref[sel], p.chainage_m[k0:k1], pl[k0:k1],
+                                   max_shift_m=max_shift_m)  # fmt: skip
+                off = a.offset_m if a.ok else 0.0
         offsets.append(off)
-        shifted = np.interp(grid, p.chainage_m + off, _filled(p.level_mm), left=np.nan,
-                            right=np.nan)  # fmt: skip
-        stack.append(shifted)
-        ref = _column_median(np.vstack(stack))
-        # keep the reference defined where only the first pass covers
-        ref = np.where(np.isfinite(ref), ref, levels[0])
+        shifted = np.interp(grid, p.chainage_m + off, np.asarray(p.level_mm, dtype=float),
+                            left=np.nan, right=np.nan)  # fmt: skip
+        ok = np.isfinite(shifted)
+        total[ok] += shifted[ok]
+        count[ok] += 1.0
     shift = -float(np.mean(offsets)) if recentre else 0.0
     out = [
         replace(p, chainage_m=p.chainage_m + o + shift)
         for p, o in zip(passes, offsets, strict=True)
     ]
     return out, [o + shift for o in offsets]
-
-
-def _filled(y: NDArray[np.float64]) -> NDArray[np.float64]:
-    """NaN stays NaN under np.interp only if neighbours are NaN: keep NaN explicitly."""
-    return np.asarray(y, dtype=float)
 
 
 def _column_mean_sd(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -430,8 +445,8 @@ def _edge_variance(
     """Variance of each pass's level error near its ends, mm² (passes x points).
 
     ``(edge_factor * sigma_j * exp(-d / edge_decay_m))²`` with ``d`` the distance to the
-    nearer end of the pass's coverage and ``sigma_j`` the robust spread of its level about
-    a 40 m baseline (the rail's roughness as this pass sees it).
+    nearer end of the pass's coverage and ``sigma_j`` the robust spread of its band-passed
+    level (the rail's roughness as this pass sees it).
     """
     out = np.zeros_like(levels)
     decay = cfg.edge_decay_m if cfg.edge_decay_m is not None else 1.15 * cfg.lambda_max_m
@@ -441,8 +456,8 @@ def _edge_variance(
             continue
         idx = np.flatnonzero(ok)
         d = np.minimum(grid - grid[idx[0]], grid[idx[-1]] - grid)
-        y = levels[j]
-        sigma = robust_sigma(y - robust_baseline(y, step, 40.0))
+        # every 4th point (1 m) is plenty for a robust spread of a band-passed level
+        sigma = robust_sigma(levels[j, ::4])
         out[j] = np.where(ok, (cfg.edge_factor * sigma * np.exp(-np.maximum(d, 0) / decay)) ** 2, 0)
     return out
 
@@ -533,7 +548,8 @@ def separate(
                 continue
             # residual variance scaled up for the fitted parameters' share (n / (n - 2))
             scale = float(np.mean(n_cov[use] / np.maximum(dof[use], 1)))
-            new[j] = max(robust_sigma(resid[j, use]) * math.sqrt(scale), 0.25 * cfg.prior_noise_mm)
+            sig = robust_sigma(resid[j, use][::4])
+            new[j] = max(sig * math.sqrt(scale), 0.25 * cfg.prior_noise_mm)
         noise_mm = new
 
     sd_b = np.sqrt(var_b)  # mm/N
