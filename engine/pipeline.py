@@ -14,6 +14,7 @@ from .direct import direct_inverse, filtered_direct_inverse
 from .errors import InversionError, ParameterError
 from .intervals import merge_intervals
 from .optimisation import windowed_least_squares
+from .plausibility import check_plausible
 from .results import ProcessResult, Quality, SoftSpot
 from .runlog import RunLog
 from .separation import is_smooth_rail
@@ -166,6 +167,7 @@ def check_run(
     wavelength, a sample rate too low for the shortest wavelength at the top speed, a
     missing start chainage, a chainage column that does not move steadily.
     """
+    check_plausible(log)
     cfg = config or ProcessConfig()
     dt = log.dt
     pos = axle_positions(log, vehicle, start_chainage_m, direction)

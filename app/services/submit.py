@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 from app.db.models import Run, RunInput, RunSignals, Track, Vehicle
 from app.schemas.common import url_name_problem
 from app.schemas.tracks import TrackParamsFields
-from engine.errors import EngineError
+from engine.errors import EngineError, LogFormatError
 from engine.pipeline import check_run
 from engine.runlog import RunLog
 from engine.track import TrackParams
@@ -141,7 +141,9 @@ def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
             vehicle=vehicle,
         )
     except EngineError as exc:
-        raise Invalid.from_engine(exc) from None
+        # JSON arrays are named like a CSV's lines; the request field is "columns".
+        json_columns = isinstance(exc, LogFormatError) and "columns" in sub.options
+        raise Invalid.from_engine(exc, field="columns" if json_columns else None) from None
 
 
 def submit(ctx: AppContext, sub: Submission) -> tuple[int, bool]:

@@ -5,40 +5,26 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+# The plausibility limits are the engine's (one check for every input path); re-exported.
+from ..plausibility import (  # noqa: F401
+    ACCEL_LIMIT_MPS2,
+    GAP_FACTOR,
+    MAX_RATE_HZ,
+    MIN_RATE_HZ,
+    PITCH_RATE_LIMIT_RADPS,
+    SPEED_MAX_MPS,
+    SPEED_MIN_MPS,
+    STEP_TOLERANCE,
+)
 from ..vehicle import GRAVITY
 from .options import CsvOptions
 from .roles import ROLES, _label
-
-ACCEL_LIMIT_MPS2 = 50.0
-"""Largest plausible vertical body acceleration, m/s² (gravity removed); beyond it the unit is
-wrong (e.g. counts or mm/s²)."""
-
-PITCH_RATE_LIMIT_RADPS = 5.0
-"""Largest plausible body pitch rate, rad/s; beyond it the unit is wrong (e.g. deg/s)."""
-
-SPEED_MIN_MPS = 0.5
-"""Slowest speed accepted at any sample, m/s (standstills cannot be inverted)."""
-
-SPEED_MAX_MPS = 150.0
-"""Fastest plausible speed, m/s (540 km/h); beyond it the unit is wrong (e.g. km/h)."""
-
-MIN_RATE_HZ = 10.0
-"""Lowest plausible sample rate, Hz; a slower time column is in the wrong unit (ms read as s)."""
-
-MAX_RATE_HZ = 100_000.0
-"""Highest plausible sample rate, Hz."""
 
 EPOCH_THRESHOLD_S = 1e8
 """Time values above this (about 1973 in Unix seconds) are taken as epoch seconds."""
 
 EPOCH_MS_THRESHOLD = 1e11
 """Time values above this are taken as epoch milliseconds."""
-
-STEP_TOLERANCE = 0.01
-"""Allowed deviation of a time step from the median step, as a fraction of it."""
-
-GAP_FACTOR = 1.5
-"""A step longer than this many median steps is reported as a gap."""
 
 GRAVITY_TOLERANCE_MPS2 = 1.5
 """How far the mean acceleration may be from 9.81 (included) or 0 (removed), m/s²."""

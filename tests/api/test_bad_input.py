@@ -61,6 +61,45 @@ def _columns(base: bytes) -> dict[str, list[float]]:
     return {name: a[:, i].tolist() for i, name in enumerate(names)}
 
 
+def _json_columns(base: bytes, edit: Callable[[dict[str, list[float]]], None]) -> dict[str, Any]:
+    """A JSON ``columns`` upload of the good log with ``edit`` applied to its arrays."""
+    cols = _columns(base)
+    edit(cols)
+    return {"track": "T", "start_chainage_m": 12, "columns": cols}
+
+
+def _set(name: str, i: int, value: float) -> Callable[[dict[str, list[float]]], None]:
+    def edit(cols: dict[str, list[float]]) -> None:
+        cols[name][i] = value
+
+    return edit
+
+
+def _shift_time(i: int, by_s: float) -> Callable[[dict[str, list[float]]], None]:
+    def edit(cols: dict[str, list[float]]) -> None:
+        cols["time_s"] = [t + by_s if k >= i else t for k, t in enumerate(cols["time_s"])]
+
+    return edit
+
+
+def _chainage_jump(i: int, jump_m: float) -> Callable[[dict[str, list[float]]], None]:
+    """Speed replaced by an odometer chainage that jumps ``jump_m`` at sample ``i``."""
+
+    def edit(cols: dict[str, list[float]]) -> None:
+        t, v = np.asarray(cols["time_s"]), np.asarray(cols.pop("speed_mps"))
+        c = 12.0 + np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))))
+        c[i:] += jump_m
+        cols["chainage_m"] = c.tolist()
+
+    return edit
+
+
+def _csv_of(cols: dict[str, list[float]]) -> bytes:
+    names = list(cols)
+    rows = zip(*(cols[n] for n in names), strict=True)
+    return _csv([",".join(names), *(",".join(f"{x:.8f}" for x in r) for r in rows)])
+
+
 # -- requests --------------------------------------------------------------------------------
 FORM = {"track": "T", "start_chainage_m": "12"}
 
@@ -439,6 +478,74 @@ CATALOGUE: dict[str, Bad] = {
     "JSON with options for columns": Bad(
         json_body(lambda b: {**_meta(csv=None)(b), "columns": _columns(b), "accel_unit": "g"}),
         words=("options apply to csv only",),
+    ),
+    # -- the same plausibility on every path (issue 16): JSON columns, CSV chainage ---------
+    "JSON columns with a 100 s gap in time": Bad(
+        json_body(lambda b: _json_columns(b, _shift_time(99, 100.0))),
+        facts={"column": "time_s", "row": 101, "kind": "LogFormatError", "field": "columns"},
+        words=("gap", "without gaps"),
+    ),
+    "JSON columns with the gap of the CSV case": Bad(
+        json_body(lambda b: _json_columns(b, _shift_time(99, 0.003))),
+        facts={"column": "time_s", "row": 101},
+        words=("gap", "0.004 s"),
+    ),
+    "JSON acceleration of 1e308": Bad(
+        json_body(lambda b: _json_columns(b, _set("accel_z_mps2", 56, 1e308))),
+        facts={"column": "accel_z_mps2", "row": 58, "kind": "LogFormatError"},
+        words=("m/s²", "50 m/s²"),
+    ),
+    "JSON pitch rate of 7 rad/s": Bad(
+        json_body(lambda b: _json_columns(b, _set("pitch_rate_radps", 88, 7.0))),
+        facts={"column": "pitch_rate_radps", "row": 90},
+        words=("rad/s",),
+    ),
+    "JSON speed of 1e308": Bad(
+        json_body(lambda b: _json_columns(b, _set("speed_mps", 75, 1e308))),
+        facts={"column": "speed_mps", "row": 77},
+        words=("m/s", "150 m/s"),
+    ),
+    "JSON speed of zero": Bad(
+        json_body(lambda b: _json_columns(b, _set("speed_mps", 75, 0.0))),
+        facts={"column": "speed_mps", "row": 77},
+        words=("standstill",),
+    ),
+    "JSON chainage jumping 1e6 m": Bad(
+        json_body(lambda b: _json_columns(b, _chainage_jump(200, 1e6))),
+        facts={"column": "chainage_m", "row": 202, "kind": "LogFormatError"},
+        words=("jumps", "150 m/s"),
+    ),
+    "CSV chainage column jumping 2000 m": Bad(
+        multipart(lambda b: _csv_of(_json_columns(b, _chainage_jump(200, 2000.0))["columns"])),
+        facts={"column": "chainage_m", "row": 202, "field": "file"},
+        words=("jumps", "150 m/s"),
+    ),
+    "JSON csv text with a chainage jump": Bad(
+        json_body(lambda b: _meta()(_csv_of(_json_columns(b, _chainage_jump(200, 2000.0))
+                                             ["columns"]))),
+        facts={"column": "chainage_m", "row": 202, "field": "csv"},
+        words=("jumps",),
+    ),
+    # -- the simulate path --------------------------------------------------------------------
+    "simulate faster than the schema allows": Bad(
+        json_body(lambda _b: {"speed_mps": 1e308}), facts={"field": "speed_mps"},
+        path="/api/v1/simulate",
+    ),
+    "simulate a zone beyond the track": Bad(
+        json_body(lambda _b: {"length_m": 200, "zones": ["150:250:0.5"]}),
+        facts={"field": "zones.0.end_m"}, path="/api/v1/simulate",
+    ),
+    "simulate with an unknown vehicle": Bad(
+        json_body(lambda _b: {"vehicle": "tgv"}), facts={"field": "vehicle"},
+        path="/api/v1/simulate",
+    ),
+    "simulate a run too long": Bad(
+        json_body(lambda _b: {"length_m": 5000, "speed_mps": 5}), facts={"field": "length_m"},
+        path="/api/v1/simulate",
+    ),
+    "simulate sensor noise beyond the schema": Bad(
+        json_body(lambda _b: {"sensor": {"accel_noise": 1e308}}),
+        facts={"field": "sensor.SensorSpec.accel_noise"}, path="/api/v1/simulate",
     ),
     # -- vehicles and tracks ----------------------------------------------------------------
     "negative vehicle mass": Bad(

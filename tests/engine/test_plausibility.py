@@ -1,0 +1,72 @@
+"""engine.plausibility: one check for every input path (the probe's JSON logs)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.errors import LogFormatError
+from engine.pipeline import check_run
+from engine.plausibility import check_plausible
+from engine.runlog import RunLog
+
+
+def _log(n: int = 4000, rate: float = 1000.0, v: float = 25.0, chainage: bool = False) -> RunLog:
+    rng = np.random.default_rng(0)
+    t = np.arange(n) / rate
+    c = 12.0 + v * t
+    return RunLog(
+        time_s=t,
+        accel_z_mps2=0.1 * rng.standard_normal(n),
+        pitch_rate_radps=0.01 * rng.standard_normal(n),
+        speed_mps=None if chainage else np.full(n, v),
+        chainage_m=c if chainage else None,
+    )
+
+
+def _with(log: RunLog, **arrays: np.ndarray) -> RunLog:
+    fields = {k: getattr(log, k) for k in ("time_s", "accel_z_mps2", "pitch_rate_radps",
+                                           "speed_mps", "chainage_m")}  # fmt: skip
+    return RunLog(**(fields | arrays))
+
+
+def test_a_plausible_log_passes() -> None:
+    check_plausible(_log())
+    check_plausible(_log(chainage=True))
+
+
+def _edited(name: str, i: int, value: float, chainage: bool = False) -> RunLog:
+    log = _log(chainage=chainage)
+    arr = getattr(log, name).copy()
+    arr[i] = value
+    return _with(log, **{name: arr})
+
+
+@pytest.mark.parametrize(
+    ("make", "column", "row", "words"),
+    [
+        (lambda: _with(_log(), time_s=np.arange(4000) / 1e3 + 100 * (np.arange(4000) >= 99)),
+         "time_s", 101, "gap"),
+        (lambda: _edited("accel_z_mps2", 56, 1e308), "accel_z_mps2", 58, "50 m/s²"),
+        (lambda: _edited("pitch_rate_radps", 88, -6.0), "pitch_rate_radps", 90, "5 rad/s"),
+        (lambda: _edited("speed_mps", 75, 1e308), "speed_mps", 77, "150 m/s"),
+        (lambda: _with(_log(chainage=True),
+                       chainage_m=12 + 25 * np.arange(4000) / 1e3 + 1e6 * (np.arange(4000) >= 200)),
+         "chainage_m", 202, "jumps"),
+    ],
+)  # fmt: skip
+def test_implausible_logs_are_refused_naming_column_and_row(make, column, row, words) -> None:
+    """The probe's JSON logs (a 100 s gap, 1e308 samples, a 1e6 m chainage jump) are refused
+    by the check every path shares, and by the inversion's pre-flight which calls it."""
+    log = make()
+    for check in (check_plausible, lambda lg: check_run(lg, start_chainage_m=12.0)):
+        with pytest.raises(LogFormatError) as e:
+            check(log)
+        assert (e.value.column, e.value.row) == (column, row)
+        assert words in str(e.value)
+
+
+def test_names_and_rows_can_be_the_files() -> None:
+    with pytest.raises(LogFormatError) as e:
+        check_plausible(_edited("accel_z_mps2", 9, 99.0), {"accel_z_mps2": "az"}, lambda i: i + 7)
+    assert (e.value.column, e.value.row) == ("az", 16)
