@@ -216,7 +216,14 @@ def main() -> None:
         *spread_table(ns.seeds),
         "",
     ]
-    Path(ns.out).write_text("\n".join(out))
+    # the geometry section is written by benchmarks/accuracy_geometry.py: keep it
+    dest = Path(ns.out)
+    previous = dest.read_text() if dest.exists() else ""
+    start = previous.find("<!-- geometry-accuracy:start -->")
+    if start >= 0:
+        out.append(previous[start:].rstrip("\n"))
+        out.append("")
+    dest.write_text("\n".join(out))
     print("\n".join(out))
 
 

@@ -21,7 +21,11 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
+# like the other engine benchmarks: one BLAS thread (set before numpy is imported)
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))

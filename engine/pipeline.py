@@ -12,12 +12,12 @@ from .chainage import GRID_STEP_M, AxlePositions, axle_positions, bandpass_dista
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import InversionError, ParameterError
+from .geometry_check import is_smooth_rail
 from .intervals import merge_intervals
 from .optimisation import windowed_least_squares
 from .plausibility import check_plausible
 from .results import ProcessResult, Quality, SoftSpot
 from .runlog import RunLog
-from .separation import is_smooth_rail
 from .spectral import estimate_white_noise, spectral_inverse
 from .stiffness import fit_zone
 from .track import TrackParams

@@ -84,7 +84,7 @@ class GeometryCheck:
     residual_sigma_mm : float
         Robust spread (1.4826 MAD) of the level minus its 40 m baseline, mm.
     threshold_mm : float
-        The criterion's threshold, mm (see :data:`engine.separation.SMOOTH_RAIL_SIGMA_MM`).
+        The criterion's threshold, mm (see :data:`engine.geometry_check.SMOOTH_RAIL_SIGMA_MM`).
     message : str or None
         Plain words when not smooth.
     """

@@ -26,13 +26,25 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from .align import align_profiles
 from .chainage import bandpass_distance
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .errors import ParameterError
-from .results import GeometryCheck, ProcessResult
+from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
+from .passes import Pass, align_passes, column_mean_sd, on_grid, pass_from_result
 from .stiffness import InfluenceLine, fit_zone
 from .track import TrackParams
+
+__all__ = [
+    "NOT_SEPARABLE_MESSAGE", "PRECISION_MESSAGE", "SMOOTH_RAIL_MESSAGE", "SMOOTH_RAIL_SIGMA_MM",
+    "Pass", "SeparatedSpot", "SeparationConfig", "SeparationResult", "align_passes",
+    "is_smooth_rail", "pass_from_result", "separate",
+]  # fmt: skip
+
+__all__ = [
+    "NOT_SEPARABLE_MESSAGE", "PRECISION_MESSAGE", "SMOOTH_RAIL_MESSAGE", "SMOOTH_RAIL_SIGMA_MM",
+    "Pass", "SeparatedSpot", "SeparationConfig", "SeparationResult", "align_passes",
+    "is_smooth_rail", "pass_from_result", "separate",
+]  # fmt: skip
 
 NOT_SEPARABLE_MESSAGE = (
     "dips: geometry and stiffness not separable here — needs a pass with a different wheel "
@@ -45,44 +57,6 @@ PRECISION_MESSAGE = (
     "runs, or too few passes) to separate geometry from stiffness"
 )
 """What the product says where the loads differ enough but the levels are too uncertain."""
-
-SMOOTH_RAIL_SIGMA_MM = 0.05
-"""Largest robust spread (mm) of a single pass's residual (level minus its 40 m baseline, in
-the 3-40 m band) for which the rail counts as smooth at the noise level: single-pass
-stiffness-loss figures stay valid. Measured (docs/method.md, "Rail geometry"): straight-rail
-runs give 0.011-0.016 mm (shared samples) and up to 0.036 mm at four times their sensor
-noise; a geometry of 0.05 mm SD moves a zone's fitted loss by about 5-8 pp; real track
-(German low-disturbance, FRA class 6) gives 1-2 mm."""
-
-SMOOTH_RAIL_MESSAGE = (
-    "rail not smooth at the noise level: a dip may be rail geometry, so no stiffness-loss "
-    "figure from this pass alone (needs passes with different wheel loads or a survey)"
-)
-
-
-@dataclass(frozen=True)
-class Pass:
-    """One aligned pass over the track (a run or a survey).
-
-    Attributes
-    ----------
-    chainage_m : ndarray
-        Regular grid on the track's chainage, m, increasing (already aligned).
-    level_mm : ndarray
-        Loaded level in the product's band (3-40 m), mm, positive up; NaN = not covered.
-    force_n : ndarray or float
-        Wheel force along the grid (static + dynamic), N, compression positive; or a constant.
-    kind : str
-        ``"run"`` or ``"survey"``.
-    label : str
-        E.g. the run id, for "which runs contributed".
-    """
-
-    chainage_m: NDArray[np.float64]
-    level_mm: NDArray[np.float64]
-    force_n: NDArray[np.float64] | float
-    kind: str = "run"
-    label: str = ""
 
 
 @dataclass(frozen=True)
@@ -286,139 +260,6 @@ def _message(
     return NOT_SEPARABLE_MESSAGE if np.any(lacking & load_limited) else PRECISION_MESSAGE
 
 
-def pass_from_result(
-    result: ProcessResult, *, offset_m: float = 0.0, kind: str = "run", label: str = ""
-) -> Pass:
-    """A pass from one processed run: fused level and the mean of both axles' wheel forces.
-
-    ``offset_m`` (m) is added to the run's chainage (its alignment to the track).
-    """
-    if result.front_force_n is None or result.rear_force_n is None:
-        raise ParameterError("the processed run has no wheel force (front_force_n) to separate")
-    f1, f2 = result.front_force_n, result.rear_force_n
-    both = np.isfinite(f1) & np.isfinite(f2)
-    with np.errstate(invalid="ignore"):
-        force = np.where(both, 0.5 * (f1 + f2), np.where(np.isfinite(f1), f1, f2))
-    return Pass(result.chainage_m + offset_m, result.level_mm, force, kind, label)
-
-
-def align_passes(
-    passes: Sequence[Pass],
-    *,
-    max_shift_m: float = 10.0,
-    recentre: bool = True,
-    stretch_m: float = 2000.0,
-) -> tuple[list[Pass], list[float]]:
-    """Align passes to one another by cross-correlating their levels.
-
-    Each pass is aligned to the mean of the passes already aligned (the aggregate), on at
-    most ``stretch_m`` metres of their common stretch (cost independent of the run length).
-    With ``recentre`` the common frame is then shifted so that the offsets average zero: each
-    logged start chainage is an independent estimate of the true one, so their mean is the
-    best estimate of the track's frame. A pass whose alignment is not trusted keeps its
-    logged chainage. Returns the shifted passes and the offsets, m.
-    """
-    if not passes:
-        return [], []
-    step = float(passes[0].chainage_m[1] - passes[0].chainage_m[0])
-    grid, levels, _ = _on_grid(passes, step)
-    total = np.where(np.isfinite(levels[0]), levels[0], 0.0)
-    count = np.isfinite(levels[0]).astype(float)
-    offsets = [0.0]
-    for j, p in enumerate(passes[1:], start=1):
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ref = np.where(count > 0, total / count, np.nan)
-        both = np.flatnonzero(np.isfinite(ref) & np.isfinite(levels[j]))
-        off = 0.0
-        if both.size:
-            mid = 0.5 * (grid[both[0]] + grid[both[-1]])
-            lo, hi = np.searchsorted(grid, [mid - 0.5 * stretch_m, mid + 0.5 * stretch_m])
-            lo, hi = max(lo, both[0]), min(hi, both[-1] + 1)
-            if hi - lo >= 8:
-                sel = slice(int(lo), int(hi))
-                pl = np.asarray(p.level_mm, dtype=float)
-                k0, k1 = np.searchsorted(
-                    p.chainage_m, [grid[lo] - max_shift_m, grid[hi - 1] + max_shift_m]
-                )
-                a = align_profiles(grid[sel], ref[sel], p.chainage_m[k0:k1], pl[k0:k1],
-                                   max_shift_m=max_shift_m)  # fmt: skip
-                off = a.offset_m if a.ok else 0.0
-        offsets.append(off)
-        shifted = np.interp(grid, p.chainage_m + off, np.asarray(p.level_mm, dtype=float),
-                            left=np.nan, right=np.nan)  # fmt: skip
-        ok = np.isfinite(shifted)
-        total[ok] += shifted[ok]
-        count[ok] += 1.0
-    shift = -float(np.mean(offsets)) if recentre else 0.0
-    out = [
-        replace(p, chainage_m=p.chainage_m + o + shift)
-        for p, o in zip(passes, offsets, strict=True)
-    ]
-    return out, [o + shift for o in offsets]
-
-
-def _column_mean_sd(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Mean and standard deviation of each column over its finite values (NaN if none)."""
-    ok = np.isfinite(x)
-    n = ok.sum(axis=0)
-    xs = np.where(ok, x, 0.0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(n > 0, xs.sum(axis=0) / n, np.nan)
-        var = np.where(n > 0, (np.where(ok, x - mean, 0.0) ** 2).sum(axis=0) / n, np.nan)
-    return mean, np.sqrt(var)
-
-
-def _column_median(x: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Median of each column over its finite values (NaN if none), without warnings."""
-    ok = np.isfinite(x).any(axis=0)
-    out = np.full(x.shape[1], np.nan)
-    if ok.any():
-        out[ok] = np.nanmedian(x[:, ok], axis=0)
-    return out
-
-
-def _on_grid(
-    passes: Sequence[Pass], step: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Common grid and every pass's level (mm) and force (N) on it (NaN where not covered)."""
-    lo = min(float(np.nanmin(p.chainage_m)) for p in passes)
-    hi = max(float(np.nanmax(p.chainage_m)) for p in passes)
-    grid = np.arange(math.floor(lo / step) * step, hi + 1e-9, step)
-    levels = np.full((len(passes), grid.size), np.nan)
-    forces = np.full((len(passes), grid.size), np.nan)
-    for j, p in enumerate(passes):
-        x = np.asarray(p.chainage_m, dtype=float)
-        y = np.asarray(p.level_mm, dtype=float)
-        if x.shape != y.shape or x.ndim != 1 or x.size < 2:
-            raise ParameterError(
-                f"pass {j} ({p.label or p.kind}): chainage_m and level_mm must be 1-D arrays of "
-                "the same length >= 2"
-            )
-        if np.any(np.diff(x) <= 0):
-            raise ParameterError(f"pass {j} ({p.label or p.kind}): chainage_m must increase")
-        try:
-            f = np.broadcast_to(np.asarray(p.force_n, dtype=float), x.shape)
-        except ValueError:
-            raise ParameterError(
-                f"pass {j} ({p.label or p.kind}): force_n must be a number of N or one value "
-                f"per chainage point ({x.size}), got shape {np.shape(p.force_n)}"
-            ) from None
-        if np.any(np.isfinite(f) & (f <= 0)):
-            raise ParameterError(
-                f"pass {j} ({p.label or p.kind}): wheel force must be > 0 N (compression)"
-            )
-        ok = np.isfinite(y) & np.isfinite(f)
-        if ok.sum() < 2:
-            continue
-        inside = (grid >= x[ok][0]) & (grid <= x[ok][-1])
-        # a gap inside the pass stays a gap: interpolate the validity too
-        valid = np.interp(grid, x, ok.astype(float)) > 0.999
-        sel = inside & valid
-        levels[j, sel] = np.interp(grid[sel], x[ok], y[ok])
-        forces[j, sel] = np.interp(grid[sel], x[ok], f[ok])
-    return grid, levels, forces
-
-
 @lru_cache(maxsize=8)
 def _detectable_depth(
     params: TrackParams, load: float, lambda_min: float, lambda_max: float, taper: float
@@ -511,7 +352,7 @@ def separate(
     if len(passes) == 0:
         raise ParameterError("separation needs at least one pass")
     step = cfg.grid_step_m or float(passes[0].chainage_m[1] - passes[0].chainage_m[0])
-    grid, levels, forces = _on_grid(passes, step)
+    grid, levels, forces = on_grid(passes, step)
     n_pass = len(passes)
     fbar = np.array([float(np.nanmean(f)) if np.isfinite(f).any() else np.nan for f in forces])
     c0 = float(InfluenceLine(trk)(np.zeros(1))[0]) * 1e3  # mm/N
@@ -568,7 +409,7 @@ def separate(
     )
 
     # geometry: the intercept where separable; else the mean corrected level (nominal stiffness)
-    zmean, zsd = _column_mean_sd(z)
+    zmean, zsd = column_mean_sd(z)
     geometry = np.where(separable, a, zmean)
     geometry_sd = np.where(separable, np.sqrt(var_a), np.maximum(zsd, noise_mm.mean()))
     geometry = np.where(n_cov > 0, geometry, np.nan)
@@ -592,7 +433,7 @@ def separate(
     message = _message(n_cov, ratio, separable, cfg)
     dips: list[Dip] = []
     if message is not None:
-        mean_level = np.where(covered & ~separable, _column_mean_sd(levels)[0], np.nan)
+        mean_level = np.where(covered & ~separable, column_mean_sd(levels)[0], np.nan)
         det = DetectionConfig()
         resid_level = mean_level - robust_baseline(mean_level, step, det.baseline_window_m)
         dips, _ = find_dips(grid, resid_level, det)
@@ -672,28 +513,3 @@ def _soft_spots(
             )
         )
     return out
-
-
-def is_smooth_rail(
-    result: ProcessResult | float, threshold_mm: float = SMOOTH_RAIL_SIGMA_MM
-) -> GeometryCheck:
-    """Whether one pass shows the rail smooth at the noise level (single-pass figures valid).
-
-    Parameters
-    ----------
-    result : ProcessResult or float
-        A processed run, or directly the robust spread of its residual, mm.
-    threshold_mm : float
-        Largest robust spread of the residual (level minus 40 m baseline) of a smooth rail, mm.
-
-    Returns
-    -------
-    GeometryCheck
-        ``smooth`` true when the spread is at or below the threshold; a message otherwise.
-    """
-    if isinstance(result, ProcessResult):
-        sigma = float(result.extras.get("residual_sigma_mm", float("nan")))
-    else:
-        sigma = float(result)
-    smooth = bool(math.isfinite(sigma) and sigma <= threshold_mm)
-    return GeometryCheck(smooth, sigma, threshold_mm, None if smooth else SMOOTH_RAIL_MESSAGE)
