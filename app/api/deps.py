@@ -5,12 +5,13 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Annotated
 
-from fastapi import Depends, Request, Security
+from fastapi import Depends, Query, Request, Security
 from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
 from app.api.access import Caller
 from app.services.context import AppContext
+from app.services.window import Window
 
 api_key_header = APIKeyHeader(name="X-API-Key", auto_error=False, description="Pipeline API key")
 bearer = HTTPBearer(auto_error=False, description="The API key as a bearer token")
@@ -53,3 +54,25 @@ def check_access(
 
 
 CallerDep = Annotated[Caller, Depends(check_access)]
+
+
+FromM = Annotated[float | None, Query(allow_inf_nan=False, description="From, m")]
+ToM = Annotated[float | None, Query(allow_inf_nan=False, description="To, m")]
+
+
+def chainage_window(from_m: FromM = None, to_m: ToM = None) -> Window:
+    """``?from_m=&to_m=``: an inclusive window of aligned chainage, either end open (the one
+    rule of :class:`app.services.window.Window`: ``to_m`` not before ``from_m``)."""
+    return Window(from_m, to_m)
+
+
+def closed_chainage_window(
+    from_m: Annotated[float, Query(allow_inf_nan=False, description="From, m")],
+    to_m: Annotated[float, Query(allow_inf_nan=False, description="To, m")],
+) -> Window:
+    """``?from_m=&to_m=``, both required (same rule as :func:`chainage_window`)."""
+    return Window(from_m, to_m)
+
+
+WindowDep = Annotated[Window, Depends(chainage_window)]
+ClosedWindowDep = Annotated[Window, Depends(closed_chainage_window)]

@@ -16,9 +16,12 @@ from numpy.typing import NDArray
 from sqlalchemy import delete, func, insert, select
 from sqlalchemy.orm import Session
 
-from app.db.models import TrackProfilePoint, TrackRunLevels
+from app.db.models import Track, TrackProfilePoint, TrackRunLevels
 from engine.aggregate import aggregate_levels
 from engine.chainage import GRID_STEP_M
+from engine.decimate import minmax_indices
+
+from .window import Window
 
 CHUNK_POINTS = 1000
 """Grid points per stored chunk of a run's aligned levels (250 m)."""
@@ -170,3 +173,27 @@ def track_profile_extent(session: Session, track_id: int) -> tuple[float | None,
         select(func.min(t.c.chainage_m), func.max(t.c.chainage_m)).where(t.c.track_id == track_id)
     ).one()
     return lo, hi
+
+
+def aggregated_profile_view(
+    session: Session, track: Track, window: Window, max_points: int | None
+) -> dict[str, Any]:
+    """A track's aggregated profile in a window, JSON-ready, thinned to ``max_points`` by
+    :func:`engine.decimate.minmax_indices` on the level when asked."""
+    cols = read_track_profile(session, track.id, window.from_m, window.to_m)
+    n = len(cols["chainage_m"])
+    decimated = False
+    if max_points is not None and n > max_points:
+        idx = minmax_indices(np.asarray(cols["level_mm"], dtype=np.float64), max_points)
+        cols = {k: [v[i] for i in idx.tolist()] for k, v in cols.items()}
+        decimated = True
+    return {
+        "track_id": track.id,
+        "track": track.name,
+        "from_m": window.from_m,
+        "to_m": window.to_m,
+        "grid_step_m": GRID_STEP_M,
+        "n": n,
+        "decimated": decimated,
+        **cols,
+    }

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import time
-from collections.abc import Iterator
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
@@ -12,16 +12,13 @@ import orjson
 from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import StreamingResponse
 from pydantic import ValidationError
-from sqlalchemy import func, select
-from sqlalchemy.orm import Session
 from starlette.datastructures import UploadFile
 
+from app.api.answers import CSV_RESPONSE, csv_answer
 from app.api.convert import run_public
-from app.api.deps import CtxDep, SessionDep
+from app.api.deps import CtxDep, SessionDep, WindowDep
 from app.core.errors import ApiError
-from app.db.models import Run, RunSignals, SoftSpot
 from app.schemas.runs import (
     ProfilePublic,
     RunCreated,
@@ -33,10 +30,10 @@ from app.schemas.runs import (
     SignalsPublic,
     SoftSpotPublic,
 )
+from app.services import exports, runs
 from app.services.context import AppContext
 from app.services.integrate import remove_run_from_track
 from app.services.logs import hash_columns, log_from_columns, parse_csv, sha256_hex
-from app.services.profiles import PROFILE_COLUMNS, iter_profile_rows, read_profile
 from app.services.submit import Submission, submit
 
 from .lookup import get_track
@@ -155,10 +152,7 @@ def _facts(exc: ValidationError) -> dict[str, Any]:
 def load_run_public(ctx: AppContext, run_id: int) -> RunPublic:
     """A run's public view, read fresh from the database."""
     with ctx.db.session() as s:
-        run = s.get(Run, run_id)
-        if run is None:
-            raise ApiError(404, f"run {run_id} not found", field="run_id")
-        return run_public(run)
+        return run_public(runs.get_run(s, run_id))
 
 
 async def answer_submission(
@@ -260,45 +254,22 @@ def list_runs(
     limit: Annotated[int, Query(ge=1, le=1000)] = 50,
 ) -> RunsPublic:
     """Runs, newest recording first; filter by track, status and recording time."""
-    conds = []
-    if track is not None:
-        conds.append(Run.track_id == get_track(session, track).id)
-    if status is not None:
-        conds.append(Run.status == status)
-    if recorded_from is not None:
-        conds.append(Run.recorded_at >= recorded_from)
-    if recorded_to is not None:
-        conds.append(Run.recorded_at <= recorded_to)
-    count = session.scalar(select(func.count()).select_from(Run).where(*conds)) or 0
-    when = func.coalesce(Run.recorded_at, Run.created_at)
-    rows = session.scalars(
-        select(Run).where(*conds).order_by(when.desc(), Run.id.desc()).offset(offset).limit(limit)
-    ).all()
+    rows, count = runs.list_runs(
+        session,
+        track_id=None if track is None else get_track(session, track).id,
+        status=status,
+        recorded_from=recorded_from,
+        recorded_to=recorded_to,
+        offset=offset,
+        limit=limit,
+    )
     return RunsPublic(data=[run_public(r) for r in rows], count=count)
-
-
-def _get_run(session: Session, run_id: int) -> Run:
-    run = session.get(Run, run_id)
-    if run is None:
-        raise ApiError(404, f"run {run_id} not found", field="run_id")
-    return run
-
-
-def _require_done(run: Run, what: str) -> None:
-    if run.status == "processing":
-        raise ApiError(
-            409, f"run {run.id} is still processing; its {what} is not available yet",
-            status=run.status,
-        )  # fmt: skip
-    if run.status == "failed":
-        msg = (run.error or {}).get("message", "unknown error")
-        raise ApiError(409, f"run {run.id} failed ({msg}); it has no {what}", status=run.status)
 
 
 @router.get("/{run_id}", response_model=RunPublic)
 def read_run(session: SessionDep, run_id: int) -> RunPublic:
     """A run's status, metadata, quality indicators and error."""
-    return run_public(_get_run(session, run_id))
+    return run_public(runs.get_run(session, run_id))
 
 
 @router.delete("/{run_id}", status_code=204, response_class=Response)
@@ -307,59 +278,24 @@ def delete_run(session: SessionDep, run_id: int) -> Response:
 
     The track's aggregated profile is recomputed without it in the same transaction.
     """
-    run = _get_run(session, run_id)
+    run = runs.get_run(session, run_id)
     remove_run_from_track(session, run)
     session.delete(run)
     session.commit()
     return Response(status_code=204)
 
 
-def _window(
-    run: Run, from_m: float | None, to_m: float | None
-) -> tuple[float | None, float | None]:
-    if from_m is not None and to_m is not None and to_m < from_m:
-        raise ApiError(422, f"to_m ({to_m} m) is before from_m ({from_m} m)", field="to_m")
-    off = run.chainage_offset_m or 0.0
-    return (None if from_m is None else from_m - off), (None if to_m is None else to_m - off)
-
-
-def _csv_value(v: float | None, fmt: str) -> str:
-    return "" if v is None else format(v, fmt)
-
-
-EXTRA_PROFILE_COLUMNS = PROFILE_COLUMNS[2:]
-"""Arrays a profile answer carries on request (``?include=``), besides chainage and level."""
-
-
-def _included(include: str | None) -> tuple[str, ...]:
-    if not include:
-        return ()
-    names = [n.strip() for n in include.split(",") if n.strip()]
-    if "all" in names:
-        return EXTRA_PROFILE_COLUMNS
-    unknown = [n for n in names if n not in EXTRA_PROFILE_COLUMNS]
-    if unknown:
-        raise ApiError(
-            422,
-            f"include: unknown column(s) {', '.join(unknown)}; choose from "
-            f"{', '.join(EXTRA_PROFILE_COLUMNS)} or 'all'",
-            field="include",
-        )
-    return tuple(c for c in EXTRA_PROFILE_COLUMNS if c in names)
-
-
 @router.get(
     "/{run_id}/profile",
     response_model=ProfilePublic,
     response_model_exclude_none=True,
-    responses={200: {"content": {"text/csv": {"schema": {"type": "string"}}}}},
+    responses=CSV_RESPONSE,
 )
 def read_run_profile(
     ctx: CtxDep,
     session: SessionDep,
     run_id: int,
-    from_m: Annotated[float | None, Query(allow_inf_nan=False, description="From, m")] = None,
-    to_m: Annotated[float | None, Query(allow_inf_nan=False, description="To, m")] = None,
+    window: WindowDep,
     include: Annotated[
         str | None,
         Query(
@@ -376,54 +312,20 @@ def read_run_profile(
     indexed query; ``?include=all`` adds each axle's level and the baseline the soft spots are
     measured from; ``?format=csv`` answers ``chainage_m,level_mm[,...]`` as CSV.
     """
-    extra = _included(include)
-    run = _get_run(session, run_id)
-    _require_done(run, "profile")
-    lo, hi = _window(run, from_m, to_m)
-    off = run.chainage_offset_m or 0.0
-    columns = ("chainage_m", "level_mm", *extra)
+    names = [n.strip() for n in (include or "").split(",") if n.strip()]
+    columns = ("chainage_m", "level_mm", *runs.included_columns(names))
+    run = runs.done_run(session, run_id, "profile")
     if format == "csv":
-        return StreamingResponse(
-            _profile_csv(ctx, run_id, lo, hi, off, columns),
-            media_type="text/csv",
-            headers={"Content-Disposition": f'attachment; filename="run-{run_id}-profile.csv"'},
-        )
-    cols = read_profile(session, run_id, lo, hi, columns)
-    chainage = cols["chainage_m"] if off == 0 else [c + off for c in cols["chainage_m"]]
-    payload = {
-        "run_id": run_id,
-        "chainage_offset_m": off,
-        "n": len(chainage),
-        "chainage_m": chainage,
-        **{k: cols[k] for k in columns[1:]},
-    }
+        csv = exports.run_profile_csv(ctx, run, window, columns)
+        return csv_answer(csv, f"run-{run_id}-profile.csv")
+    payload = runs.profile_window(session, run, window, columns)
     return Response(orjson.dumps(payload), media_type="application/json")
-
-
-def _profile_csv(
-    ctx: AppContext,
-    run_id: int,
-    lo: float | None,
-    hi: float | None,
-    off: float,
-    columns: tuple[str, ...],
-) -> Iterator[str]:
-    yield ",".join(columns) + "\n"
-    with ctx.db.session() as s:
-        for rows in iter_profile_rows(s, run_id, lo, hi, columns):
-            yield "".join(
-                f"{r[0] + off:.4f}," + ",".join(_csv_value(v, ".6f") for v in r[1:]) + "\n"
-                for r in rows
-            )
-
-
-SOFT_SPOT_FIELDS = ("start_m", "end_m", "peak_m", "depth_mm", "stiffness_loss_pct")
 
 
 @router.get(
     "/{run_id}/soft-spots",
     response_model=list[SoftSpotPublic],
-    responses={200: {"content": {"text/csv": {"schema": {"type": "string"}}}}},
+    responses=CSV_RESPONSE,
 )
 def read_run_soft_spots(
     session: SessionDep,
@@ -431,44 +333,17 @@ def read_run_soft_spots(
     format: Annotated[Literal["json", "csv"], Query()] = "json",
 ) -> Any:
     """Soft spots along chainage: extent and peak (m), depth (mm), stiffness loss (%)."""
-    run = _get_run(session, run_id)
-    _require_done(run, "soft spots")
-    off = run.chainage_offset_m or 0.0
-    spots = session.scalars(
-        select(SoftSpot).where(SoftSpot.run_id == run_id).order_by(SoftSpot.start_m)
-    ).all()
-    public = [
-        SoftSpotPublic(
-            start_m=s.start_m + off,
-            end_m=s.end_m + off,
-            peak_m=s.peak_m + off,
-            depth_mm=s.depth_mm,
-            stiffness_loss_pct=s.stiffness_loss_pct,
-        )  # fmt: skip
-        for s in spots
-    ]
+    spots = runs.soft_spots(session, runs.done_run(session, run_id, "soft spots"))
     if format == "csv":
-        lines = [",".join(SOFT_SPOT_FIELDS)]
-        for p in public:
-            lines.append(
-                f"{p.start_m:.3f},{p.end_m:.3f},{p.peak_m:.3f},{p.depth_mm:.6f},"
-                f"{_csv_value(p.stiffness_loss_pct, '.2f')}"
-            )
-        return Response(
-            "\n".join(lines) + "\n",
-            media_type="text/csv",
-            headers={"Content-Disposition": f'attachment; filename="run-{run_id}-soft-spots.csv"'},
-        )
-    return public
+        return csv_answer(exports.soft_spots_csv(spots), f"run-{run_id}-soft-spots.csv")
+    return [SoftSpotPublic(**dataclasses.asdict(p)) for p in spots]
 
 
 @router.get("/{run_id}/signals", response_model=SignalsPublic)
 def read_run_signals(session: SessionDep, run_id: int) -> SignalsPublic:
     """The raw signals against time (decimated to at most 5000 points, min/max envelope)."""
-    run = _get_run(session, run_id)
-    sig = session.get(RunSignals, run_id)
-    if sig is None:
-        raise ApiError(404, f"run {run_id} has no stored signals")
+    run = runs.get_run(session, run_id)
+    sig = runs.signals(session, run)
     d = sig.data
     return SignalsPublic(
         run_id=run_id,
