@@ -49,6 +49,7 @@ def hour_log(duration_s: float = 3600.0, speed: float = 30.0, seed: int = 0):
     from engine.runlog import RunLog
     from engine.sensor import SensorModel
     from engine.simulate import simulate
+    from engine.synthetic import to_runlog
     from engine.track import SoftZone, Track
 
     CACHE.mkdir(exist_ok=True)
@@ -66,7 +67,7 @@ def hour_log(duration_s: float = 3600.0, speed: float = 30.0, seed: int = 0):
     sim = simulate(track, speed=speed, duration=duration_s - 1e-3, start_chainage_m=start)
     sensor = SensorModel(accel_noise=0.005, gyro_noise=1e-4, accel_bias=0.02, gyro_bias=2e-4,
                          digits=8)  # fmt: skip
-    log = sim.to_runlog(sensor, seed=seed + 1)
+    log = to_runlog(sim, sensor, seed=seed + 1)
     np.savez(path, t=log.time_s, a=log.accel_z_mps2, q=log.pitch_rate_radps,
              v=log.speed_mps, start=start)  # fmt: skip
     return log, start

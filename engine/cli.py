@@ -19,11 +19,19 @@ from .detect import DetectionConfig
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import EngineError
 from .irregularity import SPECTRA, random_profile, read_profile_csv
-from .logio import CsvOptions, read_run_csv, write_run_csv
-from .pipeline import METHODS, ProcessConfig, process_run
+from .logio import (
+    GRAVITY_MODES,
+    OPTION_UNITS,
+    ROLE_LABELS,
+    CsvOptions,
+    read_run_csv,
+    write_run_csv,
+)
+from .pipeline import METHODS, ProcessConfig, check_run, process_run
 from .runlog import RunLog
 from .sensor import SensorModel
 from .simulate import simulate
+from .synthetic import to_runlog
 from .track import SoftZone, Track, TrackParams
 from .vehicle import PRESETS, TABLE1, VehicleParams, get_preset
 
@@ -71,24 +79,25 @@ def _add_track(p: argparse.ArgumentParser) -> None:
 
 
 def _add_columns(p: argparse.ArgumentParser) -> None:
+    # one option per CsvOptions field, choices from the reader's own unit lists
     g = p.add_argument_group(
         "columns and units of the input CSV (default: recognised from the header)"
     )
-    g.add_argument("--time-column", help="name of the time column")
-    g.add_argument("--accel-column", help="name of the vertical acceleration column")
-    g.add_argument("--pitch-rate-column", help="name of the pitch-rate column")
-    g.add_argument("--speed-column", help="name of the speed column")
-    g.add_argument("--chainage-column", help="name of the chainage (odometer) column")
-    g.add_argument("--time-unit", choices=["s", "ms", "epoch_s"], help="unit of the time column")
-    g.add_argument("--accel-unit", choices=["m/s2", "g"], help="unit of the acceleration")
-    g.add_argument("--pitch-rate-unit", choices=["rad/s", "deg/s"], help="unit of the pitch rate")
-    g.add_argument("--speed-unit", choices=["m/s", "km/h"], help="unit of the speed")
-    g.add_argument(
-        "--gravity",
-        choices=["auto", "included", "removed"],
-        default="auto",
-        help="whether the acceleration includes gravity (+1 g at rest); default auto",
-    )
+    for f in fields(CsvOptions):
+        flag = "--" + f.name.replace("_", "-")
+        if f.name == "gravity":
+            g.add_argument(
+                flag, choices=GRAVITY_MODES, default="auto",
+                help="whether the acceleration includes gravity (+1 g at rest); default auto",
+            )  # fmt: skip
+            continue
+        role, kind = f.name.rsplit("_", 1)
+        if kind == "column":
+            g.add_argument(flag, help=f"name of the {ROLE_LABELS[role]} column")
+        else:
+            g.add_argument(
+                flag, choices=OPTION_UNITS[role], help=f"unit of the {ROLE_LABELS[role]}"
+            )
 
 
 def _vehicle(ns: argparse.Namespace) -> VehicleParams:
@@ -104,18 +113,7 @@ def _track_params(ns: argparse.Namespace) -> TrackParams:
 
 
 def _read_log(ns: argparse.Namespace) -> RunLog:
-    opts = CsvOptions(
-        time_column=ns.time_column,
-        accel_column=ns.accel_column,
-        pitch_rate_column=ns.pitch_rate_column,
-        speed_column=ns.speed_column,
-        chainage_column=ns.chainage_column,
-        time_unit=ns.time_unit,
-        accel_unit=ns.accel_unit,
-        pitch_rate_unit=ns.pitch_rate_unit,
-        speed_unit=ns.speed_unit,
-        gravity=ns.gravity,
-    )
+    opts = CsvOptions(**{f.name: getattr(ns, f.name) for f in fields(CsvOptions)})
     return read_run_csv(Path(ns.run), opts)
 
 
@@ -167,7 +165,7 @@ def _cmd_simulate(ns: argparse.Namespace) -> int:
         sample_rate_hz=ns.rate,
         digits=ns.digits,
     )
-    log = sim.to_runlog(sensor, seed=ns.seed, chainage=ns.with_chainage)
+    log = to_runlog(sim, sensor, seed=ns.seed, chainage=ns.with_chainage)
     write_run_csv(log, Path(ns.out))
     if ns.truth:
         step = max(1, int(round(log.dt / sim.dt)))
@@ -213,10 +211,12 @@ def _cmd_invert(ns: argparse.Namespace) -> int:
         from .spectral import spectral_inverse
 
         cfg = ProcessConfig(lambda_min_m=ns.lambda_min, lambda_max_m=ns.lambda_max)
-        v = log.speed()
-        tp = 1.0 + cfg.taper
-        f_lo = float(v.min()) / (cfg.lambda_max_m * tp)
-        f_hi = float(v.max()) * tp / cfg.lambda_min_m
+        # the band is the pipeline's (check_run: speed percentiles), so both invert alike
+        chk = check_run(
+            log, start_chainage_m=ns.start_chainage, direction=ns.direction, vehicle=vehicle,
+            config=cfg,
+        )  # fmt: skip
+        f_lo, f_hi = chk.f_lo_hz, chk.f_hi_hz
         if ns.method == "filtered-direct":
             fres = filtered_direct_inverse(a, q, dt, vehicle, f_lo, f_hi)
             y1, y2 = fres.y_front, fres.y_rear

@@ -8,24 +8,21 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .chainage import GRID_STEP_M, AxlePositions, axle_positions, bandpass_distance, to_grid
+from .chainage import GRID_STEP_M, AxlePositions, axle_positions, to_grid
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
-from .direct import direct_inverse, filtered_direct_inverse
 from .errors import InversionError, ParameterError
 from .geometry_check import is_smooth_rail
 from .intervals import merge_intervals
-from .optimisation import windowed_least_squares
+from .methods import METHODS, MethodInput
 from .plausibility import check_plausible
 from .results import ProcessResult, Quality, SoftSpot
 from .runlog import RunLog
-from .spectral import estimate_white_noise, spectral_inverse
 from .stiffness import fit_zone
 from .track import TrackParams
 from .vehicle import TABLE1, VehicleParams
 from .wheel_force import dynamic_wheel_forces
 
 Method = Literal["spectral", "filtered-direct", "least-squares", "direct"]
-METHODS: tuple[str, ...] = ("spectral", "filtered-direct", "least-squares", "direct")
 
 MIN_SPEED_MPS = 1.0
 """Slowest speed the inversion accepts, m/s (below it wavelengths map to sub-Hz frequencies)."""
@@ -68,7 +65,9 @@ class ProcessConfig:
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
-            raise ParameterError(f"method must be one of {METHODS}, got {self.method!r}")
+            raise ParameterError(
+                f"method must be one of {tuple(METHODS)}, got {self.method!r}", field="method"
+            )
         if not (0 < self.lambda_min_m < self.lambda_max_m):
             raise ParameterError(
                 "wavelength band must satisfy 0 < lambda_min_m < lambda_max_m, got "
@@ -239,49 +238,19 @@ def process_run(
     )
     pos, speed, f_lo, f_hi = chk.positions, chk.speed, chk.f_lo_hz, chk.f_hi_hz
 
-    if cfg.method == "spectral":
-        inv = spectral_inverse(
-            log.accel_z_mps2, log.pitch_rate_radps, dt, vehicle, f_lo, f_hi, taper=cfg.taper
-        )
-        y1, y2 = inv.y_front, inv.y_rear
-        sa, sg = inv.noise_accel, inv.noise_gyro
-    else:
-        sa = estimate_white_noise(log.accel_z_mps2, dt)
-        sg = estimate_white_noise(log.pitch_rate_radps, dt)
-        if cfg.method == "filtered-direct":
-            res = filtered_direct_inverse(
-                log.accel_z_mps2, log.pitch_rate_radps, dt, vehicle, f_lo, f_hi
-            )
-        elif cfg.method == "direct":
-            res = direct_inverse(log.accel_z_mps2, log.pitch_rate_radps, dt, vehicle)
-        if cfg.method != "least-squares":
-            y1, y2 = res.y_front, res.y_rear
-
     step = cfg.grid_step_m
     lo = min(pos.front.min(), pos.rear.min())
     hi = max(pos.front.max(), pos.rear.max())
     grid = np.arange(np.ceil(lo / step) * step, hi + 1e-9, step)
-    if cfg.method == "least-squares":
-        xf, xr = pos.front, pos.rear
-        if pos.sign < 0:  # the fit wants increasing chainage: mirror the track
-            xf, xr = -xf, -xr
-        prof = windowed_least_squares(
-            log.accel_z_mps2, log.pitch_rate_radps, dt, xf, xr,
-            grid if pos.sign > 0 else -grid[::-1], vehicle,
-        )  # fmt: skip
-        prof = prof if pos.sign > 0 else prof[::-1]
-        front = rear = bandpass_distance(prof, step, cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper)
-        filled = np.where(np.isfinite(front), front, 0.0) * 1e-3
-        y1, y2 = np.interp(pos.front, grid, filled), np.interp(pos.rear, grid, filled)
-    else:
-        front = bandpass_distance(
-            to_grid(pos.front, y1 * 1e3, grid), step, cfg.lambda_min_m, cfg.lambda_max_m,
-            cfg.taper,
-        )  # fmt: skip
-        rear = bandpass_distance(
-            to_grid(pos.rear, y2 * 1e3, grid), step, cfg.lambda_min_m, cfg.lambda_max_m,
-            cfg.taper,
-        )  # fmt: skip
+    inv = METHODS[cfg.method](
+        MethodInput(
+            log=log, positions=pos, grid=grid, step_m=step, vehicle=vehicle, f_lo_hz=f_lo,
+            f_hi_hz=f_hi, lambda_min_m=cfg.lambda_min_m, lambda_max_m=cfg.lambda_max_m,
+            taper=cfg.taper,
+        )
+    )  # fmt: skip
+    y1, y2, front, rear = inv.y_front, inv.y_rear, inv.front_mm, inv.rear_mm
+    sa, sg = inv.noise_accel_mps2, inv.noise_pitch_rate_radps
     # wheel force per axle: static load + dynamic part from the vehicle equations, on the grid
     static = vehicle.static_axle_loads()
     f1, f2 = dynamic_wheel_forces(y1, y2, dt, vehicle)

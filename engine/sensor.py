@@ -4,16 +4,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .errors import ParameterError
 from .runlog import RunLog
-
-if TYPE_CHECKING:
-    from .simulate import SimulationResult
 
 
 @dataclass(frozen=True)
@@ -75,41 +71,51 @@ def round_significant(x: NDArray[np.float64], digits: int) -> NDArray[np.float64
 
 
 def apply_sensor(
-    sim: SimulationResult, sensor: SensorModel, *, seed: int | None = None, chainage: bool = False
+    time_s: NDArray[np.float64],
+    accel_z_mps2: NDArray[np.float64],
+    pitch_rate_radps: NDArray[np.float64],
+    speed_mps: NDArray[np.float64],
+    sensor: SensorModel,
+    *,
+    seed: int | None = None,
+    chainage_m: NDArray[np.float64] | None = None,
 ) -> RunLog:
-    """Sample, corrupt and round a simulation's clean signals into a :class:`RunLog`.
+    """Sample, corrupt and round clean signals into a :class:`RunLog`.
 
     Parameters
     ----------
-    sim : SimulationResult
-        Clean forward simulation.
+    time_s, accel_z_mps2, pitch_rate_radps, speed_mps : ndarray
+        Clean signals on a regular time grid: time (s), vertical body acceleration (m/s²,
+        gravity removed), pitch rate (rad/s), speed (m/s).
     sensor : SensorModel
         Imperfections to apply.
     seed : int, optional
         Seed of the noise generator.
-    chainage : bool
-        Include the body-centre chainage column, m.
+    chainage_m : ndarray, optional
+        Body-centre chainage at each sample, m, to log as a chainage column.
     """
+    t_all = np.asarray(time_s, dtype=np.float64)
     step = 1
     if sensor.sample_rate_hz is not None:
-        ratio = (1.0 / sim.dt) / sensor.sample_rate_hz
+        rate = 1.0 / float(t_all[1] - t_all[0])
+        ratio = rate / sensor.sample_rate_hz
         step = int(round(ratio))
         if step < 1 or abs(ratio - step) > 1e-6:
             raise ParameterError(
                 f"sensor rate {sensor.sample_rate_hz} Hz must divide the simulation rate "
-                f"{1.0 / sim.dt:g} Hz"
+                f"{rate:g} Hz"
             )
-    idx = np.arange(0, sim.t.size, step)
-    t = sim.t[idx]
+    idx = np.arange(0, t_all.size, step)
+    t = t_all[idx]
     rng = np.random.default_rng(seed)
-    acc = sim.accel[idx] + sensor.accel_bias + sensor.accel_drift * t
-    gyr = sim.pitch_rate[idx] + sensor.gyro_bias + sensor.gyro_drift * t
+    acc = accel_z_mps2[idx] + sensor.accel_bias + sensor.accel_drift * t
+    gyr = pitch_rate_radps[idx] + sensor.gyro_bias + sensor.gyro_drift * t
     if sensor.accel_noise > 0:
         acc = acc + rng.normal(0.0, sensor.accel_noise, t.size)
     if sensor.gyro_noise > 0:
         gyr = gyr + rng.normal(0.0, sensor.gyro_noise, t.size)
-    v = sim.speed[idx]
-    x = sim.x_body[idx] if chainage else None
+    v = speed_mps[idx]
+    x = chainage_m[idx] if chainage_m is not None else None
     if sensor.digits is not None:
         acc = round_significant(acc, sensor.digits)
         gyr = round_significant(gyr, sensor.digits)

@@ -26,8 +26,6 @@ from scipy.linalg.lapack import dpbtrs
 from .beam import BANDWIDTH, RailMatrices, assemble_rail
 from .errors import ParameterError
 from .newmark import Newmark
-from .runlog import RunLog
-from .sensor import SensorModel, apply_sensor
 from .track import Track
 from .vehicle import GRAVITY, TABLE1, VehicleParams
 
@@ -153,23 +151,6 @@ class SimulationResult:
     def dt(self) -> float:
         """Time step, s."""
         return float(self.t[1] - self.t[0])
-
-    def to_runlog(
-        self, sensor: SensorModel | None = None, seed: int | None = None, *, chainage: bool = False
-    ) -> RunLog:
-        """The log an IMU on this vehicle would write (canonical SI units).
-
-        Parameters
-        ----------
-        sensor : SensorModel, optional
-            Noise, bias, sample rate and rounding; default an ideal sensor at the
-            simulation rate.
-        seed : int, optional
-            Seed of the noise generator.
-        chainage : bool
-            Also log the body-centre chainage (odometer column), m.
-        """
-        return apply_sensor(self, sensor or SensorModel(), seed=seed, chainage=chainage)
 
 
 def _positions(

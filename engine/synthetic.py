@@ -11,7 +11,7 @@ from .detect import robust_baseline
 from .irregularity import Profile, Spectrum, profile_from_samples, random_profile
 from .results import ProcessResult
 from .runlog import RunLog
-from .sensor import SensorModel
+from .sensor import SensorModel, apply_sensor
 from .simulate import END_MARGIN_M, SimulationResult, room_to_run, simulate
 from .track import SoftZone, Track, TrackParams
 from .vehicle import TABLE1, VehicleParams
@@ -141,6 +141,32 @@ def make_track(
     return track, prof
 
 
+def to_runlog(
+    sim: SimulationResult,
+    sensor: SensorModel | None = None,
+    seed: int | None = None,
+    *,
+    chainage: bool = False,
+) -> RunLog:
+    """The log an IMU on the simulated vehicle would write (canonical SI units).
+
+    Parameters
+    ----------
+    sim : SimulationResult
+        A clean forward simulation.
+    sensor : SensorModel, optional
+        Noise, bias, sample rate and rounding; default an ideal sensor at the simulation rate.
+    seed : int, optional
+        Seed of the noise generator.
+    chainage : bool
+        Also log the body-centre chainage (odometer column), m.
+    """
+    return apply_sensor(
+        sim.t, sim.accel, sim.pitch_rate, sim.speed, sensor or SensorModel(), seed=seed,
+        chainage_m=sim.x_body if chainage else None,
+    )  # fmt: skip
+
+
 def make_run(
     *,
     length: float = 500.0,
@@ -227,7 +253,7 @@ def make_run(
             direction=direction,  # type: ignore[arg-type]
         )  # fmt: skip
     sens = sensor or SensorModel()
-    log = sim.to_runlog(sens, seed=seed + 1)
+    log = to_runlog(sim, sens, seed=seed + 1)
     return SyntheticRun(
         log, sim, trk, tuple(zones), start_chainage_m, direction,
         start_chainage_m + start_error_m, vehicle, prof,

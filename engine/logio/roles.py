@@ -140,6 +140,12 @@ _OPTION_UNITS: dict[str, tuple[str, ...]] = {
     "chainage": ("m", "km"),
 }
 _GRAVITY_MODES = ("auto", "included", "removed")
+OPTION_UNITS = _OPTION_UNITS
+"""Role -> the units a column of that role can be read in (the ``<role>_unit`` options)."""
+GRAVITY_MODES = _GRAVITY_MODES
+"""Values of the ``gravity`` option."""
+ROLE_LABELS = {role: r.label for role, r in _ROLES.items()}
+"""Role -> its name in words (``'pitch_rate'`` -> ``'pitch rate'``)."""
 _UNIT_LABEL = {"m/s2": "m/s²", "epoch_s": "epoch s"}
 
 

@@ -15,7 +15,7 @@ import pytest
 from engine.errors import InversionError, ParameterError
 from engine.pipeline import ProcessConfig, process_run
 from engine.runlog import RunLog
-from engine.synthetic import REALISTIC_SENSOR, make_run, score
+from engine.synthetic import REALISTIC_SENSOR, make_run, score, to_runlog
 from engine.track import SoftZone
 from support.samples import sample, shared_data_dir
 
@@ -147,7 +147,7 @@ def test_chainage_column_used_instead_of_speed():
     """With an odometer column, chainage comes from it (start chainage optional)."""
     run = make_run(length=250.0, sensor=SENSOR_1KHZ, sim_rate_hz=2000.0, speed=25.0,
                    zones=[SoftZone(120, 125, 0.5)], seed=61)  # fmt: skip
-    log = run.sim.to_runlog(SENSOR_1KHZ, seed=1, chainage=True)
+    log = to_runlog(run.sim, SENSOR_1KHZ, seed=1, chainage=True)
     log = RunLog(log.time_s, log.accel_z_mps2, log.pitch_rate_radps, None, log.chainage_m)
     res = process_run(log)
     assert len(res.soft_spots) == 1

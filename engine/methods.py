@@ -1,0 +1,158 @@
+"""The inversion methods, looked up by name in :data:`METHODS` (as scipy's ``solve_ivp`` does).
+
+Every method takes the same :class:`MethodInput` (the log, the axle positions, the chainage
+grid, the vehicle and the band) and returns an :class:`Inversion`: each axle's level at every
+sample (m) and on the grid, band-passed (mm), and the sensor noise it measured. A new method is
+one function added to :data:`METHODS`; :func:`engine.pipeline.process_run` does the rest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .chainage import AxlePositions, bandpass_distance, to_grid
+from .direct import direct_inverse, filtered_direct_inverse
+from .optimisation import windowed_least_squares
+from .runlog import RunLog
+from .spectral import estimate_white_noise, spectral_inverse
+from .vehicle import VehicleParams
+
+
+@dataclass(frozen=True)
+class MethodInput:
+    """What every method is given.
+
+    Attributes
+    ----------
+    log : RunLog
+        The run, SI units.
+    positions : AxlePositions
+        Chainage of body and axles at each sample, m.
+    grid : ndarray
+        Regular chainage grid of the profile, m (increasing).
+    step_m : float
+        Its step, m.
+    vehicle : VehicleParams
+        The logging vehicle.
+    f_lo_hz, f_hi_hz : float
+        Time-frequency band of the inversion, Hz (from :func:`engine.pipeline.check_run`).
+    lambda_min_m, lambda_max_m : float
+        Wavelength band of the profile, m.
+    taper : float
+        Relative width of the band's cosine tapers.
+    """
+
+    log: RunLog
+    positions: AxlePositions
+    grid: NDArray[np.float64]
+    step_m: float
+    vehicle: VehicleParams
+    f_lo_hz: float
+    f_hi_hz: float
+    lambda_min_m: float
+    lambda_max_m: float
+    taper: float
+
+    def bandpass(self, level_mm: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A level on the grid (mm) limited to the wavelength band."""
+        return bandpass_distance(
+            level_mm, self.step_m, self.lambda_min_m, self.lambda_max_m, self.taper
+        )
+
+
+@dataclass(frozen=True)
+class Inversion:
+    """What a method returns.
+
+    Attributes
+    ----------
+    y_front, y_rear : ndarray
+        Loaded level under each axle at every sample, m.
+    front_mm, rear_mm : ndarray
+        The same on the grid, band-passed, mm (NaN where the axle did not pass).
+    noise_accel_mps2, noise_pitch_rate_radps : float
+        White-noise level of the two signals, RMS.
+    """
+
+    y_front: NDArray[np.float64]
+    y_rear: NDArray[np.float64]
+    front_mm: NDArray[np.float64]
+    rear_mm: NDArray[np.float64]
+    noise_accel_mps2: float
+    noise_pitch_rate_radps: float
+
+
+Inverter = Callable[[MethodInput], Inversion]
+"""A method: :class:`MethodInput` in, :class:`Inversion` out."""
+
+
+def _from_samples(
+    m: MethodInput, y1: NDArray[np.float64], y2: NDArray[np.float64], sa: float, sg: float
+) -> Inversion:
+    # levels per sample (m) put on the grid per axle (mm) and band-passed
+    front = m.bandpass(to_grid(m.positions.front, y1 * 1e3, m.grid))
+    rear = m.bandpass(to_grid(m.positions.rear, y2 * 1e3, m.grid))
+    return Inversion(y1, y2, front, rear, sa, sg)
+
+
+def _noise(log: RunLog) -> tuple[float, float]:
+    return (
+        estimate_white_noise(log.accel_z_mps2, log.dt),
+        estimate_white_noise(log.pitch_rate_radps, log.dt),
+    )
+
+
+def spectral(m: MethodInput) -> Inversion:
+    """Frequency-domain inversion of the vehicle's transfer functions (the default)."""
+    log = m.log
+    inv = spectral_inverse(
+        log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
+        taper=m.taper,
+    )  # fmt: skip
+    return _from_samples(m, inv.y_front, inv.y_rear, inv.noise_accel, inv.noise_gyro)
+
+
+def filtered_direct(m: MethodInput) -> Inversion:
+    """Time-domain direct inversion with band-limited integration."""
+    log = m.log
+    res = filtered_direct_inverse(
+        log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz
+    )
+    return _from_samples(m, res.y_front, res.y_rear, *_noise(log))
+
+
+def direct(m: MethodInput) -> Inversion:
+    """Time-domain direct inversion (Newmark), no band limit inside the integration."""
+    log = m.log
+    res = direct_inverse(log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle)
+    return _from_samples(m, res.y_front, res.y_rear, *_noise(log))
+
+
+def least_squares(m: MethodInput) -> Inversion:
+    """Windowed least-squares fit of one level on the grid seen by both axles."""
+    log, pos, grid = m.log, m.positions, m.grid
+    xf, xr = pos.front, pos.rear
+    if pos.sign < 0:  # the fit wants increasing chainage: mirror the track
+        xf, xr = -xf, -xr
+    prof = windowed_least_squares(
+        log.accel_z_mps2, log.pitch_rate_radps, log.dt, xf, xr,
+        grid if pos.sign > 0 else -grid[::-1], m.vehicle,
+    )  # fmt: skip
+    prof = prof if pos.sign > 0 else prof[::-1]
+    level = m.bandpass(prof)
+    filled = np.where(np.isfinite(level), level, 0.0) * 1e-3
+    y1, y2 = np.interp(pos.front, grid, filled), np.interp(pos.rear, grid, filled)
+    return Inversion(y1, y2, level, level, *_noise(log))
+
+
+METHODS: dict[str, Inverter] = {
+    "spectral": spectral,
+    "filtered-direct": filtered_direct,
+    "least-squares": least_squares,
+    "direct": direct,
+}
+"""The inversion methods by name (the first is the default)."""
