@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
-from app.db.models import Run, Track, Vehicle
+from typing import Any
+
+from app.db.models import Calibration, Run, Track, Vehicle
 from app.schemas.runs import RunAlignmentPublic, RunError, RunPublic
 from app.schemas.tracks import TrackPublic
-from app.schemas.vehicles import VehicleParamsSchema, VehiclePublic
+from app.schemas.vehicles import (
+    CalibrationPublic,
+    FittedParameterPublic,
+    VehicleParamsSchema,
+    VehiclePublic,
+)
 
 _PROGRESS = {"queued": 0.05, "inverting": 0.35, "storing": 0.85}
 
@@ -21,6 +28,7 @@ def run_public(run: Run) -> RunPublic:
         track=run.track.name,
         vehicle_id=run.vehicle_id,
         vehicle=run.vehicle.name,
+        vehicle_version=run.vehicle_version,
         source=run.source,
         original_filename=run.original_filename,
         recorded_at=run.recorded_at,
@@ -86,5 +94,41 @@ def vehicle_public(vehicle: Vehicle) -> VehiclePublic:
         name=vehicle.name,
         description=vehicle.description,
         params=VehicleParamsSchema(**vehicle.params_dict()),
+        version=vehicle.version,
         created_at=vehicle.created_at,
+    )
+
+
+def calibration_public(cal: Calibration, vehicle_name: str) -> CalibrationPublic:
+    """The public view of a calibration (a queued one shows as ``running``)."""
+    res = cal.result or {}
+    req = cal.request or {}
+    keys = ("runs", "skipped", "scans", "n_evaluations", "seconds", "registered", "apply_note")
+    details: dict[str, Any] | None = {k: res[k] for k in keys if k in res} if res else None
+    return CalibrationPublic(
+        id=cal.id,
+        vehicle=vehicle_name,
+        status="running" if cal.status in ("queued", "running") else cal.status,  # type: ignore[arg-type]
+        automatic=cal.automatic,
+        created_by=cal.created_by,
+        created_at=cal.created_at,
+        finished_at=cal.finished_at,
+        runs_used=list(req.get("run_ids") or []),
+        fit=req.get("fit"),
+        apply=bool(req.get("apply")),
+        load_kg=req.get("load_kg"),
+        vehicle_version=res.get("vehicle_version"),
+        params=res.get("params"),
+        fitted=[FittedParameterPublic(**f) for f in res.get("fitted", [])],
+        objective_before=res.get("objective_before"),
+        objective_after=res.get("objective_after"),
+        disagreement_before_mm=res.get("disagreement_before_mm"),
+        disagreement_after_mm=res.get("disagreement_after_mm"),
+        significant=res.get("significant"),
+        message=res.get("message"),
+        not_identified=res.get("not_identified", {}),
+        applied=cal.applied,
+        applied_version=cal.applied_version,
+        details=details,
+        error=cal.error,
     )

@@ -10,6 +10,7 @@ from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBea
 from sqlalchemy.orm import Session
 
 from app.api.access import Caller
+from app.db.models import ApiKey
 from app.services.context import AppContext
 from app.services.window import Window
 
@@ -76,3 +77,11 @@ def closed_chainage_window(
 
 WindowDep = Annotated[Window, Depends(chainage_window)]
 ClosedWindowDep = Annotated[Window, Depends(closed_chainage_window)]
+
+
+def caller_name(session: Session, caller: Caller) -> str | None:
+    """Who is making a change, for the record: the API key's name (None without a key)."""
+    if caller.key_id is None:
+        return None
+    key = session.get(ApiKey, caller.key_id)
+    return key.name if key is not None else f"api key {caller.key_id}"

@@ -63,6 +63,9 @@ class Settings(BaseSettings):
         Apply the Alembic migrations when the app starts.
     start_worker : bool
         Start the background worker threads with the app.
+    auto_calibrate_runs : int
+        Calibrate a vehicle automatically once it has this many new processed runs (0, the
+        default: never); the result is applied only when it is significant.
     """
 
     model_config = SettingsConfigDict(
@@ -90,6 +93,7 @@ class Settings(BaseSettings):
     static_dir: Path = REPO_ROOT / "static"
     run_migrations: bool = True
     start_worker: bool = True
+    auto_calibrate_runs: int = Field(default=0, ge=0, le=10_000)
 
     @field_validator("cors_origins", mode="before")
     @classmethod

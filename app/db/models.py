@@ -97,11 +97,75 @@ class Vehicle(Base):
     d1: Mapped[float] = mapped_column(Float)  # m
     d2: Mapped[float] = mapped_column(Float)  # m
     sensor_x_m: Mapped[float] = mapped_column(Float, default=0.0)  # m, ahead of the body CG
+    version: Mapped[int] = mapped_column(Integer, default=1)  # current VehicleVersion.version
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
     def params_dict(self) -> dict[str, float]:
         """The engine's ``VehicleParams`` fields of this vehicle (SI)."""
         return {name: float(getattr(self, name)) for name in VEHICLE_PARAM_NAMES}
+
+
+VERSION_SOURCES = ("created", "manual", "calibration")
+"""What made a vehicle version: registration, a manual edit, an applied calibration."""
+
+
+class VehicleVersion(Base):
+    """One parameter set a vehicle has had (the current one is ``Vehicle.version``).
+
+    Versions are never changed or deleted: a run's ``vehicle_version`` always names the
+    parameters its results were computed with.
+    """
+
+    __tablename__ = "vehicle_versions"
+    __table_args__ = (UniqueConstraint("vehicle_id", "version"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    vehicle_id: Mapped[int] = mapped_column(ForeignKey("vehicles.id", ondelete="CASCADE"))
+    version: Mapped[int] = mapped_column(Integer)
+    params: Mapped[dict[str, float]] = mapped_column(JSON)  # VehicleParams fields, SI
+    source: Mapped[str] = mapped_column(String(20))  # one of VERSION_SOURCES
+    calibration_id: Mapped[int | None] = mapped_column(Integer)
+    created_by: Mapped[str | None] = mapped_column(String(200))  # API key name, "automatic"
+    note: Mapped[str | None] = mapped_column(Text)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+
+
+CALIBRATION_STATUSES = ("queued", "running", "done", "failed")
+"""Stored calibration states (the API shows ``queued`` as ``running``)."""
+
+
+class Calibration(Base):
+    """A calibration of a vehicle from its stored runs (engine.calibration), and its outcome.
+
+    Claimed by the background worker like a run (``claimed_by`` + ``heartbeat_at``); a
+    calibration whose worker died is taken over from the start.
+    """
+
+    __tablename__ = "calibrations"
+    __table_args__ = (
+        Index("ix_calibrations_status_heartbeat_at", "status", "heartbeat_at"),
+        {"sqlite_autoincrement": True},
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    vehicle_id: Mapped[int] = mapped_column(
+        ForeignKey("vehicles.id", ondelete="CASCADE"), index=True
+    )
+    status: Mapped[str] = mapped_column(String(12), default="queued")
+    request: Mapped[dict[str, Any]] = mapped_column(JSON)  # run_ids, fit, apply, load_kg
+    result: Mapped[dict[str, Any] | None] = mapped_column(JSON)  # CalibrationResult.to_dict()
+    error: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    applied: Mapped[bool] = mapped_column(Boolean, default=False)
+    applied_version: Mapped[int | None] = mapped_column(Integer)
+    automatic: Mapped[bool] = mapped_column(Boolean, default=False)
+    created_by: Mapped[str | None] = mapped_column(String(200))
+    runs_from: Mapped[datetime | None] = mapped_column(UTCDateTime)  # first run's recording
+    runs_to: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    claimed_by: Mapped[str | None] = mapped_column(String(120))
+    heartbeat_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
 
 
 class Run(Base):
@@ -148,6 +212,7 @@ class Run(Base):
     method: Mapped[str | None] = mapped_column(String(20))
     options: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict)
     n_soft_spots: Mapped[int | None] = mapped_column(Integer)
+    vehicle_version: Mapped[int | None] = mapped_column(Integer)  # produced the results
     processing_s: Mapped[float | None] = mapped_column(Float)
 
     content_hash: Mapped[str] = mapped_column(String(64))

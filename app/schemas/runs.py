@@ -167,6 +167,11 @@ class RunPublic(BaseModel):
     track: str = Field(description="Track name")
     vehicle_id: int
     vehicle: str = Field(description="Vehicle name")
+    vehicle_version: int | None = Field(
+        default=None,
+        description="Vehicle parameter version its results were computed with (None: not "
+        "processed yet, or processed before versions existed)",
+    )
     source: str = Field(description="upload, json or simulate")
     original_filename: str | None
     recorded_at: datetime | None

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from datetime import datetime
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
 
@@ -79,6 +79,7 @@ class VehiclePublic(BaseModel):
     name: str
     description: str | None
     params: VehicleParamsSchema
+    version: int = Field(description="Current parameter version (1 at registration)")
     created_at: datetime
 
 
@@ -87,3 +88,148 @@ class VehiclesPublic(BaseModel):
 
     data: list[VehiclePublic]
     count: int
+
+
+class VehicleEdit(StrictModel):
+    """A manual edit: the parameters to change (SI); makes a new version, runs reprocessed."""
+
+    params: dict[str, float] = Field(description='Parameters to change, e.g. {"ms": 17000}')
+    note: str | None = Field(default=None, max_length=2000, description="Why (kept with it)")
+
+
+class VehicleVersionPublic(BaseModel):
+    """One parameter set a vehicle has had."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    version: int
+    params: dict[str, float] = Field(description="VehicleParams fields, SI")
+    source: str = Field(description="created, manual or calibration")
+    calibration_id: int | None
+    created_by: str | None = Field(description="API key name or 'automatic'")
+    note: str | None
+    created_at: datetime
+
+
+class VehicleVersionsPublic(BaseModel):
+    """A vehicle's parameter versions, newest first."""
+
+    vehicle: str
+    current: int
+    data: list[VehicleVersionPublic]
+
+
+class CalibrateRequest(StrictModel):
+    """What to calibrate from and what to fit."""
+
+    run_ids: list[int] | None = Field(
+        default=None, max_length=10_000,
+        description="Runs to use (default: every processed run of the vehicle)",
+    )  # fmt: skip
+    fit: list[str] | None = Field(
+        default=None, max_length=8,
+        description="Quantities to fit: Is, ks, ks1, ks2, cs, sensor_x_m (default Is, ks1, ks2)",
+    )  # fmt: skip
+    apply: bool = Field(
+        default=False,
+        description="Make a significant result the vehicle's next version and reprocess its runs",
+    )
+    load_kg: float | None = Field(
+        default=None, gt=0, allow_inf_nan=False,
+        description="Known body mass (load/tare figure), kg: the only way to change m_s",
+    )  # fmt: skip
+
+
+class CalibrationAccepted(BaseModel):
+    """A queued calibration."""
+
+    id: int
+    status: Literal["running", "done", "failed"]
+
+
+class FittedParameterPublic(BaseModel):
+    """One fitted quantity: registered and fitted values, relative change ± uncertainty."""
+
+    name: str
+    description: str
+    unit: str
+    before: dict[str, float]
+    after: dict[str, float]
+    change: float = Field(description="Relative change (fraction), or shift in m (sensor_x_m)")
+    sd: float = Field(description="Standard uncertainty of the change (same unit)")
+    identified: bool
+    significant: bool
+
+
+class CalibrationPublic(BaseModel):
+    """A calibration and its outcome (objective: relative front/rear axle disagreement)."""
+
+    id: int
+    vehicle: str
+    status: Literal["running", "done", "failed"]
+    automatic: bool
+    created_by: str | None
+    created_at: datetime
+    finished_at: datetime | None
+    runs_used: list[int] = Field(description="Run ids calibrated from")
+    fit: list[str] | None
+    apply: bool = Field(description="Asked to apply a significant result")
+    load_kg: float | None
+    vehicle_version: int | None = Field(description="Version the calibration started from")
+    params: dict[str, float] | None = Field(description="Calibrated vehicle (SI)")
+    fitted: list[FittedParameterPublic]
+    objective_before: float | None
+    objective_after: float | None
+    disagreement_before_mm: float | None
+    disagreement_after_mm: float | None
+    significant: bool | None
+    message: str | None
+    not_identified: dict[str, str]
+    applied: bool
+    applied_version: int | None
+    details: dict[str, Any] | None = Field(
+        description="Per-run objective, skipped runs, objective scans, evaluations, time"
+    )
+    error: dict[str, Any] | None
+
+
+class CalibrationsPublic(BaseModel):
+    """A vehicle's calibrations, newest first."""
+
+    data: list[CalibrationPublic]
+    count: int
+
+
+class HealthAlertPublic(BaseModel):
+    """A calibrated parameter that changed beyond its uncertainty."""
+
+    vehicle: str
+    parameter: str
+    before: float
+    after: float
+    before_sd: float
+    after_sd: float
+    change: float = Field(description="Relative change, fraction")
+    sigmas: float = Field(description="Change in combined standard uncertainties")
+    since: datetime = Field(description="When the runs showing the new value start")
+    reference: str
+    source: str
+    message: str
+
+
+class HealthPointPublic(BaseModel):
+    """One calibrated value of a parameter (the history behind the alerts)."""
+
+    parameter: str
+    value: float
+    sd: float
+    at: datetime
+    source: str
+
+
+class VehicleHealthPublic(BaseModel):
+    """Suspension health of a vehicle."""
+
+    vehicle: str
+    alerts: list[HealthAlertPublic]
+    history: list[HealthPointPublic]

@@ -8,11 +8,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from sqlalchemy import delete
 from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
-from app.db.models import Run, RunInput, SoftSpot
+from app.db.models import Run, SoftSpot
 from engine.pipeline import process_run
 from engine.results import ProcessResult
 from engine.runlog import RunLog
@@ -56,8 +55,13 @@ def finite_or_none(value: Any) -> float | None:
     return f if math.isfinite(f) else None
 
 
-def store_result(session: Session, run: Run, processed: Processed) -> None:
+def store_result(
+    session: Session, run: Run, processed: Processed, vehicle_version: int | None
+) -> None:
     """Write a run's profile and soft spots and mark it done (caller commits).
+
+    ``vehicle_version`` is the vehicle parameter version the result was computed with. The
+    run's log stays stored: a new vehicle version reprocesses it, calibration reads it.
 
     Chainage in m, levels in mm; the run's chainage extent is where the fused level exists.
     The run is then aligned to its track and merged into the track's aggregated profile
@@ -95,5 +99,5 @@ def store_result(session: Session, run: Run, processed: Processed) -> None:
     run.stage = None
     run.error = None
     run.processed_at = utcnow()
-    session.execute(delete(RunInput).where(RunInput.run_id == run.id))
+    run.vehicle_version = vehicle_version
     add_run_to_track(session, run, res.chainage_m, res.level_mm)

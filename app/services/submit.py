@@ -25,6 +25,7 @@ from engine.runlog import RunLog
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
 
+from .calibration import maybe_auto_calibrate
 from .context import AppContext
 from .errors import Conflict, Invalid
 from .logs import pack_log, summarize
@@ -182,6 +183,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         failed_id = prev.id if prev is not None else None
         vehicle_id = vehicle.id
         vp = VehicleParams.from_dict(vehicle.params_dict())
+        vehicle_version = vehicle.version
         track_fields = track.params_dict() if track is not None else None
         track_name = track.name if track is not None else sub.track
     if track is None:
@@ -206,9 +208,8 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
                 )
             except EngineError as exc:
                 raise Invalid.from_engine(exc) from None
-        packed = None
-    else:
-        packed = pack_log(sub.log)
+    # the log is kept either way: reprocessing with a new vehicle version and calibration
+    packed = pack_log(sub.log)
 
     with ctx.db.session() as s:
         if failed_id is not None:
@@ -251,13 +252,13 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
                 run_id=run.id, n_points=len(signals["time_s"]), decimated=decimated, data=signals
             )
         )
+        s.add(RunInput(run_id=run.id, data=packed))
         if processed is not None:
-            store_result(s, run, processed)
-        else:
-            assert packed is not None
-            s.add(RunInput(run_id=run.id, data=packed))
+            store_result(s, run, processed, vehicle_version)
         s.commit()
         run_id = run.id
-    if processed is None:
+        if processed is not None:
+            maybe_auto_calibrate(s, vehicle_id, settings.auto_calibrate_runs)
+    if processed is None or settings.auto_calibrate_runs:
         ctx.wake_worker()
     return run_id, True

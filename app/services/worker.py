@@ -22,12 +22,18 @@ from sqlalchemy import CursorResult, Update, delete, or_, select, update
 from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
-from app.db.models import Run, RunInput
+from app.db.models import Calibration, Run, RunInput
 from app.services.errors import engine_error_facts
 from engine.errors import EngineError
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
 
+from .calibration import (
+    calibration_inputs,
+    fit_calibration,
+    maybe_auto_calibrate,
+    store_calibration,
+)
 from .context import AppContext
 from .logs import unpack_log
 from .processing import invert, store_result
@@ -52,10 +58,18 @@ def _pid_alive(pid: int) -> bool:
 
 
 class Heartbeat:
-    """Refreshes a run's claim every ``interval`` seconds until stopped."""
+    """Refreshes a claim (a run's, or a calibration's) every ``interval`` seconds until stopped."""
 
-    def __init__(self, ctx: AppContext, run_id: int, owner: str, interval: float) -> None:
+    def __init__(
+        self,
+        ctx: AppContext,
+        run_id: int,
+        owner: str,
+        interval: float,
+        model: type[Run] | type[Calibration] = Run,
+    ) -> None:
         self.ctx, self.run_id, self.owner, self.interval = ctx, run_id, owner, interval
+        self.model = model
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._beat, name=f"heartbeat-{run_id}", daemon=True)
 
@@ -71,13 +85,15 @@ class Heartbeat:
         while not self._stop.wait(self.interval):
             try:
                 with self.ctx.db.engine.begin() as conn:
+                    m = self.model
                     conn.execute(
-                        update(Run)
-                        .where(Run.id == self.run_id, Run.claimed_by == self.owner)
+                        update(m)
+                        .where(m.id == self.run_id, m.claimed_by == self.owner)
                         .values(heartbeat_at=utcnow())
                     )
             except Exception:  # a missed beat only shortens the lease
-                log.warning("heartbeat of run %s failed", self.run_id, exc_info=True)
+                log.warning("heartbeat of %s %s failed", self.model.__tablename__, self.run_id,
+                            exc_info=True)  # fmt: skip
 
 
 class Worker:
@@ -129,10 +145,12 @@ class Worker:
 
     # -- claiming --------------------------------------------------------------------------
     def recover(self) -> int:
-        """Free the claims of processes on this host that no longer run; returns how many.
+        """Free the claims (runs and calibrations) of processes on this host that no longer
+        run; returns how many.
 
-        Their runs are then taken by the next free worker and processed from their stored
-        input. Claims of other hosts are left to expire (``lease_s``).
+        Their runs (calibrations) are then taken by the next free worker and processed from
+        their stored input (calibrated from the start). Claims of other hosts are left to
+        expire (``lease_s``).
         """
         host = socket.gethostname()
         freed = 0
@@ -143,23 +161,40 @@ class Worker:
                 )
             ).all()
             for run_id, owner in rows:
-                parts = str(owner).split(":")
-                if len(parts) != 3 or parts[0] != host or owner == self.id:
-                    continue
-                try:
-                    pid = int(parts[1])
-                except ValueError:
-                    continue
-                if pid == os.getpid() or not _pid_alive(pid):
+                if self._dead_local(owner, host):
                     res = conn.execute(
                         update(Run)
                         .where(Run.id == run_id, Run.claimed_by == owner)
                         .values(claimed_by=None, stage="queued")
                     )
                     freed += res.rowcount
+            cals = conn.execute(
+                select(Calibration.id, Calibration.claimed_by).where(
+                    Calibration.status == "running", Calibration.claimed_by.is_not(None)
+                )
+            ).all()
+            for cal_id, owner in cals:
+                if self._dead_local(owner, host):
+                    res = conn.execute(
+                        update(Calibration)
+                        .where(Calibration.id == cal_id, Calibration.claimed_by == owner)
+                        .values(claimed_by=None, status="queued")
+                    )
+                    freed += res.rowcount
         if freed:
             log.warning("resuming %d run(s) interrupted by a stopped process", freed)
         return freed
+
+    def _dead_local(self, owner: object, host: str) -> bool:
+        """True for a claim of another process on this host that no longer runs."""
+        parts = str(owner).split(":")
+        if len(parts) != 3 or parts[0] != host or owner == self.id:
+            return False
+        try:
+            pid = int(parts[1])
+        except ValueError:
+            return False
+        return pid == os.getpid() or not _pid_alive(pid)
 
     def claim(self) -> int | None:
         """Claim the oldest queued (or abandoned) run; None when there is none."""
@@ -191,13 +226,101 @@ class Worker:
         return None
 
     def run_once(self) -> bool:
-        """Claim and process one run; False when nothing was waiting."""
+        """Claim and process one run, else one calibration; False when nothing was waiting."""
         run_id = self.claim()
-        if run_id is None:
+        if run_id is not None:
+            with self.ctx.slots:
+                self.process(run_id)
+            return True
+        cal_id = self.claim_calibration()
+        if cal_id is None:
             return False
         with self.ctx.slots:
-            self.process(run_id)
+            self.calibrate(cal_id)
         return True
+
+    # -- calibrations ----------------------------------------------------------------------
+    def claim_calibration(self) -> int | None:
+        """Claim the oldest queued (or abandoned) calibration; None when there is none."""
+        now = utcnow()
+        stale = now - timedelta(seconds=self.ctx.settings.lease_s)
+        free = or_(Calibration.claimed_by.is_(None), Calibration.heartbeat_at < stale)
+        active = Calibration.status.in_(("queued", "running"))
+        with self.ctx.db.engine.connect() as conn:
+            candidates = conn.execute(
+                select(Calibration.id).where(active, free).order_by(Calibration.id).limit(4)
+            ).scalars().all()  # fmt: skip
+        for cal_id in candidates:
+            with self.ctx.db.engine.begin() as conn:
+                res = conn.execute(
+                    update(Calibration)
+                    .where(Calibration.id == cal_id, active, free)
+                    .values(claimed_by=self.id, heartbeat_at=now, status="running",
+                            attempts=Calibration.attempts + 1)
+                )  # fmt: skip
+            if res.rowcount == 1:
+                return int(cal_id)
+        return None
+
+    def calibrate(self, cal_id: int) -> None:
+        """Run a calibration this worker has claimed and store the outcome (from the start
+        when it was interrupted before: the fit keeps no partial state)."""
+        settings = self.ctx.settings
+        with self.ctx.db.session() as s:
+            cal = s.get(Calibration, cal_id)
+            if cal is None or cal.claimed_by != self.id:
+                return
+            if cal.attempts > settings.max_attempts:
+                self._fail_calibration(
+                    s, cal_id, {"message": "calibration was interrupted repeatedly",
+                                "kind": "Interrupted"},
+                )  # fmt: skip
+                return
+            request = dict(cal.request)
+            vp, version, runs, t_from, t_to = calibration_inputs(s, cal)
+        try:
+            with Heartbeat(
+                self.ctx, cal_id, self.id, max(0.5, settings.lease_s / 4), model=Calibration
+            ):
+                result = fit_calibration(vp, runs, request)
+        except EngineError as exc:
+            with self.ctx.db.session() as s:
+                self._fail_calibration(s, cal_id, engine_error_facts(exc))
+            return
+        except Exception as exc:
+            log.exception("calibration %s failed", cal_id)
+            with self.ctx.db.session() as s:
+                self._fail_calibration(
+                    s, cal_id, {"message": f"internal error while calibrating "
+                                f"({type(exc).__name__})", "kind": "InternalError"},
+                )  # fmt: skip
+            return
+        with self.ctx.db.session() as s:
+            owned = _rowcount(
+                s,
+                update(Calibration)
+                .where(Calibration.id == cal_id, Calibration.claimed_by == self.id,
+                       Calibration.status == "running")
+                .values(heartbeat_at=utcnow()),
+            )  # fmt: skip
+            if owned != 1:
+                s.rollback()
+                return
+            cal = s.get(Calibration, cal_id)
+            assert cal is not None
+            queued = store_calibration(s, cal, result, version, t_from, t_to)
+            s.commit()
+        if queued:
+            self.wake()
+
+    def _fail_calibration(self, s: Session, cal_id: int, detail: dict[str, Any]) -> None:
+        _rowcount(
+            s,
+            update(Calibration)
+            .where(Calibration.id == cal_id, Calibration.claimed_by == self.id)
+            .values(status="failed", error=detail, finished_at=utcnow()),
+        )
+        s.commit()
 
     # -- processing ------------------------------------------------------------------------
     def process(self, run_id: int) -> None:
@@ -222,6 +345,7 @@ class Worker:
                 return
             data = s.scalar(select(RunInput.data).where(RunInput.run_id == run_id))
             vp = VehicleParams.from_dict(run.vehicle.params_dict())
+            vehicle_version, vehicle_id = run.vehicle.version, run.vehicle_id
             tp = TrackParams.from_dict(run.track.params_dict())
             start, direction = run.start_chainage_m, run.direction
         if data is None:
@@ -269,8 +393,9 @@ class Worker:
                 return
             run = s.get(Run, run_id)
             assert run is not None
-            store_result(s, run, processed)
+            store_result(s, run, processed, vehicle_version)
             s.commit()
+            maybe_auto_calibrate(s, vehicle_id, settings.auto_calibrate_runs)
 
     def _fail(self, s: Session, run_id: int, detail: dict[str, Any]) -> None:
         failed = _rowcount(

@@ -27,7 +27,7 @@ def _now() -> datetime:
 
 def test_long_log_is_processed_in_the_background(start_app, settings, synthetic_run) -> None:
     """A log over the inline limit is answered 202 'processing' and finished by the worker;
-    its input is removed once the result is stored."""
+    its log stays stored (reprocessing, calibration)."""
     c = start_app(inline_max_samples=0)
     run = _queue(c, synthetic_run)
     assert run["status"] == "processing"
@@ -38,7 +38,8 @@ def test_long_log_is_processed_in_the_background(start_app, settings, synthetic_
     assert done["progress"] == 1
     assert done["stage"] is None
     assert_zones_match(c.get(f"/api/v1/runs/{run['id']}/soft-spots").json(), synthetic_run["zones"])
-    assert row_counts(settings)["run_inputs"] == 0
+    # the log stays stored: a new vehicle version reprocesses it, calibration reads it
+    assert row_counts(settings)["run_inputs"] == 1
 
 
 def test_queued_run_waits_for_a_worker_and_has_no_results_yet(start_app, synthetic_run):

@@ -1,4 +1,5 @@
-"""Vehicles: ``GET/POST /api/v1/vehicles``, ``GET /api/v1/vehicles/{vehicle}`` (id or name)."""
+"""Vehicles: ``GET/POST /api/v1/vehicles``, ``GET/PATCH /api/v1/vehicles/{vehicle}`` (id or
+name), parameter versions, calibrations from the vehicle's runs, suspension health."""
 
 from __future__ import annotations
 
@@ -6,15 +7,26 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query
 from sqlalchemy import func, select
-from sqlalchemy.exc import IntegrityError
 
-from app.api.convert import vehicle_public
-from app.api.deps import SessionDep
+from app.api.convert import calibration_public, vehicle_public
+from app.api.deps import CallerDep, CtxDep, SessionDep, caller_name
 from app.db.models import Vehicle
-from app.schemas.vehicles import VehicleCreate, VehiclePublic, VehiclesPublic
-from app.services.errors import Conflict, Invalid
-from engine.errors import ParameterError
-from engine.vehicle import VehicleParams
+from app.schemas.vehicles import (
+    CalibrateRequest,
+    CalibrationAccepted,
+    CalibrationPublic,
+    CalibrationsPublic,
+    HealthAlertPublic,
+    HealthPointPublic,
+    VehicleCreate,
+    VehicleEdit,
+    VehicleHealthPublic,
+    VehiclePublic,
+    VehiclesPublic,
+    VehicleVersionPublic,
+    VehicleVersionsPublic,
+)
+from app.services import calibration, vehicles
 
 from .lookup import get_vehicle
 
@@ -34,22 +46,11 @@ def list_vehicles(
 
 
 @router.post("", response_model=VehiclePublic, status_code=201)
-def create_vehicle(session: SessionDep, body: VehicleCreate) -> VehiclePublic:
-    """Create a vehicle from its half-car parameters (SI); 409 if the name is taken."""
-    params = body.params.model_dump()
-    try:
-        VehicleParams.from_dict(params)
-    except ParameterError as exc:
-        raise Invalid.from_engine(exc, field="params") from None
-    if session.scalar(select(Vehicle.id).where(Vehicle.name == body.name)) is not None:
-        raise Conflict(f"a vehicle named {body.name!r} already exists", field="name")
-    vehicle = Vehicle(name=body.name, description=body.description, **params)
-    session.add(vehicle)
-    try:
-        session.commit()
-    except IntegrityError:
-        session.rollback()
-        raise Conflict(f"a vehicle named {body.name!r} already exists", field="name") from None
+def create_vehicle(session: SessionDep, body: VehicleCreate, caller: CallerDep) -> VehiclePublic:
+    """Create a vehicle from its half-car parameters (SI), version 1; 409 if the name is taken."""
+    vehicle = vehicles.create_vehicle(
+        session, body.name, body.description, body.params.model_dump(), caller_name(session, caller)
+    )
     return vehicle_public(vehicle)
 
 
@@ -57,3 +58,83 @@ def create_vehicle(session: SessionDep, body: VehicleCreate) -> VehiclePublic:
 def read_vehicle(session: SessionDep, vehicle: str) -> VehiclePublic:
     """One vehicle, by id or name."""
     return vehicle_public(get_vehicle(session, vehicle))
+
+
+@router.patch("/{vehicle}", response_model=VehiclePublic)
+def edit_vehicle(
+    ctx: CtxDep, session: SessionDep, vehicle: str, body: VehicleEdit, caller: CallerDep
+) -> VehiclePublic:
+    """Change some parameters by hand: a new version; the vehicle's runs are reprocessed."""
+    v = get_vehicle(session, vehicle)
+    _, queued = vehicles.edit_vehicle(
+        session, v, body.params, created_by=caller_name(session, caller), note=body.note
+    )
+    if queued:
+        ctx.wake_worker()
+    session.refresh(v)
+    return vehicle_public(v)
+
+
+@router.get("/{vehicle}/versions", response_model=VehicleVersionsPublic)
+def list_versions(session: SessionDep, vehicle: str) -> VehicleVersionsPublic:
+    """The vehicle's parameter versions (who or what made each), newest first."""
+    v = get_vehicle(session, vehicle)
+    rows = vehicles.versions_of(session, v.id)
+    return VehicleVersionsPublic(
+        vehicle=v.name,
+        current=v.version,
+        data=[VehicleVersionPublic.model_validate(r) for r in rows],
+    )
+
+
+@router.post("/{vehicle}/calibrate", response_model=CalibrationAccepted, status_code=202)
+def calibrate_vehicle(
+    ctx: CtxDep, session: SessionDep, vehicle: str, body: CalibrateRequest, caller: CallerDep
+) -> CalibrationAccepted:
+    """Calibrate the vehicle from its stored runs in the background; poll the calibration."""
+    v = get_vehicle(session, vehicle)
+    cal = calibration.request_calibration(
+        session, v, run_ids=body.run_ids, fit=body.fit, apply=body.apply, load_kg=body.load_kg,
+        created_by=caller_name(session, caller),
+    )  # fmt: skip
+    ctx.wake_worker()
+    return CalibrationAccepted(id=cal.id, status="running")
+
+
+@router.get("/{vehicle}/calibrations", response_model=CalibrationsPublic)
+def list_calibrations(session: SessionDep, vehicle: str) -> CalibrationsPublic:
+    """The vehicle's calibrations (at most 100), newest first."""
+    v = get_vehicle(session, vehicle)
+    rows = calibration.calibrations_of(session, v.id)
+    return CalibrationsPublic(data=[calibration_public(c, v.name) for c in rows], count=len(rows))
+
+
+@router.get("/{vehicle}/calibrations/{calibration_id}", response_model=CalibrationPublic)
+def read_calibration(session: SessionDep, vehicle: str, calibration_id: int) -> CalibrationPublic:
+    """One calibration: status, fitted parameters ± uncertainty, objective, runs, applied."""
+    v = get_vehicle(session, vehicle)
+    return calibration_public(calibration.get_calibration(session, v, calibration_id), v.name)
+
+
+@router.get("/{vehicle}/health", response_model=VehicleHealthPublic)
+def read_health(session: SessionDep, vehicle: str) -> VehicleHealthPublic:
+    """Suspension health: calibrated parameters over time and changes beyond uncertainty."""
+    v = get_vehicle(session, vehicle)
+    history = calibration.health_history(session, v.id)
+    alerts = calibration.vehicle_health(session, v.id)
+    return VehicleHealthPublic(
+        vehicle=v.name,
+        alerts=[
+            HealthAlertPublic(
+                vehicle=v.name, parameter=a.parameter, before=a.before, after=a.after,
+                before_sd=a.before_sd, after_sd=a.after_sd, change=a.change, sigmas=a.sigmas,
+                since=a.since, reference=a.reference_label, source=a.label, message=a.message,
+            )
+            for a in alerts
+        ],
+        history=[
+            HealthPointPublic(parameter=h.parameter, value=h.value, sd=h.sd, at=h.at,
+                              source=h.label)
+            for h in history
+        ],
+    )  # fmt: skip
