@@ -1,5 +1,6 @@
 // Hash router of the dashboard: #/ (runs & tracks), #/upload, #/runs/{id}, #/tracks/{name},
-// #/simulate. Each page module exports render(main, params) and may return a cleanup function.
+// #/simulate, #/vehicles, #/vehicles/{name}. Each page module exports render(main, params) and
+// may return a cleanup function.
 
 import { h, clear, announce } from "./dom.js";
 import * as home from "./pages/home.js";
@@ -7,6 +8,7 @@ import * as upload from "./pages/upload.js";
 import * as run from "./pages/run.js";
 import * as track from "./pages/track.js";
 import * as simulate from "./pages/simulate.js";
+import * as vehicle from "./pages/vehicle.js";
 
 const routes = [
   { pattern: /^\/?$/, page: home, nav: "home", title: "Runs & tracks" },
@@ -14,6 +16,8 @@ const routes = [
   { pattern: /^\/runs\/([^/]+)\/?$/, page: run, nav: "home", title: "Run" },
   { pattern: /^\/tracks\/([^/]+)\/?$/, page: track, nav: "home", title: "Track" },
   { pattern: /^\/simulate\/?$/, page: simulate, nav: "simulate", title: "Simulate" },
+  { pattern: /^\/vehicles\/?$/, page: vehicle, nav: "vehicles", title: "Vehicles" },
+  { pattern: /^\/vehicles\/([^/]+)\/?$/, page: vehicle, nav: "vehicles", title: "Vehicle" },
 ];
 
 let cleanup = null;
