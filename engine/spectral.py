@@ -21,6 +21,33 @@ from .errors import InversionError
 from .vehicle import VehicleParams
 
 
+def dof_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """Response of the vehicle's DOFs to the rail levels under its axles.
+
+    Parameters
+    ----------
+    vehicle : VehicleParams
+        The half-car.
+    omega : ndarray, shape (m,)
+        Angular frequencies, rad/s.
+
+    Returns
+    -------
+    X : ndarray, shape (m, 4, 2)
+        ``X[k] @ [Y1, Y2]``: ``[u_s (m), theta_s (rad), u_u1 (m), u_u2 (m)]`` per unit rail
+        level (m) under axle 1 and axle 2, i.e. ``Z⁻¹ E K_t`` with
+        ``Z = K + i w C - w² M``.
+    """
+    M, C, K = vehicle.matrices()
+    w = np.asarray(omega, dtype=float)
+    Z = -(w[:, None, None] ** 2) * M + 1j * w[:, None, None] * C + K  # (m, 4, 4)
+    F = np.zeros((4, 2))
+    F[2, 0] = vehicle.kt1
+    F[3, 1] = vehicle.kt2
+    rhs = np.broadcast_to(F, Z.shape[:1] + F.shape).astype(np.complex128)
+    return np.asarray(np.linalg.solve(Z, rhs), dtype=np.complex128)
+
+
 def vehicle_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
     """Frequency response from rail levels to the measured signals.
 
@@ -38,13 +65,8 @@ def vehicle_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDAr
         ``vehicle.sensor_x_m`` ahead of the CG; m/s² per m) and pitch rate (rad/s per m) for
         unit rail level under axle 1 and axle 2.
     """
-    M, C, K = vehicle.matrices()
     w = np.asarray(omega, dtype=float)
-    Z = -(w[:, None, None] ** 2) * M + 1j * w[:, None, None] * C + K  # (m, 4, 4)
-    F = np.zeros((4, 2))
-    F[2, 0] = vehicle.kt1
-    F[3, 1] = vehicle.kt2
-    X = np.linalg.solve(Z, np.broadcast_to(F, Z.shape[:1] + F.shape).astype(complex))
+    X = dof_response(vehicle, w)
     H = np.empty((w.size, 2, 2), dtype=complex)
     # the accelerometer sits sensor_x_m ahead of the CG: it also feels the pitch acceleration
     H[:, 0, :] = -(w[:, None] ** 2) * (X[:, 0, :] + vehicle.sensor_x_m * X[:, 1, :])

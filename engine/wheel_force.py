@@ -15,37 +15,22 @@ import numpy as np
 import scipy.fft as sfft
 from numpy.typing import NDArray
 
+from .spectral import dof_response
 from .vehicle import VehicleParams
 
 
 def force_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
     """Dynamic contact force per unit rail level, N/m.
 
-    Parameters
-    ----------
-    vehicle : VehicleParams
-        The half-car.
-    omega : ndarray, shape (m,)
-        Angular frequencies, rad/s.
-
-    Returns
-    -------
-    G : ndarray, shape (m, 2, 2)
-        ``G[k] @ [Y1, Y2] = [F1, F2]``: dynamic contact force of the front and rear axle
-        (N, compression positive) for unit rail level (m) under axle 1 and axle 2.
+    ``G[k] @ [Y1, Y2] = [F1, F2]`` (shape (m, 2, 2), ``omega`` in rad/s): dynamic contact
+    force of the front and rear axle (N, compression positive) for unit rail level (m) under
+    axle 1 and axle 2, from the DOF response :func:`engine.spectral.dof_response`.
     """
-    M, C, K = vehicle.matrices()
-    w = np.asarray(omega, dtype=float)
-    Z = -(w[:, None, None] ** 2) * M + 1j * w[:, None, None] * C + K
+    X = dof_response(vehicle, omega)
     kt = np.array([vehicle.kt1, vehicle.kt2])
-    E = np.zeros((4, 2))
-    E[2, 0] = kt[0]
-    E[3, 1] = kt[1]
-    X = np.linalg.solve(Z, np.broadcast_to(E, Z.shape[:1] + E.shape).astype(complex))
-    G = np.empty((w.size, 2, 2), dtype=complex)
-    for i in range(2):
-        G[:, i, :] = -kt[i] * X[:, 2 + i, :]
-        G[:, i, i] += kt[i]
+    G = -kt[None, :, None] * X[:, 2:4, :]
+    G[:, 0, 0] += kt[0]
+    G[:, 1, 1] += kt[1]
     return G
 
 
