@@ -154,35 +154,28 @@ class Worker:
         """
         host = socket.gethostname()
         freed = 0
+        # (claimed thing, its state while claimed, what frees the claim)
+        kinds: list[tuple[type[Run] | type[Calibration], str, dict[str, Any]]] = [
+            (Run, "processing", {"claimed_by": None, "stage": "queued"}),
+            (Calibration, "running", {"claimed_by": None, "status": "queued"}),
+        ]
         with self.ctx.db.engine.begin() as conn:
-            rows = conn.execute(
-                select(Run.id, Run.claimed_by).where(
-                    Run.status == "processing", Run.claimed_by.is_not(None)
-                )
-            ).all()
-            for run_id, owner in rows:
-                if self._dead_local(owner, host):
-                    res = conn.execute(
-                        update(Run)
-                        .where(Run.id == run_id, Run.claimed_by == owner)
-                        .values(claimed_by=None, stage="queued")
+            for model, state, free in kinds:
+                rows = conn.execute(
+                    select(model.id, model.claimed_by).where(
+                        model.status == state, model.claimed_by.is_not(None)
                     )
-                    freed += res.rowcount
-            cals = conn.execute(
-                select(Calibration.id, Calibration.claimed_by).where(
-                    Calibration.status == "running", Calibration.claimed_by.is_not(None)
-                )
-            ).all()
-            for cal_id, owner in cals:
-                if self._dead_local(owner, host):
-                    res = conn.execute(
-                        update(Calibration)
-                        .where(Calibration.id == cal_id, Calibration.claimed_by == owner)
-                        .values(claimed_by=None, status="queued")
-                    )
-                    freed += res.rowcount
+                ).all()
+                for row_id, owner in rows:
+                    if self._dead_local(owner, host):
+                        res = conn.execute(
+                            update(model)
+                            .where(model.id == row_id, model.claimed_by == owner)
+                            .values(**free)
+                        )
+                        freed += res.rowcount
         if freed:
-            log.warning("resuming %d run(s) interrupted by a stopped process", freed)
+            log.warning("resuming %d run(s)/calibration(s) interrupted by a stopped process", freed)
         return freed
 
     def _dead_local(self, owner: object, host: str) -> bool:

@@ -10,12 +10,13 @@ from __future__ import annotations
 import dataclasses
 import io
 import time
+from datetime import UTC, datetime
 from typing import Any
 
 import pytest
 from starlette.testclient import TestClient
 
-from api.api_support import assert_zones_match, row_counts, upload, wait_done
+from api.api_support import assert_zones_match, row_counts, sql, upload, wait_done
 from engine.logio import write_run_csv
 from engine.synthetic import REALISTIC_SENSOR, make_run
 from engine.track import SoftZone
@@ -221,3 +222,22 @@ def test_bad_calibration_requests(client: TestClient, settings, healthy_runs) ->
     r = client.get("/api/v1/vehicles/other/calibrations/12345")
     assert r.status_code == 404
     assert client.get("/api/v1/vehicles/nope/health").status_code == 404
+
+
+def test_calibration_of_a_dead_worker_is_taken_over(start_app, settings, healthy_runs) -> None:
+    """A calibration claimed by a worker that stopped beating is resumed by another process
+    (from the start) once its lease is over, like a run."""
+    c = start_app(start_worker=False)
+    _register(c, "resume")
+    _upload(c, healthy_runs[:1], "resume")
+    cal_id = c.post("/api/v1/vehicles/resume/calibrate", json={}).json()["id"]
+    now = datetime.now(UTC).replace(tzinfo=None)
+    sql(settings, "UPDATE calibrations SET status='running', claimed_by='elsewhere:1:abc', "
+        "heartbeat_at=:now, attempts=1 WHERE id=:id", now=now, id=cal_id)  # fmt: skip
+    assert c.get(f"/api/v1/vehicles/resume/calibrations/{cal_id}").json()["status"] == "running"
+    other = start_app(lease_s=1.0)
+    assert _wait_calibration(other, "resume", cal_id)["status"] == "done"
+    [(owner, attempts)] = sql(
+        settings, "SELECT claimed_by, attempts FROM calibrations WHERE id=:id", id=cal_id
+    )
+    assert owner != "elsewhere:1:abc" and attempts == 2

@@ -96,4 +96,10 @@ def test_vehicle_page_shows_versions_calibrations_health_and_calibrates(
         timeout=120_000,
     )
     assert "4" in page.locator("#calibrations-table tbody tr").nth(0).inner_text()
+    # a run says which vehicle version produced its results, and links to the vehicle
+    page.goto(f"{live_server.url}/#/runs/{jan[0]}")
+    page.wait_for_selector("#run-vehicle-link")
+    assert "parameters version 1" in page.inner_text("main")
+    page.click("#run-vehicle-link")
+    page.wait_for_selector("#calibrations-table")
     page.watch.assert_clean()

@@ -78,7 +78,7 @@ export async function render(main) {
       tbody.appendChild(h("tr", {},
         h("th", { scope: "row" }, h("a", { href: `#/runs/${encodeURIComponent(id)}` }, `Run ${id}`)),
         h("td", {}, h("a", { href: `#/tracks/${encodeURIComponent(r.track_id ?? trackName(r))}` }, trackName(r))),
-        h("td", {}, vehicleName(r)),
+        h("td", {}, vehicleName(r) ? h("a", { href: `#/vehicles/${encodeURIComponent(vehicleName(r))}` }, vehicleName(r)) : ""),
         h("td", {}, fmtDate(r.recorded_at)),
         h("td", { class: "num" }, fmt(r.start_chainage_m, 1)),
         h("td", {}, h("span", { class: `status status-${r.status}`, title: r.status === "failed" && r.error ? String(r.error.message || r.error) : "" }, r.status)),

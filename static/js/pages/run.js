@@ -66,7 +66,8 @@ export async function render(main, [id]) {
   const track = trackName(run);
   append(subtitle, [
     "Track ", h("a", { href: `#/tracks/${encodeURIComponent(run.track_id ?? track)}`, id: "run-track-link" }, track),
-    vehicleName(run) ? ` · vehicle ${vehicleName(run)}` : "",
+    vehicleName(run) ? [" · vehicle ", h("a", { href: `#/vehicles/${encodeURIComponent(vehicleName(run))}`, id: "run-vehicle-link" }, vehicleName(run)),
+      run.vehicle_version ? ` (parameters version ${run.vehicle_version})` : ""] : "",
     run.recorded_at ? ` · recorded ${fmtDate(run.recorded_at)}` : "",
   ]);
 
