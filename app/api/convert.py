@@ -13,6 +13,7 @@ from app.schemas.vehicles import (
     VehicleParamsSchema,
     VehiclePublic,
 )
+from app.services.stiffness import run_stiffness_basis
 
 _PROGRESS = {"queued": 0.05, "inverting": 0.35, "storing": 0.85}
 
@@ -21,6 +22,7 @@ def run_public(run: Run) -> RunPublic:
     """The public view of a run."""
     lo, hi = run.aligned_extent()
     progress = 1.0 if run.status != "processing" else _PROGRESS.get(run.stage or "queued", 0.05)
+    basis, message = run_stiffness_basis(run.single_pass_valid)
     return RunPublic(
         id=run.id,
         name=run.name,
@@ -53,6 +55,11 @@ def run_public(run: Run) -> RunPublic:
         method=run.method,
         n_soft_spots=run.n_soft_spots,
         processing_s=run.processing_s,
+        payload_kg=run.payload_kg,
+        static_wheel_load_n=run.static_wheel_load_n,
+        mean_wheel_force_n=run.mean_wheel_force_n,
+        stiffness_basis=basis,  # type: ignore[arg-type]
+        stiffness_message=message,
         content_hash=run.content_hash,
         options=run.options or {},
     )

@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Depends
 
 from app.api.deps import check_access
-from app.api.routes import runs, simulate, track_intel, tracks, vehicles, views
+from app.api.routes import runs, simulate, stiffness, track_intel, tracks, vehicles, views
 from app.schemas.common import ERROR_RESPONSES
 
 UPLOAD_PATHS = frozenset({"/api/v1/runs"})
@@ -18,6 +18,8 @@ api_router.include_router(runs.router)
 api_router.include_router(tracks.router)
 # Per-track aggregated profile, defect register, alerts, limits and report (issue 6).
 api_router.include_router(track_intel.router)
+# Geometry vs stiffness: separated stiffness and reference surveys of a track (issue 10).
+api_router.include_router(stiffness.router)
 api_router.include_router(vehicles.router)
 api_router.include_router(simulate.router)
 # Server-side chart data for the dashboard (decimated profiles, chainage maps, CSV preview).

@@ -214,6 +214,12 @@ class Run(Base):
     n_soft_spots: Mapped[int | None] = mapped_column(Integer)
     vehicle_version: Mapped[int | None] = mapped_column(Integer)  # produced the results
     processing_s: Mapped[float | None] = mapped_column(Float)
+    # Load (issue 10): what the client declared, the inversion's mean wheel force, and whether
+    # the run's own stiffness-loss figures are valid (rail smooth at the noise level).
+    payload_kg: Mapped[float | None] = mapped_column(Float)
+    static_wheel_load_n: Mapped[float | None] = mapped_column(Float)
+    mean_wheel_force_n: Mapped[float | None] = mapped_column(Float)
+    single_pass_valid: Mapped[bool | None] = mapped_column(Boolean)
 
     content_hash: Mapped[str] = mapped_column(String(64))
     idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
@@ -268,6 +274,8 @@ class ProfilePoint(Base):
     front_level_mm: Mapped[float | None] = mapped_column(Float)
     rear_level_mm: Mapped[float | None] = mapped_column(Float)
     baseline_mm: Mapped[float | None] = mapped_column(Float)
+    front_force_n: Mapped[float | None] = mapped_column(Float)  # wheel force, static + dynamic
+    rear_force_n: Mapped[float | None] = mapped_column(Float)
 
 
 class SoftSpot(Base):
@@ -319,7 +327,8 @@ class TrackRunLevels(Base):
     ``levels`` holds ``CHUNK_POINTS`` little-endian float32 values (mm, NaN = no data) for the
     grid points ``chunk * CHUNK_POINTS ... + CHUNK_POINTS - 1`` (chainage = index x 0.25 m).
     Only runs that are the reference of their stretch or aligned to it have rows here: the
-    aggregate of a chainage range is recomputed from these rows alone.
+    aggregate of a chainage range is recomputed from these rows alone. ``force_n`` holds the
+    wheel force under that level the same way (N; NULL for runs stored before issue 10).
     """
 
     __tablename__ = "track_run_levels"
@@ -329,6 +338,7 @@ class TrackRunLevels(Base):
     chunk: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
     track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="CASCADE"))
     levels: Mapped[bytes] = mapped_column(LargeBinary)
+    force_n: Mapped[bytes | None] = mapped_column(LargeBinary)
 
 
 class TrackProfilePoint(Base):
@@ -369,3 +379,87 @@ class TrackLimits(Base):
     intervention_loss_pct: Mapped[float | None] = mapped_column(Float)
     immediate_loss_pct: Mapped[float | None] = mapped_column(Float)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)
+
+
+class Survey(Base):
+    """A reference survey of a track: a recording car's longitudinal level at a known wheel
+    load, used as one more pass when geometry and stiffness are separated.
+
+    ``data`` is an ``.npz`` of the survey as imported (``chainage_m``, ``level_mm``);
+    ``chainage_offset_m`` aligns it to the track like a run's.
+    """
+
+    __tablename__ = "surveys"
+    __table_args__ = (
+        UniqueConstraint("track_id", "content_hash"),
+        {"sqlite_autoincrement": True},
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="CASCADE"))
+    name: Mapped[str | None] = mapped_column(String(200))
+    original_filename: Mapped[str | None] = mapped_column(String(255))
+    recorded_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    wheel_load_n: Mapped[float] = mapped_column(Float)  # N, the recording car's wheel load
+    band_min_m: Mapped[float] = mapped_column(Float)  # m, shortest wavelength of the level
+    band_max_m: Mapped[float] = mapped_column(Float)  # m, longest wavelength
+    n_points: Mapped[int] = mapped_column(Integer)
+    chainage_min_m: Mapped[float] = mapped_column(Float)  # as imported
+    chainage_max_m: Mapped[float] = mapped_column(Float)
+    chainage_offset_m: Mapped[float] = mapped_column(Float, default=0.0)
+    alignment_status: Mapped[str] = mapped_column(String(12))
+    alignment_correlation: Mapped[float | None] = mapped_column(Float)
+    alignment_reason: Mapped[str | None] = mapped_column(Text)
+    content_hash: Mapped[str] = mapped_column(String(64))
+    data: Mapped[bytes] = mapped_column(LargeBinary, deferred=True)
+
+
+class SurveyLevels(Base):
+    """A survey's aligned level on the track grid, chunked like ``TrackRunLevels`` (mm)."""
+
+    __tablename__ = "survey_levels"
+    __table_args__ = (Index("ix_survey_levels_track_id_chunk", "track_id", "chunk"),)
+
+    survey_id: Mapped[int] = mapped_column(
+        ForeignKey("surveys.id", ondelete="CASCADE"), primary_key=True
+    )
+    chunk: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="CASCADE"))
+    levels: Mapped[bytes] = mapped_column(LargeBinary)
+
+
+class TrackStiffness(Base):
+    """The separated geometry and stiffness of a track over one chunk of its grid.
+
+    ``data`` holds ``app.services.stiffness.STIFFNESS_ARRAYS`` one after the other, each
+    ``CHUNK_POINTS`` little-endian float32 values (NaN = not estimated); ``meta`` lists the
+    passes that reached the chunk (``contributors``: kind, id, label, mean wheel force in N,
+    points) and the separation's message where it could not separate.
+    """
+
+    __tablename__ = "track_stiffness"
+
+    track_id: Mapped[int] = mapped_column(
+        ForeignKey("tracks.id", ondelete="CASCADE"), primary_key=True
+    )
+    chunk: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    data: Mapped[bytes] = mapped_column(LargeBinary)
+    meta: Mapped[dict[str, Any]] = mapped_column(JSON)
+
+
+class TrackStiffnessSpot(Base):
+    """A soft spot found by separating geometry and stiffness (aligned chainage, m; loss %)."""
+
+    __tablename__ = "track_stiffness_spots"
+    __table_args__ = (Index("ix_track_stiffness_spots_track_id_peak_m", "track_id", "peak_m"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="CASCADE"))
+    start_m: Mapped[float] = mapped_column(Float)
+    end_m: Mapped[float] = mapped_column(Float)
+    peak_m: Mapped[float] = mapped_column(Float)
+    loss_pct: Mapped[float] = mapped_column(Float)
+    loss_lo_pct: Mapped[float | None] = mapped_column(Float)
+    loss_hi_pct: Mapped[float | None] = mapped_column(Float)
+    confidence: Mapped[float | None] = mapped_column(Float)

@@ -67,6 +67,16 @@ class RunMetadata(StrictModel):
     recorded_at: datetime | None = Field(
         default=None, description="When the run was recorded (ISO 8601; UTC if no offset)"
     )
+    payload_kg: float | None = Field(
+        default=None, ge=0, le=200_000, allow_inf_nan=False,
+        description="Payload carried on top of the vehicle's registered body mass, kg "
+        "(passengers, freight); sets the static wheel load the run is inverted with",
+    )  # fmt: skip
+    static_wheel_load_n: float | None = Field(
+        default=None, gt=0, le=500_000, allow_inf_nan=False,
+        description="Measured static wheel load during the run (mean of the axles), N; "
+        "instead of payload_kg",
+    )  # fmt: skip
 
     @model_validator(mode="after")
     def _one_track_one_vehicle(self) -> RunMetadata:
@@ -76,6 +86,8 @@ class RunMetadata(StrictModel):
             raise ValueError("give either track (name) or track_id, not both")
         if self.vehicle is not None and self.vehicle_id is not None:
             raise ValueError("give either vehicle (name) or vehicle_id, not both")
+        if self.payload_kg is not None and self.static_wheel_load_n is not None:
+            raise ValueError("give either payload_kg or static_wheel_load_n, not both")
         return self
 
 
@@ -200,6 +212,22 @@ class RunPublic(BaseModel):
     method: str | None
     n_soft_spots: int | None
     processing_s: float | None = Field(description="Inversion + detection time, s")
+    payload_kg: float | None = Field(default=None, description="Declared payload, kg")
+    static_wheel_load_n: float | None = Field(
+        default=None, description="Declared static wheel load, N"
+    )
+    mean_wheel_force_n: float | None = Field(
+        default=None, description="Mean wheel force under the profile (static + dynamic), N"
+    )
+    stiffness_basis: Literal["single pass", "not separable"] | None = Field(
+        default=None,
+        description="What the run's own stiffness-loss figures rest on: 'single pass' when "
+        "the rail is smooth at the noise level (they are valid), 'not separable' when rail "
+        "geometry could have made its dips (no figure is given; see the track's stiffness)",
+    )
+    stiffness_message: str | None = Field(
+        default=None, description="Plain words when the run's dips cannot be read as stiffness"
+    )
     content_hash: str
     options: dict[str, Any]
 
@@ -237,16 +265,28 @@ class ProfilePublic(BaseModel):
     baseline_mm: list[float | None] | None = Field(
         default=None, description="Baseline the dips are measured from, mm (with ?include=)"
     )
+    front_force_n: list[float | None] | None = Field(
+        default=None, description="Front-axle wheel force, static + dynamic, N (with ?include=)"
+    )
+    rear_force_n: list[float | None] | None = Field(
+        default=None, description="Rear-axle wheel force, static + dynamic, N (with ?include=)"
+    )
 
 
 class SoftSpotPublic(BaseModel):
-    """A soft spot: extent and peak chainage (m), depth (mm), stiffness loss (%)."""
+    """A soft spot: extent and peak chainage (m), depth (mm), stiffness loss (%).
+
+    The loss is given only where one pass can tell it (``stiffness_basis`` "single pass":
+    the rail is smooth at the noise level); elsewhere it is null and ``message`` says why.
+    """
 
     start_m: float
     end_m: float
     peak_m: float
     depth_mm: float
     stiffness_loss_pct: float | None
+    stiffness_basis: Literal["single pass"] | None = None
+    message: str | None = None
 
 
 class SignalsPublic(BaseModel):

@@ -51,8 +51,24 @@ class SensorSpec(StrictModel):
     digits: int | None = Field(default=8, ge=3, le=17, description="Significant digits kept")
 
 
+class IrregularitySpec(StrictModel):
+    """Unloaded rail geometry: a random profile of a standard spectrum (1-120 m wavelengths)."""
+
+    spectrum: str = Field(
+        max_length=40,
+        description="Spectrum name: german-low, german-high, fra-1 ... fra-6 "
+        "(GET /api/v1/simulate/spectra)",
+    )
+    seed: int = Field(
+        default=0, ge=0, le=2**31 - 1,
+        description="Seed of the profile (and of the support scatter): the same seed is the "
+        "same physical track",
+    )  # fmt: skip
+
+
 class SimulateRequest(StrictModel):
-    """A synthetic run: a straight track with soft zones, the vehicle at constant speed."""
+    """A synthetic run: a track with soft zones (straight, or with the rail geometry of a
+    standard spectrum), the vehicle at constant speed."""
 
     track: Name = Field(default="simulated", description="Track to store the run on")
     vehicle: Name | None = Field(default=None, description="Vehicle name (default table1)")
@@ -81,6 +97,9 @@ class SimulateRequest(StrictModel):
     )
     seed: int = Field(default=0, ge=0, le=2**31 - 1)
     recorded_at: datetime | None = None
+    irregularity: IrregularitySpec | None = Field(
+        default=None, description="Rail geometry (null: a straight rail, the paper's case)"
+    )
 
     @field_validator("zones")
     @classmethod

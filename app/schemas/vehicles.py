@@ -50,6 +50,11 @@ class VehicleCreate(StrictModel):
 
     name: UrlName
     description: str | None = Field(default=None, max_length=2000)
+    preset: str | None = Field(
+        default=None,
+        max_length=50,
+        description="Start from this engine preset (table1, heavy); parameters given override",
+    )
     params: VehicleParamsSchema = Field(default_factory=VehicleParamsSchema)
 
     @model_validator(mode="before")

@@ -33,30 +33,54 @@ _DTYPE = np.dtype("<f4")
 _PLACEHOLDER = {"qmark": "?", "format": "%s", "pyformat": "%s"}
 
 
-def store_run_levels(
-    session: Session, track_id: int, run_id: int, i_lo: int, levels: NDArray[np.float64]
-) -> tuple[int, int] | None:
-    """Keep a run's aligned levels (mm) from grid point ``i_lo`` on; the chunks written.
+def chunked(
+    i_lo: int, values: NDArray[np.float64]
+) -> tuple[int, int, dict[int, NDArray[np.float32]]]:
+    """Values from grid point ``i_lo`` on cut into float32 chunks of :data:`CHUNK_POINTS`.
 
-    Returns ``(first_chunk, last_chunk)``, or None when there is no finite level.
+    Returns the first and last chunk holding a finite value and the chunks that do (NaN where
+    there is none); ``(0, -1, {})`` when no value is finite.
     """
-    finite = np.flatnonzero(np.isfinite(levels))
+    finite = np.flatnonzero(np.isfinite(values))
     if finite.size == 0:
-        return None
+        return 0, -1, {}
     i_first, i_last = i_lo + int(finite[0]), i_lo + int(finite[-1])
     c_lo, c_hi = i_first // CHUNK_POINTS, i_last // CHUNK_POINTS
-    rows = []
+    out = {}
     for chunk in range(c_lo, c_hi + 1):
         buf = np.full(CHUNK_POINTS, np.nan, dtype=_DTYPE)
         a = max(chunk * CHUNK_POINTS, i_lo)
-        b = min((chunk + 1) * CHUNK_POINTS, i_lo + levels.size)
+        b = min((chunk + 1) * CHUNK_POINTS, i_lo + values.size)
         if b > a:
-            buf[a - chunk * CHUNK_POINTS : b - chunk * CHUNK_POINTS] = levels[a - i_lo : b - i_lo]
+            buf[a - chunk * CHUNK_POINTS : b - chunk * CHUNK_POINTS] = values[a - i_lo : b - i_lo]
         if np.isfinite(buf).any():
-            rows.append({"run_id": run_id, "chunk": chunk, "track_id": track_id,
-                         "levels": buf.tobytes()})  # fmt: skip
-    if rows:
-        session.execute(insert(TrackRunLevels), rows)
+            out[chunk] = buf
+    return c_lo, c_hi, out
+
+
+def store_run_levels(
+    session: Session,
+    track_id: int,
+    run_id: int,
+    i_lo: int,
+    levels: NDArray[np.float64],
+    force_n: NDArray[np.float64] | None = None,
+) -> tuple[int, int] | None:
+    """Keep a run's aligned levels (mm), and the wheel force under them (N, same points) when
+    known, from grid point ``i_lo`` on; the chunks written.
+
+    Returns ``(first_chunk, last_chunk)``, or None when there is no finite level.
+    """
+    c_lo, c_hi, parts = chunked(i_lo, levels)
+    if not parts:
+        return None
+    forces = chunked(i_lo, force_n)[2] if force_n is not None else {}
+    rows = [
+        {"run_id": run_id, "chunk": chunk, "track_id": track_id, "levels": buf.tobytes(),
+         "force_n": forces[chunk].tobytes() if chunk in forces else None}
+        for chunk, buf in parts.items()
+    ]  # fmt: skip
+    session.execute(insert(TrackRunLevels), rows)
     return c_lo, c_hi
 
 

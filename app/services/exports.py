@@ -61,8 +61,12 @@ def run_profile_csv(
 
 
 def soft_spots_csv(spots: Iterable[SpotOnTrack]) -> str:
-    """Soft spots as CSV: extent and peak (m, 3 decimals), depth (mm), loss (%)."""
-    lines = [",".join(SOFT_SPOT_FIELDS)]
+    """Soft spots as CSV: extent and peak (m, 3 decimals), depth (mm), loss (%); a ``#`` line
+    first with the message when the losses are withheld."""
+    spots = list(spots)
+    message = next((p.message for p in spots if p.message), None)
+    lines = [f"# {message}"] if message else []
+    lines.append(",".join(SOFT_SPOT_FIELDS))
     for p in spots:
         lines.append(
             f"{p.start_m:.3f},{p.end_m:.3f},{p.peak_m:.3f},{p.depth_mm:.6f},"

@@ -20,10 +20,11 @@ from app.db.models import Run, Track, TrackProfilePoint, TrackRunLevels
 
 from .aggregate import drop_run_levels, recompute_aggregate, store_run_levels
 from .alignment import RunAlignment, align_to_track, on_track_grid
-from .profiles import read_profile
+from .profiles import fused_force, read_profile
+from .stiffness import recompute_all, recompute_stiffness
 
 
-def _lock_track(session: Session, track_id: int) -> None:
+def lock_track(session: Session, track_id: int) -> None:
     # FOR NO KEY UPDATE (key_share=True), not FOR UPDATE: the caller's transaction already
     # holds FOR KEY SHARE on the track through the foreign keys of the rows it inserted, and
     # so may a concurrent one; FOR UPDATE conflicts with KEY SHARE, so two such transactions
@@ -33,15 +34,24 @@ def _lock_track(session: Session, track_id: int) -> None:
 
 
 def add_run_to_track(
-    session: Session, run: Run, chainage_m: NDArray[np.float64], level_mm: NDArray[np.float64]
+    session: Session,
+    run: Run,
+    chainage_m: NDArray[np.float64],
+    level_mm: NDArray[np.float64],
+    force_n: NDArray[np.float64] | None = None,
+    *,
+    separate: bool = True,
 ) -> RunAlignment:
-    """Align a just-stored run (profile as processed: chainage m, level mm) and merge it.
+    """Align a just-stored run (profile as processed: chainage m, level mm, the wheel force
+    under it N) and merge it.
 
     Sets the run's offset and alignment fields; a reference or aligned run's levels join the
-    track's aggregate over the chunks it covers. Call after the run's rows are written (so
-    that on SQLite the transaction already holds the write lock).
+    track's aggregate over the chunks it covers, and the track's geometry/stiffness
+    separation is redone there (``app.services.stiffness``; ``separate=False`` leaves that to
+    the caller). Call after the run's rows are
+    written (so that on SQLite the transaction already holds the write lock).
     """
-    _lock_track(session, run.track_id)
+    lock_track(session, run.track_id)
     # A run stored again (a worker retry) first leaves the aggregate it may have joined.
     remove_run_from_track(session, run, lock=False)
     al = align_to_track(session, run.track_id, chainage_m, level_mm)
@@ -52,19 +62,26 @@ def add_run_to_track(
     run.alignment_reason = al.reason
     if al.merged:
         i_lo, levels = on_track_grid(chainage_m, level_mm, al.offset_m)
-        chunks = store_run_levels(session, run.track_id, run.id, i_lo, levels)
+        force = None
+        if force_n is not None:
+            _, force = on_track_grid(chainage_m, force_n, al.offset_m)
+            force = force[: levels.size] if force.size >= levels.size else None
+        chunks = store_run_levels(session, run.track_id, run.id, i_lo, levels, force)
         if chunks is not None:
             recompute_aggregate(session, run.track_id, *chunks)
+            if separate:
+                recompute_stiffness(session, run.track_id, *chunks)
     return al
 
 
 def remove_run_from_track(session: Session, run: Run, *, lock: bool = True) -> None:
     """Take a run out of its track's aggregate (before deleting it); no-op if not in it."""
     if lock:
-        _lock_track(session, run.track_id)
+        lock_track(session, run.track_id)
     chunks = drop_run_levels(session, run.id)
     if chunks is not None:
         recompute_aggregate(session, run.track_id, *chunks)
+        recompute_stiffness(session, run.track_id, *chunks)
 
 
 def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignment]]:
@@ -74,7 +91,7 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
     For runs stored before alignment existed (``alignment_status`` NULL) or after the
     alignment settings changed. Returns each run's id and alignment, in the order processed.
     """
-    _lock_track(session, track_id)
+    lock_track(session, track_id)
     session.execute(delete(TrackRunLevels).where(TrackRunLevels.track_id == track_id))
     session.execute(delete(TrackProfilePoint).where(TrackProfilePoint.track_id == track_id))
     runs = session.scalars(
@@ -84,8 +101,15 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
     ).all()
     out = []
     for run in runs:
-        cols = read_profile(session, run.id, columns=("chainage_m", "level_mm"))
+        names = ("chainage_m", "level_mm", "front_force_n", "rear_force_n")
+        cols = read_profile(session, run.id, columns=names)
         chainage = np.asarray(cols["chainage_m"], dtype=np.float64)
-        level = np.array([np.nan if v is None else v for v in cols["level_mm"]], dtype=np.float64)
-        out.append((run.id, add_run_to_track(session, run, chainage, level)))
+        level, front, rear = (
+            np.array([np.nan if v is None else v for v in cols[k]], dtype=np.float64)
+            for k in names[1:]
+        )
+        force = fused_force(front, rear) if np.isfinite(front).any() else None
+        al = add_run_to_track(session, run, chainage, level, force, separate=False)
+        out.append((run.id, al))
+    recompute_all(session, track_id)
     return out

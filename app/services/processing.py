@@ -19,7 +19,7 @@ from engine.track import TrackParams
 from engine.vehicle import VehicleParams
 
 from .integrate import add_run_to_track
-from .profiles import insert_profile
+from .profiles import fused_force, insert_profile
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,12 @@ def store_result(
         res.front_level_mm,
         res.rear_level_mm,
         res.baseline_mm,
+        res.front_force_n,
+        res.rear_force_n,
     )
+    # Where the rail is not smooth at the noise level geometry could have made these dips:
+    # they are kept by depth only, no stiffness-loss figure is stored for them.
+    valid = bool(res.single_pass_valid)
     for spot in res.soft_spots:
         session.add(
             SoftSpot(
@@ -85,7 +90,7 @@ def store_result(
                 end_m=float(spot.end_m),
                 peak_m=float(spot.peak_m),
                 depth_mm=float(spot.depth_mm),
-                stiffness_loss_pct=finite_or_none(spot.stiffness_loss_pct),
+                stiffness_loss_pct=finite_or_none(spot.stiffness_loss_pct) if valid else None,
             )
         )
     covered = res.chainage_m[np.isfinite(res.level_mm)]
@@ -95,9 +100,13 @@ def store_result(
     run.method = res.method
     run.n_soft_spots = len(res.soft_spots)
     run.processing_s = processed.seconds
+    force = fused_force(res.front_force_n, res.rear_force_n)
+    under_level = force[np.isfinite(res.level_mm) & np.isfinite(force)]
+    run.mean_wheel_force_n = float(under_level.mean()) if under_level.size else None
+    run.single_pass_valid = valid
     run.status = "done"
     run.stage = None
     run.error = None
     run.processed_at = utcnow()
     run.vehicle_version = vehicle_version
-    add_run_to_track(session, run, res.chainage_m, res.level_mm)
+    add_run_to_track(session, run, res.chainage_m, res.level_mm, force)

@@ -17,7 +17,10 @@ from sqlalchemy.orm import Session
 
 from app.db.models import ProfilePoint
 
-PROFILE_COLUMNS = ("chainage_m", "level_mm", "front_level_mm", "rear_level_mm", "baseline_mm")
+PROFILE_COLUMNS = (
+    "chainage_m", "level_mm", "front_level_mm", "rear_level_mm", "baseline_mm",
+    "front_force_n", "rear_force_n",
+)  # fmt: skip
 BATCH_ROWS = 50_000
 
 _PLACEHOLDER = {"qmark": "?", "format": "%s", "pyformat": "%s"}
@@ -32,6 +35,13 @@ def _nullable(a: NDArray[np.float64]) -> list[float | None]:
     return values
 
 
+def fused_force(front: NDArray[np.float64], rear: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The wheel force under the fused level from each axle's (N, same grid): their mean where
+    both passed (the fused level is the mean of the axles' levels), else the one that did."""
+    both = np.isfinite(front) & np.isfinite(rear)
+    return np.where(both, 0.5 * (front + rear), np.where(np.isfinite(front), front, rear))
+
+
 def insert_profile(
     session: Session,
     run_id: int,
@@ -40,8 +50,11 @@ def insert_profile(
     front_level_mm: NDArray[np.float64],
     rear_level_mm: NDArray[np.float64],
     baseline_mm: NDArray[np.float64],
+    front_force_n: NDArray[np.float64],
+    rear_force_n: NDArray[np.float64],
 ) -> int:
-    """Insert a run's profile (chainage in m, levels in mm) in the session's transaction.
+    """Insert a run's profile (chainage in m, levels in mm, each axle's wheel force in N) in
+    the session's transaction.
 
     Returns the number of rows written.
     """
@@ -61,6 +74,8 @@ def insert_profile(
             _nullable(front_level_mm[lo:hi]),
             _nullable(rear_level_mm[lo:hi]),
             _nullable(baseline_mm[lo:hi]),
+            _nullable(front_force_n[lo:hi]),
+            _nullable(rear_force_n[lo:hi]),
         ]
         if mark is not None:
             rows = list(zip([run_id] * (hi - lo), *columns, strict=True))

@@ -17,6 +17,7 @@ from app.db.models import Run, RunSignals, SoftSpot
 
 from .errors import Conflict, Invalid, NotFound
 from .profiles import PROFILE_COLUMNS, read_profile
+from .stiffness import run_stiffness_basis
 from .window import Window
 
 EXTRA_PROFILE_COLUMNS = PROFILE_COLUMNS[2:]
@@ -120,17 +121,30 @@ class SpotOnTrack:
     peak_m: float
     depth_mm: float
     stiffness_loss_pct: float | None
+    stiffness_basis: str | None = None
+    """"single pass" when the loss rests on this run alone over rail smooth at the noise level."""
+    message: str | None = None
+    """Why no loss is given (one load cannot tell rail geometry from stiffness)."""
 
 
 def soft_spots(session: Session, run: Run) -> list[SpotOnTrack]:
-    """A run's soft spots by chainage, aligned."""
+    """A run's soft spots by chainage, aligned; dips by depth only (loss None, with the
+    message) where one pass cannot tell rail geometry from support stiffness."""
     off = run.offset_m
     rows = session.scalars(
         select(SoftSpot).where(SoftSpot.run_id == run.id).order_by(SoftSpot.start_m)
     ).all()
+    basis, message = run_stiffness_basis(run.single_pass_valid)
+    withheld = basis == "not separable"
     return [
         SpotOnTrack(
-            s.start_m + off, s.end_m + off, s.peak_m + off, s.depth_mm, s.stiffness_loss_pct
+            s.start_m + off,
+            s.end_m + off,
+            s.peak_m + off,
+            s.depth_mm,
+            None if withheld else s.stiffness_loss_pct,
+            "single pass" if basis == "single pass" else None,
+            message,
         )  # fmt: skip
         for s in rows
     ]

@@ -12,6 +12,7 @@ import numpy as np
 
 from engine.chainage import GRID_STEP_M
 from engine.errors import ParameterError
+from engine.irregularity import SPECTRA
 from engine.sensor import SensorModel
 from engine.simulate import room_to_run
 from engine.synthetic import make_run
@@ -48,6 +49,10 @@ class SimulationSpec:
     seed: int
     recorded_at: datetime | None = None
     record: dict[str, Any] = field(default_factory=dict)
+    irregularity: str | None = None
+    """Spectrum name of the unloaded rail geometry (None: a straight rail)."""
+    irregularity_seed: int | None = None
+    """Seed of the geometry and of the support scatter (the same physical track)."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +108,11 @@ def simulate_and_submit(ctx: AppContext, spec: SimulationSpec) -> tuple[int, boo
         track = resolve_track(s, spec.track, None)
         tp = TrackParams.from_dict(track.params_dict()) if track is not None else TrackParams()
     _check_geometry(ctx, spec, vp)
+    if spec.irregularity is not None and spec.irregularity not in SPECTRA:
+        raise Invalid(
+            f"unknown spectrum {spec.irregularity!r}; expected one of {', '.join(SPECTRA)}",
+            field="irregularity.spectrum",
+        )
     try:
         with ctx.slots:
             syn = make_run(
@@ -116,6 +126,8 @@ def simulate_and_submit(ctx: AppContext, spec: SimulationSpec) -> tuple[int, boo
                 seed=spec.seed,
                 vehicle=vp,
                 params=tp,
+                irregularity=spec.irregularity,
+                track_seed=spec.irregularity_seed,
             )
     except ParameterError as exc:
         raise Invalid.from_engine(exc) from None

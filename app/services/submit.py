@@ -23,14 +23,16 @@ from engine.errors import EngineError, LogFormatError
 from engine.pipeline import check_run
 from engine.runlog import RunLog
 from engine.track import TrackParams
-from engine.vehicle import VehicleParams
+from engine.vehicle import PRESETS, VehicleParams
 
 from .calibration import maybe_auto_calibrate
 from .context import AppContext
 from .errors import Conflict, Invalid
+from .loads import loaded_vehicle
 from .logs import pack_log, summarize
 from .processing import Processed, invert, store_result
 from .signals import log_signals
+from .vehicles import create_vehicle
 
 DEFAULT_VEHICLE = "table1"
 _UNSAFE_FILENAME = re.compile(r"[\x00-\x1f\x7f]")
@@ -55,6 +57,8 @@ class Submission:
     idempotency_key: str | None = None
     options: dict[str, Any] = field(default_factory=dict)
     extra_signals: dict[str, Any] = field(default_factory=dict)
+    payload_kg: float | None = None
+    static_wheel_load_n: float | None = None
 
 
 def clean_filename(name: str | None) -> str | None:
@@ -75,14 +79,33 @@ def resolve_vehicle(session: Session, name: str | None, vehicle_id: int | None) 
         return v
     wanted = name or DEFAULT_VEHICLE
     v = session.scalar(select(Vehicle).where(Vehicle.name == wanted))
+    if v is None and wanted in PRESETS:
+        # A preset's name is a vehicle everywhere: stored on first use, like table1.
+        v = vehicle_from_preset(session, wanted)
     if v is None:
         known = session.scalars(select(Vehicle.name).order_by(Vehicle.name).limit(20)).all()
+        names = sorted(set(known) | set(PRESETS))
         raise Invalid(
-            f"vehicle {wanted!r} does not exist; known vehicles: {', '.join(known)} "
-            "(create it with POST /api/v1/vehicles)",
+            f"vehicle {wanted!r} does not exist; known vehicles and presets: "
+            f"{', '.join(names)} (create it with POST /api/v1/vehicles)",
             field="vehicle",
         )
     return v
+
+
+def vehicle_from_preset(session: Session, preset: str, name: str | None = None) -> Vehicle:
+    """Register the engine's vehicle preset ``preset`` as a vehicle (named after it by
+    default, version 1). Commits; a concurrent first use of the same preset loses the race on
+    the unique name and finds the other's row."""
+    wanted = name or preset
+    try:
+        return create_vehicle(
+            session, wanted, f"Engine vehicle preset {preset!r}", PRESETS[preset].to_dict()
+        )
+    except Conflict:
+        found = session.scalar(select(Vehicle).where(Vehicle.name == wanted))
+        assert found is not None
+        return found
 
 
 def resolve_track(session: Session, name: str | None, track_id: int | None) -> Track | None:
@@ -182,7 +205,10 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             return prev.id, False
         failed_id = prev.id if prev is not None else None
         vehicle_id = vehicle.id
-        vp = VehicleParams.from_dict(vehicle.params_dict())
+        vp = loaded_vehicle(
+            VehicleParams.from_dict(vehicle.params_dict()), sub.payload_kg,
+            sub.static_wheel_load_n,
+        )  # fmt: skip
         vehicle_version = vehicle.version
         track_fields = track.params_dict() if track is not None else None
         track_name = track.name if track is not None else sub.track
@@ -244,6 +270,8 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             content_hash=sub.content_hash,
             idempotency_key=sub.idempotency_key,
             attempts=0,
+            payload_kg=sub.payload_kg,
+            static_wheel_load_n=sub.static_wheel_load_n,
         )
         s.add(run)
         s.flush()

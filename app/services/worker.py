@@ -35,6 +35,7 @@ from .calibration import (
     store_calibration,
 )
 from .context import AppContext
+from .loads import loaded_vehicle
 from .logs import unpack_log
 from .processing import invert, store_result
 
@@ -337,7 +338,10 @@ class Worker:
                 )
                 return
             data = s.scalar(select(RunInput.data).where(RunInput.run_id == run_id))
-            vp = VehicleParams.from_dict(run.vehicle.params_dict())
+            vp = loaded_vehicle(
+                VehicleParams.from_dict(run.vehicle.params_dict()), run.payload_kg,
+                run.static_wheel_load_n,
+            )  # fmt: skip
             vehicle_version, vehicle_id = run.vehicle.version, run.vehicle_id
             tp = TrackParams.from_dict(run.track.params_dict())
             start, direction = run.start_chainage_m, run.direction

@@ -255,9 +255,13 @@ def test_profile_csv_matches_json(client: TestClient, stored_run) -> None:
         f"/api/v1/runs/{rid}/profile", params={**params, "format": "csv", "include": "all"}
     )
     lines = r.text.strip().splitlines()
-    assert lines[0] == "chainage_m,level_mm,front_level_mm,rear_level_mm,baseline_mm"
+    assert lines[0] == (
+        "chainage_m,level_mm,front_level_mm,rear_level_mm,baseline_mm,front_force_n,rear_force_n"
+    )
     base = [float(ln.split(",")[4]) for ln in lines[1:]]
     assert base == pytest.approx(js["baseline_mm"], abs=1e-6)
+    force = [float(ln.split(",")[5]) for ln in lines[1:]]
+    assert force == pytest.approx(js["front_force_n"], abs=1e-6)
 
 
 def test_profile_window_must_be_ordered(client: TestClient, stored_run) -> None:
@@ -268,12 +272,16 @@ def test_profile_window_must_be_ordered(client: TestClient, stored_run) -> None:
 
 
 def test_soft_spots_json_and_csv(client: TestClient, stored_run) -> None:
-    """Soft spots come as the documented objects, and as CSV with the same numbers."""
+    """Soft spots come as the documented objects, and as CSV with the same numbers; on a
+    straight-rail run the stiffness losses stay, labelled as single-pass figures."""
     rid = stored_run["id"]
     spots = client.get(f"/api/v1/runs/{rid}/soft-spots").json()
     assert spots and set(spots[0]) == {
-        "start_m", "end_m", "peak_m", "depth_mm", "stiffness_loss_pct"
+        "start_m", "end_m", "peak_m", "depth_mm", "stiffness_loss_pct", "stiffness_basis",
+        "message",
     }  # fmt: skip
+    assert all(s["stiffness_basis"] == "single pass" and s["message"] is None for s in spots)
+    assert all(s["stiffness_loss_pct"] is not None for s in spots)
     assert stored_run["n_soft_spots"] == len(spots)
     r = client.get(f"/api/v1/runs/{rid}/soft-spots", params={"format": "csv"})
     lines = r.text.strip().splitlines()

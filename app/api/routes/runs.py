@@ -104,6 +104,8 @@ def _submission(
         filename=filename,
         idempotency_key=key,
         options=options,
+        payload_kg=meta.payload_kg,
+        static_wheel_load_n=meta.static_wheel_load_n,
     )
 
 
@@ -300,7 +302,7 @@ def read_run_profile(
         str | None,
         Query(
             description="Extra arrays, comma-separated: front_level_mm, rear_level_mm, "
-            "baseline_mm, or all",
+            "baseline_mm, front_force_n, rear_force_n (wheel force per axle, N), or all",
         ),
     ] = None,
     format: Annotated[Literal["json", "csv"], Query()] = "json",
@@ -309,8 +311,9 @@ def read_run_profile(
 
     Levels in mm, positive up (null where there is no data); chainage in m, aligned (the run's
     ``chainage_offset_m`` added). ``?from_m=&to_m=`` selects a window (inclusive) with one
-    indexed query; ``?include=all`` adds each axle's level and the baseline the soft spots are
-    measured from; ``?format=csv`` answers ``chainage_m,level_mm[,...]`` as CSV.
+    indexed query; ``?include=all`` adds each axle's level, the baseline the soft spots are
+    measured from and each axle's wheel force (static + dynamic, N); ``?format=csv``
+    answers ``chainage_m,level_mm[,...]`` as CSV.
     """
     names = [n.strip() for n in (include or "").split(",") if n.strip()]
     columns = ("chainage_m", "level_mm", *runs.included_columns(names))

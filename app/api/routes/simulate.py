@@ -11,10 +11,17 @@ from app.api.deps import CtxDep
 from app.schemas.runs import RunCreated
 from app.schemas.simulate import SimulatePublic, SimulateRequest, TruthPublic
 from app.services.simulation import simulate_and_submit
+from engine.irregularity import SPECTRA
 
 from .runs import answer_submission
 
 router = APIRouter(tags=["simulate"])
+
+
+@router.get("/simulate/spectra", response_model=dict[str, str])
+def list_spectra() -> dict[str, str]:
+    """The rail-irregularity spectra a simulation can use, by name, with their source."""
+    return {name: sp.source for name, sp in SPECTRA.items()}
 
 
 @router.post(

@@ -21,12 +21,15 @@ from app.schemas.vehicles import (
     VehicleCreate,
     VehicleEdit,
     VehicleHealthPublic,
+    VehicleParamsSchema,
     VehiclePublic,
     VehiclesPublic,
     VehicleVersionPublic,
     VehicleVersionsPublic,
 )
 from app.services import calibration, vehicles
+from app.services.errors import Invalid
+from engine.vehicle import PRESETS
 
 from .lookup import get_vehicle
 
@@ -47,11 +50,29 @@ def list_vehicles(
 
 @router.post("", response_model=VehiclePublic, status_code=201)
 def create_vehicle(session: SessionDep, body: VehicleCreate, caller: CallerDep) -> VehiclePublic:
-    """Create a vehicle from its half-car parameters (SI), version 1; 409 if the name is taken."""
+    """Create a vehicle from its half-car parameters (SI), version 1, or from an engine preset
+    (``preset``: table1, heavy) with the parameters given overriding it; 409 if the name is
+    taken, 422 naming ``preset`` when there is no such preset."""
+    params = body.params.model_dump()
+    if body.preset is not None:
+        if body.preset not in PRESETS:
+            raise Invalid(
+                f"unknown vehicle preset {body.preset!r}; expected one of "
+                f"{', '.join(sorted(PRESETS))}", field="preset",
+            )  # fmt: skip
+        given = body.params.model_fields_set
+        params = PRESETS[body.preset].to_dict() | {k: params[k] for k in given}
     vehicle = vehicles.create_vehicle(
-        session, body.name, body.description, body.params.model_dump(), caller_name(session, caller)
+        session, body.name, body.description, params, caller_name(session, caller)
     )
     return vehicle_public(vehicle)
+
+
+@router.get("/presets", response_model=dict[str, VehicleParamsSchema])
+def list_presets() -> dict[str, VehicleParamsSchema]:
+    """The engine's vehicle presets by name: usable as a vehicle name anywhere (uploads,
+    simulate), and as ``preset`` when creating a vehicle."""
+    return {name: VehicleParamsSchema(**p.to_dict()) for name, p in PRESETS.items()}
 
 
 @router.get("/{vehicle}", response_model=VehiclePublic)

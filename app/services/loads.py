@@ -1,0 +1,54 @@
+"""A run's declared load: what the log cannot know about the wheel force.
+
+The inversion's wheel force comes from the vehicle's equations (static + dynamic), so the
+static part is that of the registered vehicle. A client that knows better declares either the
+``payload_kg`` carried (on top of the registered body mass) or the measured
+``static_wheel_load_n`` (mean static wheel load of the half-car's two axles, N); either gives
+the body mass the run is inverted with. The payload is assumed spread like the body's own mass
+(pitch inertia scaled with the body mass, axle loads shared as before).
+
+Units: kg, N.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from engine.vehicle import GRAVITY, VehicleParams
+
+from .errors import Invalid
+
+
+def loaded_vehicle(
+    vehicle: VehicleParams,
+    payload_kg: float | None = None,
+    static_wheel_load_n: float | None = None,
+) -> VehicleParams:
+    """The vehicle as it ran: registered parameters with the declared load applied.
+
+    Raises
+    ------
+    Invalid
+        Naming the field when both are given, or when the wheel load is below what the
+        vehicle's axles alone weigh.
+    """
+    if payload_kg is not None and static_wheel_load_n is not None:
+        raise Invalid(
+            "give either payload_kg or static_wheel_load_n, not both", field="static_wheel_load_n"
+        )
+    if payload_kg is not None:
+        ms = vehicle.ms + payload_kg
+    elif static_wheel_load_n is not None:
+        # Two axles carry the body and themselves: 2 W = (ms + mu1 + mu2) g.
+        ms = 2.0 * static_wheel_load_n / GRAVITY - vehicle.mu1 - vehicle.mu2
+        if ms <= 0.1 * vehicle.ms:
+            axles = 0.5 * (vehicle.mu1 + vehicle.mu2) * GRAVITY
+            raise Invalid(
+                f"static_wheel_load_n {static_wheel_load_n:g} N is not plausible for this "
+                f"vehicle: its axles alone weigh {axles:.0f} N per wheel and the body "
+                f"{0.5 * vehicle.ms * GRAVITY:.0f} N (give the mean static wheel load, N)",
+                field="static_wheel_load_n",
+            )
+    else:
+        return vehicle
+    return dataclasses.replace(vehicle, ms=ms, Is=vehicle.Is * ms / vehicle.ms)
