@@ -83,6 +83,16 @@ class DefectPublic(BaseModel):
     history: list[DefectObservationPublic] | None = Field(
         default=None, description="Every run's sighting, oldest first (?include=history)"
     )
+    stiffness_basis: Literal["separated", "single pass"] | None = Field(
+        default=None,
+        description="What the stiffness loss rests on: separated across passes of different "
+        "wheel loads, or one pass over rail smooth at the noise level; null with no loss",
+    )
+    message: str | None = Field(
+        default=None,
+        description="Why no stiffness loss is given (one wheel load cannot tell geometry "
+        "from stiffness here)",
+    )
 
 
 def _limit(default: float | None, unit: str, what: str) -> float | None:

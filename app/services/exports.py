@@ -32,7 +32,7 @@ SOFT_SPOT_FIELDS = ("start_m", "end_m", "peak_m", "depth_mm", "stiffness_loss_pc
 DEFECT_CSV_FIELDS = (
     "priority", "id", "level", "level_since", "status", "start_m", "end_m", "peak_m",
     "depth_mm", "stiffness_loss_pct", "trend_mm_per_month", "trend_loss_pct_per_month",
-    "runs_seen", "runs_covering", "first_seen", "last_seen",
+    "runs_seen", "runs_covering", "first_seen", "last_seen", "stiffness_basis", "message",
 )  # fmt: skip
 DEFECT_FIELDS = tuple(f.name for f in dataclasses.fields(Defect) if f.name != "history")
 REPORT_RUNS = 200
@@ -102,16 +102,25 @@ def defect_dict(d: Defect, with_history: bool = False) -> dict[str, Any]:
     return out
 
 
-def defects_csv(defects: Sequence[Defect]) -> str:
-    """The register as CSV, one defect a line in :data:`DEFECT_CSV_FIELDS` order."""
+def note_dict(note: tuple[str | None, str | None]) -> dict[str, str | None]:
+    """What a defect's stiffness loss rests on and the message when there is none (see
+    :func:`app.services.register.stiffness_notes`), as the defect's extra fields."""
+    return {"stiffness_basis": note[0], "message": note[1]}
+
+
+def defects_csv(defects: Sequence[Defect], notes: Sequence[tuple[str | None, str | None]]) -> str:
+    """The register as CSV, one defect a line in :data:`DEFECT_CSV_FIELDS` order (the
+    message quoted: it holds a comma)."""
     lines = [",".join(DEFECT_CSV_FIELDS)]
-    for d in defects:
-        row = defect_dict(d)
+    for d, note in zip(defects, notes, strict=True):
+        row = defect_dict(d) | note_dict(note)
         cells = []
         for k in DEFECT_CSV_FIELDS:
             v = row[k]
             if isinstance(v, float):
                 cells.append(f"{v:.6g}" if math.isfinite(v) else "")
+            elif k == "message" and v is not None:
+                cells.append('"' + str(v).replace('"', '""') + '"')
             else:
                 cells.append("" if v is None else str(v))
         lines.append(",".join(cells))

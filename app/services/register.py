@@ -9,14 +9,17 @@ the engine's defaults.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import fields
 from datetime import datetime
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.db.models import Run, SoftSpot, TrackLimits
+from app.db.models import Run, SoftSpot, TrackLimits, TrackStiffnessSpot
 from engine.register import Defect, Limits, Observation, RunCoverage, build_register
+
+from .stiffness import NOT_SEPARABLE, extra_deflection_mm, separable_intervals
 
 LIMIT_FIELDS = tuple(f.name for f in fields(Limits))
 """The limit names, in the order alert, intervention, immediate (depth then loss)."""
@@ -76,7 +79,53 @@ def track_observations(
     for rid, start, end, peak, depth, loss in rows:
         at, off = info[rid]
         observations.append(Observation(rid, at, start + off, end + off, peak + off, depth, loss))
-    return observations, coverage
+    return with_separated_spots(session, track_id, observations, coverage), coverage
+
+
+def with_separated_spots(
+    session: Session,
+    track_id: int,
+    observations: list[Observation],
+    coverage: list[RunCoverage],
+) -> list[Observation]:
+    """The runs' dips with the stiffness loss of the separated soft spots they overlap.
+
+    Where the track's passes separate geometry from stiffness, a separated soft spot gives
+    its loss to every run's dip over it; a separated spot no run saw as a dip (a soft support
+    under a geometric hump) becomes an observation of the latest run covering it, its depth
+    the extra deflection the lost stiffness causes under that run's mean wheel force. Dips
+    elsewhere keep what they had: by depth only unless the run's own figures are valid.
+    """
+    spots = session.scalars(
+        select(TrackStiffnessSpot)
+        .where(TrackStiffnessSpot.track_id == track_id)
+        .order_by(TrackStiffnessSpot.start_m)
+    ).all()
+    if not spots:
+        return observations
+    out = list(observations)
+    for spot in spots:
+        hits = [
+            i for i, o in enumerate(out)
+            if o.start_m <= spot.end_m and o.end_m >= spot.start_m
+        ]  # fmt: skip
+        for i in hits:
+            out[i] = dataclasses.replace(out[i], stiffness_loss_pct=spot.loss_pct)
+        if hits:
+            continue
+        covering = [
+            c for c in coverage if c.from_m <= spot.start_m and c.to_m >= spot.end_m
+        ]  # fmt: skip
+        if not covering:
+            continue
+        latest = max(covering, key=lambda c: (c.recorded_at, c.run_id))
+        out.append(
+            Observation(
+                latest.run_id, latest.recorded_at, spot.start_m, spot.end_m, spot.peak_m,
+                extra_deflection_mm(session, track_id, spot), spot.loss_pct,
+            )
+        )  # fmt: skip
+    return out
 
 
 def track_register(session: Session, track_id: int, limits: Limits | None = None) -> list[Defect]:
@@ -85,3 +134,28 @@ def track_register(session: Session, track_id: int, limits: Limits | None = None
         limits, _ = load_limits(session, track_id)
     observations, coverage = track_observations(session, track_id)
     return build_register(observations, coverage, limits=limits)
+
+
+def stiffness_notes(
+    session: Session, track_id: int, defects: list[Defect]
+) -> list[tuple[str | None, str | None]]:
+    """What each defect's stiffness loss rests on, and the message where there is none.
+
+    ``("separated", None)`` inside a stretch where the track's passes separate geometry from
+    stiffness, ``("single pass", None)`` for a loss from runs over smooth rail, and
+    ``(None, NOT_SEPARABLE)`` for a dip listed by depth only because one load cannot tell.
+    """
+    intervals = separable_intervals(session, track_id)
+
+    def separable(d: Defect) -> bool:
+        return any(a <= d.start_m and b >= d.end_m for a, b in intervals)
+
+    out: list[tuple[str | None, str | None]] = []
+    for d in defects:
+        if separable(d):
+            out.append(("separated" if d.stiffness_loss_pct is not None else None, None))
+        elif d.stiffness_loss_pct is not None:
+            out.append(("single pass", None))
+        else:
+            out.append((None, NOT_SEPARABLE))
+    return out

@@ -12,6 +12,7 @@ from typing import Annotated, Any, Literal
 import orjson
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import HTMLResponse
+from sqlalchemy.orm import Session
 
 from app.api.answers import CSV_RESPONSE, csv_answer
 from app.api.deps import CtxDep, SessionDep, WindowDep
@@ -24,7 +25,13 @@ from app.schemas.track_intel import (
 )
 from app.services import exports
 from app.services.aggregate import aggregated_profile_view
-from app.services.register import LIMIT_FIELDS, load_limits, save_limits, track_register
+from app.services.register import (
+    LIMIT_FIELDS,
+    load_limits,
+    save_limits,
+    stiffness_notes,
+    track_register,
+)
 from app.services.report import REPORT_CSP
 from engine.register import Defect, Limits
 
@@ -64,12 +71,23 @@ def read_aggregated_profile(
     return Response(orjson.dumps(payload), media_type="application/json")
 
 
-def _defects_answer(defects: Sequence[Defect], fmt: str, with_history: bool, filename: str) -> Any:
+def _defects_answer(
+    session: Session,
+    track_id: int,
+    defects: Sequence[Defect],
+    fmt: str,
+    with_history: bool,
+    filename: str,
+) -> Any:
+    notes = stiffness_notes(session, track_id, defects)
     if fmt == "csv":
-        return csv_answer(exports.defects_csv(defects), filename)
+        return csv_answer(exports.defects_csv(defects, notes), filename)
     # The register's own dicts, serialised once (FastAPI's response-model pass would double
     # the time of a large register); their fields are those of DefectPublic.
-    payload = [exports.defect_dict(d, with_history) for d in defects]
+    payload = [
+        exports.defect_dict(d, with_history) | exports.note_dict(note)
+        for d, note in zip(defects, notes, strict=True)
+    ]
     return Response(orjson.dumps(payload), media_type="application/json")
 
 
@@ -92,7 +110,9 @@ def read_defects(
     limits; most urgent first (priority, then depth)."""
     trk = get_track(session, track)
     defects = track_register(session, trk.id)
-    return _defects_answer(defects, format, include == "history", f"track-{trk.id}-defects.csv")
+    return _defects_answer(
+        session, trk.id, defects, format, include == "history", f"track-{trk.id}-defects.csv"
+    )
 
 
 @router.get("/{track}/alerts", response_model=list[DefectPublic], responses=CSV_RESPONSE)
@@ -116,7 +136,9 @@ def read_alerts(
         for d in track_register(session, trk.id)
         if d.level is not None and d.level_since is not None and d.level_since >= when
     ]
-    return _defects_answer(defects, format, include == "history", f"track-{trk.id}-alerts.csv")
+    return _defects_answer(
+        session, trk.id, defects, format, include == "history", f"track-{trk.id}-alerts.csv"
+    )
 
 
 def _limits_public(trk: Track, limits: Limits, updated_at: datetime | None) -> LimitsPublic:
