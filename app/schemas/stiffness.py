@@ -52,8 +52,9 @@ class StiffnessPublic(BaseModel):
     grid_step_m: float
     k_nominal_n_per_m: float = Field(description="The track's nominal support stiffness, N/m")
     n: int = Field(description="Grid points some pass covers in the window")
-    separable: bool = Field(description="True when every covered point is separable")
-    message: str | None = Field(description="Why part of the window is not separable")
+    separable: bool = Field(description="True when part of the window is separable")
+    separable_fraction: float = Field(description="Share of the covered points separable, 0-1")
+    message: str | None = Field(description="Why (part of) the window is not separable")
     chainage_m: list[float]
     k_rel: list[float | None] = Field(description="Support stiffness / nominal")
     k_rel_lo: list[float | None] = Field(description="Lower end of k_rel's band")

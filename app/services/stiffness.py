@@ -319,9 +319,14 @@ class StiffnessWindow:
 
     @property
     def separable(self) -> bool:
-        """True when every covered point of the window is separable (and there is one)."""
+        """True when some covered point of the window is separable."""
+        return any(self.columns["separable"])
+
+    @property
+    def separable_fraction(self) -> float:
+        """Share of the window's covered points that are separable (0 when none is covered)."""
         sep = self.columns["separable"]
-        return bool(sep) and all(sep)
+        return sum(sep) / len(sep) if sep else 0.0
 
 
 def _none_nan(a: NDArray[np.float64]) -> list[float | None]:

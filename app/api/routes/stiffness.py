@@ -114,6 +114,7 @@ def read_track_stiffness(
         "k_nominal_n_per_m": trk.k_nominal,
         "n": window.n,
         "separable": window.separable,
+        "separable_fraction": window.separable_fraction,
         "message": window.message,
         "chainage_m": cols["chainage_m"],
         "k_rel": cols["k_rel"],
