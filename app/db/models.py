@@ -460,6 +460,7 @@ class TrackStiffnessSpot(Base):
     end_m: Mapped[float] = mapped_column(Float)
     peak_m: Mapped[float] = mapped_column(Float)
     loss_pct: Mapped[float] = mapped_column(Float)
+    depth_mm: Mapped[float | None] = mapped_column(Float)  # as a level dip, reference load
     loss_lo_pct: Mapped[float | None] = mapped_column(Float)
     loss_hi_pct: Mapped[float | None] = mapped_column(Float)
     confidence: Mapped[float | None] = mapped_column(Float)

@@ -21,6 +21,9 @@ class SeparatedSpotPublic(BaseModel):
     end_m: float
     peak_m: float
     stiffness_loss_pct: float = Field(description="Loss of support stiffness against nominal, %")
+    depth_mm: float | None = Field(
+        description="The compliance dip as a level dip under the engine's reference wheel load, mm"
+    )
     loss_lo_pct: float | None = Field(description="Lower end of the loss's band, %")
     loss_hi_pct: float | None = Field(description="Upper end of the loss's band, %")
     confidence: float | None = Field(description="Confidence the loss is real (0-1)")

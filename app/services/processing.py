@@ -68,6 +68,9 @@ def store_result(
     (``app.services.integrate``), in the same transaction.
     """
     res = processed.result
+    no_force = np.full(res.chainage_m.shape, np.nan)
+    front_force = no_force if res.front_force_n is None else res.front_force_n
+    rear_force = no_force if res.rear_force_n is None else res.rear_force_n
     insert_profile(
         session,
         run.id,
@@ -76,12 +79,13 @@ def store_result(
         res.front_level_mm,
         res.rear_level_mm,
         res.baseline_mm,
-        res.front_force_n,
-        res.rear_force_n,
+        front_force,
+        rear_force,
     )
     # Where the rail is not smooth at the noise level geometry could have made these dips:
     # they are kept by depth only, no stiffness-loss figure is stored for them.
-    valid = bool(res.single_pass_valid)
+    check = res.geometry_check
+    valid = True if check is None else bool(check.smooth)
     for spot in res.soft_spots:
         session.add(
             SoftSpot(
@@ -100,13 +104,15 @@ def store_result(
     run.method = res.method
     run.n_soft_spots = len(res.soft_spots)
     run.processing_s = processed.seconds
-    force = fused_force(res.front_force_n, res.rear_force_n)
+    force = fused_force(front_force, rear_force)
     under_level = force[np.isfinite(res.level_mm) & np.isfinite(force)]
     run.mean_wheel_force_n = float(under_level.mean()) if under_level.size else None
-    run.single_pass_valid = valid
+    run.single_pass_valid = None if check is None else valid
     run.status = "done"
     run.stage = None
     run.error = None
     run.processed_at = utcnow()
     run.vehicle_version = vehicle_version
-    add_run_to_track(session, run, res.chainage_m, res.level_mm, force)
+    add_run_to_track(
+        session, run, res.chainage_m, res.level_mm, force if under_level.size else None
+    )

@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 from app.db.models import Run, SoftSpot, TrackLimits, TrackStiffnessSpot
 from engine.register import Defect, Limits, Observation, RunCoverage, build_register
 
-from .stiffness import NOT_SEPARABLE, extra_deflection_mm, separable_intervals
+from .stiffness import NOT_SEPARABLE, separable_intervals
 
 LIMIT_FIELDS = tuple(f.name for f in fields(Limits))
 """The limit names, in the order alert, intervention, immediate (depth then loss)."""
@@ -93,7 +93,7 @@ def with_separated_spots(
     Where the track's passes separate geometry from stiffness, a separated soft spot gives
     its loss to every run's dip over it; a separated spot no run saw as a dip (a soft support
     under a geometric hump) becomes an observation of the latest run covering it, its depth
-    the extra deflection the lost stiffness causes under that run's mean wheel force. Dips
+    the engine's (the compliance dip as a level dip under its reference wheel load). Dips
     elsewhere keep what they had: by depth only unless the run's own figures are valid.
     """
     spots = session.scalars(
@@ -122,7 +122,7 @@ def with_separated_spots(
         out.append(
             Observation(
                 latest.run_id, latest.recorded_at, spot.start_m, spot.end_m, spot.peak_m,
-                extra_deflection_mm(session, track_id, spot), spot.loss_pct,
+                spot.depth_mm or 0.0, spot.loss_pct,
             )
         )  # fmt: skip
     return out

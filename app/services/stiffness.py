@@ -38,7 +38,7 @@ from app.db.models import (
     TrackStiffness,
     TrackStiffnessSpot,
 )
-from engine.separation import Pass, SeparationResult, separate
+from engine.separation import NOT_SEPARABLE_MESSAGE, Pass, SeparationResult, separate
 from engine.track import TrackParams
 
 from .aggregate import CHUNK_POINTS
@@ -64,10 +64,7 @@ reach of the rail's bending, so a chunk's result does not depend on where a batc
 BATCH_CHUNKS = 40
 """Chunks separated at once (10 km)."""
 
-NOT_SEPARABLE = (
-    "dips: geometry and stiffness not separable here — needs a pass with a different wheel "
-    "load or a survey"
-)
+NOT_SEPARABLE = NOT_SEPARABLE_MESSAGE
 """What is said wherever the passes cannot tell rail geometry from support stiffness."""
 
 _DTYPE = np.dtype("<f4")
@@ -428,28 +425,3 @@ def separable_intervals(session: Session, track_id: int) -> list[tuple[float, fl
             out.append((start, float(x[i])))
             start = None
     return out
-
-
-SPOT_CONTEXT_M = 20.0
-"""Track either side of a soft spot whose compliance is taken as its surroundings', m."""
-
-
-def extra_deflection_mm(session: Session, track_id: int, spot: TrackStiffnessSpot) -> float:
-    """How much deeper the rail goes over a separated soft spot than around it, mm: the
-    spot's peak compliance above the median of its surroundings times the passes' mean wheel
-    force there (0 when unknown)."""
-    window = read_stiffness(
-        session, track_id, spot.start_m - SPOT_CONTEXT_M, spot.end_m + SPOT_CONTEXT_M
-    )
-    x = np.asarray(window.columns["chainage_m"], dtype=np.float64)
-    c = np.array(
-        [np.nan if v is None else v for v in window.columns["compliance_mm_per_kn"]],
-        dtype=np.float64,
-    )
-    inside = (x >= spot.start_m) & (x <= spot.end_m) & np.isfinite(c)
-    around = ~((x >= spot.start_m) & (x <= spot.end_m)) & np.isfinite(c)
-    if not inside.any() or not around.any() or not window.contributors:
-        return 0.0
-    points = sum(k["points"] for k in window.contributors)
-    force_kn = sum(k["mean_force_n"] * k["points"] for k in window.contributors) / points / 1e3
-    return max(0.0, float(c[inside].max() - np.median(c[around])) * force_kn)

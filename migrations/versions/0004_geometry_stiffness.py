@@ -105,6 +105,7 @@ def upgrade() -> None:
         sa.Column("end_m", sa.Float(), nullable=False),
         sa.Column("peak_m", sa.Float(), nullable=False),
         sa.Column("loss_pct", sa.Float(), nullable=False),
+        sa.Column("depth_mm", sa.Float(), nullable=True),
         sa.Column("loss_lo_pct", sa.Float(), nullable=True),
         sa.Column("loss_hi_pct", sa.Float(), nullable=True),
         sa.Column("confidence", sa.Float(), nullable=True),

