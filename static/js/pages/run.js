@@ -116,6 +116,16 @@ export async function render(main, [id]) {
       ? "No soft spot detected on this run."
       : `${spots.length} soft spot${spots.length > 1 ? "s" : ""} detected — shaded in orange on the profile below, deepest ${fmt(Math.max(...spots.map((s) => s.depth_mm)), 2)} mm.`);
   main.appendChild(summary);
+  // Honesty (issue 10): where one pass cannot tell rail geometry from stiffness its dips are
+  // listed by depth only; over smooth rail the single-pass losses stay, labelled as such.
+  if (run.stiffness_message) {
+    main.appendChild(h("div", { class: "message warning", role: "status", id: "run-stiffness-message" },
+      run.stiffness_message, " ",
+      h("a", { href: `#/tracks/${encodeURIComponent(run.track_id)}` }, "See the track's stiffness map.")));
+  } else if (run.stiffness_basis === "single pass") {
+    main.appendChild(h("p", { class: "hint", id: "run-stiffness-basis" },
+      "Stiffness losses from this pass alone (single pass): the rail is smooth at the noise level here."));
+  }
 
   // ---- profile plot --------------------------------------------------------------------------
   const profileDiv = h("div", { class: "plot plot-profile", id: "profile-plot", role: "img", "aria-label": "Loaded profile against chainage with soft spots shaded" });
@@ -251,7 +261,7 @@ export async function render(main, [id]) {
         h("thead", {}, h("tr", {},
           h("th", { scope: "col" }, "#"), h("th", { scope: "col" }, "Start (m)"), h("th", { scope: "col" }, "End (m)"),
           h("th", { scope: "col" }, "Peak (m)"), h("th", { scope: "col" }, "Depth (mm)"),
-          h("th", { scope: "col" }, "Stiffness loss (%)"), h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")))),
+          h("th", { scope: "col" }, run.stiffness_basis === "single pass" ? "Stiffness loss (%, single pass)" : "Stiffness loss (%)"), h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")))),
         h("tbody", {}, spotRows)))
       : h("p", { class: "muted" }, "None detected."),
   ));

@@ -11,6 +11,7 @@ import {
   REGISTER_COLUMNS, aggregateCard, aggregateTraces, alertsCard, alignmentNotice, defectShapes,
   exportLinks, limitsCard,
 } from "../register.js";
+import { stiffnessCard } from "../stiffness.js";
 
 // Severity classes by depth (mm): the symbol and size repeat what the colour says, so the map
 // reads without colour vision.
@@ -196,6 +197,12 @@ export async function render(main, [ref]) {
     aggregate = await aggregateCard(enc, () => zones);
     main.appendChild(aggregate.section);
   }
+  // Stiffness separated from rail geometry across passes of different wheel loads (issue 10).
+  const stiffness = register ? stiffnessCard(enc) : null;
+  if (stiffness) {
+    main.appendChild(stiffness.section);
+    stiffness.render();
+  }
 
   // ---- register (or zones) -------------------------------------------------------------------
   // The register comes ranked by priority; the view's own zones are ranked by severity here.
@@ -237,6 +244,7 @@ export async function render(main, [ref]) {
       zones = normaliseZones(register, runs.length, true);
       drawTable();
       if (aggregate) await aggregate.render();
+      if (stiffness) await stiffness.render();
       await alerts.load();
     });
     main.appendChild(h("div", { class: "track-lower" }, alerts.section, limits.section));
