@@ -26,6 +26,7 @@ from app.services.context import AppContext
 from app.services.stiffness import StiffnessWindow, read_stiffness
 from app.services.submit import clean_filename
 from app.services.surveys import SurveyInput, create_survey, delete_survey, get_survey, list_surveys
+from app.services.window import Window
 
 from .lookup import get_track
 
@@ -35,11 +36,6 @@ STIFFNESS_CSV_FIELDS = (
     "chainage_m", "k_rel", "k_rel_lo", "k_rel_hi", "geometry_mm", "geometry_sd_mm",
     "compliance_mm_per_kn", "n_passes", "load_ratio", "separable",
 )  # fmt: skip
-
-
-def _check_window(from_m: float | None, to_m: float | None) -> None:
-    if from_m is not None and to_m is not None and to_m < from_m:
-        raise ApiError(422, f"to_m ({to_m} m) is before from_m ({from_m} m)", field="to_m")
 
 
 def _vehicles_of(session: Any, window: StiffnessWindow) -> dict[int, str]:
@@ -84,7 +80,7 @@ def read_track_stiffness(
     ``message`` says why. ``?from_m=&to_m=`` selects a window; ``?format=csv`` answers
     ``chainage_m,k_rel,...,separable`` (with the message as a ``#`` comment line).
     """
-    _check_window(from_m, to_m)
+    Window(from_m, to_m)
     trk = get_track(session, track)
     window = read_stiffness(session, trk.id, from_m, to_m)
     vehicles = _vehicles_of(session, window)
