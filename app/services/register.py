@@ -10,6 +10,7 @@ the engine's defaults.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import fields
 from datetime import datetime
 
@@ -137,7 +138,7 @@ def track_register(session: Session, track_id: int, limits: Limits | None = None
 
 
 def stiffness_notes(
-    session: Session, track_id: int, defects: list[Defect]
+    session: Session, track_id: int, defects: Sequence[Defect]
 ) -> list[tuple[str | None, str | None]]:
     """What each defect's stiffness loss rests on, and the message where there is none.
 

@@ -12,7 +12,7 @@ from pydantic import ValidationError
 from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
-from app.api.deps import CtxDep, SessionDep
+from app.api.deps import CtxDep, SessionDep, WindowDep
 from app.core.errors import ApiError, validation_detail
 from app.db.models import Run, Survey, Vehicle
 from app.schemas.stiffness import (
@@ -26,7 +26,6 @@ from app.services.context import AppContext
 from app.services.stiffness import StiffnessWindow, read_stiffness
 from app.services.submit import clean_filename
 from app.services.surveys import SurveyInput, create_survey, delete_survey, get_survey, list_surveys
-from app.services.window import Window
 
 from .lookup import get_track
 
@@ -66,8 +65,7 @@ def _fmt(v: Any) -> str:
 def read_track_stiffness(
     session: SessionDep,
     track: str,
-    from_m: Annotated[float | None, Query(allow_inf_nan=False, description="From, m")] = None,
-    to_m: Annotated[float | None, Query(allow_inf_nan=False, description="To, m")] = None,
+    window: WindowDep,
     format: Annotated[Literal["json", "csv"], Query()] = "json",
 ) -> Response:
     """Support stiffness and unloaded geometry separated across the track's passes.
@@ -80,21 +78,21 @@ def read_track_stiffness(
     ``message`` says why. ``?from_m=&to_m=`` selects a window; ``?format=csv`` answers
     ``chainage_m,k_rel,...,separable`` (with the message as a ``#`` comment line).
     """
-    Window(from_m, to_m)
     trk = get_track(session, track)
-    window = read_stiffness(session, trk.id, from_m, to_m)
-    vehicles = _vehicles_of(session, window)
+    from_m, to_m = window.from_m, window.to_m
+    sep = read_stiffness(session, trk.id, from_m, to_m)
+    vehicles = _vehicles_of(session, sep)
     contributors = [
         c | ({"vehicle": vehicles.get(c["id"])} if c["kind"] == "run" else {})
-        for c in window.contributors
+        for c in sep.contributors
     ]
-    cols = window.columns
+    cols = sep.columns
     if format == "csv":
         lines = []
-        if window.message:
-            lines.append(f"# {window.message}")
+        if sep.message:
+            lines.append(f"# {sep.message}")
         lines.append(",".join(STIFFNESS_CSV_FIELDS))
-        for i in range(window.n):
+        for i in range(sep.n):
             lines.append(",".join(_fmt(cols[k][i]) for k in STIFFNESS_CSV_FIELDS))
         return Response(
             "\n".join(lines) + "\n",
@@ -108,10 +106,10 @@ def read_track_stiffness(
         "to_m": to_m,
         "grid_step_m": GRID_STEP_M,
         "k_nominal_n_per_m": trk.k_nominal,
-        "n": window.n,
-        "separable": window.separable,
-        "separable_fraction": window.separable_fraction,
-        "message": window.message,
+        "n": sep.n,
+        "separable": sep.separable,
+        "separable_fraction": sep.separable_fraction,
+        "message": sep.message,
         "chainage_m": cols["chainage_m"],
         "k_rel": cols["k_rel"],
         "k_rel_lo": cols["k_rel_lo"],
@@ -133,7 +131,7 @@ def read_track_stiffness(
                 "confidence": s.confidence,
                 "basis": "separated",
             }  # fmt: skip
-            for s in window.spots
+            for s in sep.spots
         ],
         "contributors": contributors,
     }
