@@ -11,8 +11,8 @@ the separated stiffness of each track.
 - ``track_stiffness`` (per 250 m chunk: geometry, k_rel and its band, ...) and
   ``track_stiffness_spots``: the separation of geometry and stiffness over a track's passes.
 
-Revision ID: 0004
-Revises: 0003
+Revision ID: 0005
+Revises: 0004
 Create Date: 2026-12-01
 """
 
@@ -23,8 +23,8 @@ from alembic import op
 
 from app.db.base import UTCDateTime
 
-revision: str = "0004"
-down_revision: str | Sequence[str] | None = "0003"
+revision: str = "0005"
+down_revision: str | Sequence[str] | None = "0004"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
