@@ -128,6 +128,8 @@ class SimulateRequest(StrictModel):
             seed=self.seed,
             recorded_at=self.recorded_at,
             record=self.model_dump(mode="json"),
+            irregularity=None if self.irregularity is None else self.irregularity.spectrum,
+            irregularity_seed=None if self.irregularity is None else self.irregularity.seed,
         )
 
 

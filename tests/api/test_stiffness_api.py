@@ -257,3 +257,30 @@ def test_stiffness_window(client: TestClient, stored: dict[str, Any]) -> None:
     assert client.get("/api/v1/tracks/nowhere/stiffness").status_code == 404
     empty = client.get(url, params={"from_m": 5000, "to_m": 6000}).json()
     assert empty["n"] == 0 and empty["message"] is None
+
+
+def test_simulate_with_a_preset_and_rail_geometry(client: TestClient) -> None:
+    """POST /simulate takes a vehicle preset by name and a rail-geometry spectrum with its
+    seed: the run is inverted with the heavy vehicle's wheel load, and over that rough rail its
+    dips come by depth only, with the message; an unknown spectrum is 422 naming the field."""
+    spectra = client.get("/api/v1/simulate/spectra").json()
+    assert "german-low" in spectra
+    body = {
+        "track": "rough", "vehicle": "heavy", "length_m": 300, "speed_mps": 24,
+        "zones": [{"start_m": 150, "end_m": 157, "loss": 0.5}], "start_chainage_m": 12,
+        "irregularity": {"spectrum": "german-low", "seed": 3},
+    }  # fmt: skip
+    r = client.post("/api/v1/simulate", json=body)
+    assert r.status_code == 201, r.text
+    run = r.json()["run"]
+    assert run["vehicle"] == "heavy"
+    assert run["mean_wheel_force_n"] == pytest.approx(
+        sum(PRESETS["heavy"].static_axle_loads()) / 2, rel=0.05
+    )
+    assert run["stiffness_basis"] == "not separable"
+    assert run["stiffness_message"].startswith("dips: geometry and stiffness not separable")
+    spots = client.get(f"/api/v1/runs/{run['id']}/soft-spots").json()
+    assert all(s["stiffness_loss_pct"] is None for s in spots)
+    r = client.post("/api/v1/simulate", json={**body, "irregularity": {"spectrum": "bumpy"}})
+    assert r.status_code == 422
+    assert r.json()["detail"]["field"] == "irregularity.spectrum"

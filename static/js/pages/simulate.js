@@ -60,6 +60,22 @@ export async function render(main) {
     });
   }
 
+  // Vehicle (a stored vehicle or an engine preset such as "heavy") and rail geometry (a
+  // straight rail, or a random profile of a standard spectrum: the same spectrum and seed is the
+  // same physical track, so runs of different vehicles over it can be separated).
+  const vehicleSel = h("select", { id: "sim-vehicle" }, h("option", { value: "table1" }, "table1"));
+  const railSel = h("select", { id: "sim-rail" }, h("option", { value: "" }, "Straight rail (the paper's case)"));
+  const railSeedInput = h("input", { type: "number", id: "sim-rail-seed", value: "0", min: "0", step: "1" });
+  Promise.all([
+    apiFetch("/api/v1/vehicles/presets").catch(() => ({})),
+    apiFetch("/api/v1/vehicles?limit=1000").catch(() => null),
+    apiFetch("/api/v1/simulate/spectra").catch(() => ({})),
+  ]).then(([presets, stored, spectra]) => {
+    const names = new Set([...Object.keys(presets), ...(stored ? listItems(stored).map((v) => v.name) : [])]);
+    vehicleSel.replaceChildren(...[...names].sort().map((n) => h("option", { value: n, selected: n === "table1" }, n)));
+    for (const name of Object.keys(spectra)) railSel.appendChild(h("option", { value: name }, name));
+  });
+
   const runBtn = h("button", { type: "submit", class: "button primary", id: "simulate-button" }, "Simulate and recover");
   const bar = h("progress", { max: "1", hidden: true, "aria-label": "Simulation progress" });
   const status = messageBox("info");
@@ -72,6 +88,11 @@ export async function render(main) {
         field("Track length (m)", lengthInput, "80 to 5000 m; at most 120 s of travel."),
         field("Speed (km/h)", speedInput),
         field("Random seed", seedInput, "Same seed, same noise.")),
+      h("fieldset", {},
+        h("legend", {}, "Vehicle and rail"),
+        field("Vehicle", vehicleSel, "table1: the paper's coach; heavy: about twice its wheel load."),
+        field("Rail geometry", railSel, "A standard spectrum puts real-track irregularity under the wheels."),
+        field("Rail seed", railSeedInput, "Same spectrum and seed, same track: runs of different vehicles over it separate geometry from stiffness.")),
       h("fieldset", {},
         h("legend", {}, "Soft zones"),
         h("table", { class: "data compact", id: "sim-zones" },
@@ -118,7 +139,9 @@ export async function render(main) {
       noise[k] = v;
     }
     const seed = seedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(seedInput.value)));
-    return { errors, request: { length_m: length, speed_mps: speedKmh / 3.6, zones, ...noise, seed } };
+    const railSeed = railSeedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(railSeedInput.value)));
+    const rail = railSel.value ? { spectrum: railSel.value, seed: railSeed } : null;
+    return { errors, request: { length_m: length, speed_mps: speedKmh / 3.6, zones, ...noise, seed, vehicle: vehicleSel.value, rail } };
   }
 
   form.addEventListener("submit", async (ev) => {
@@ -226,7 +249,10 @@ export async function render(main) {
 function simulateBody(req) {
   const quiet = req.accel_noise === 0 && req.gyro_noise === 0 && req.accel_bias === 0 && req.gyro_bias === 0;
   return {
-    track: "simulated",
+    // an irregular rail is a track of its own (spectrum and seed): runs over it can be compared
+    track: req.rail ? `simulated ${req.rail.spectrum} seed ${req.rail.seed}` : "simulated",
+    vehicle: req.vehicle || "table1",
+    irregularity: req.rail,
     length_m: req.length_m,
     speed_mps: req.speed_mps,
     zones: req.zones,
