@@ -160,6 +160,35 @@ def padded_spectrum(x: NDArray[np.float64], pad: int, nfft: int) -> NDArray[np.c
     return sfft.rfft(buf)
 
 
+TYPICAL_NOISE_ACCEL = 5e-3
+"""Accelerometer white noise assumed when it cannot be estimated, m/s² (a MEMS sensor)."""
+TYPICAL_NOISE_GYRO = 1e-4
+"""Gyroscope white noise assumed when it cannot be estimated, rad/s (a MEMS sensor)."""
+NOISE_RATIO_RANGE = 1e4
+"""How far the gyro-to-accel noise ratio may stray from the typical one, either way."""
+
+
+def noise_weights_sigma(noise_accel: float, noise_gyro: float) -> tuple[float, float]:
+    """The noise levels the inverse weights the channels by, m/s² and rad/s (floored).
+
+    Unknown levels (NaN, 0) take the typical MEMS values. A channel estimated as (nearly)
+    noise-free — a simulated or heavily filtered gyro beside a noisy accelerometer — would
+    get a weight so large that the per-bin normal matrix loses the other channel in rounding
+    and is singular; so the ratio of the two levels is kept within :data:`NOISE_RATIO_RANGE`
+    of the typical ratio (the quieter channel still dominates, by up to 10⁸ in weight).
+    """
+    sa = noise_accel if np.isfinite(noise_accel) and noise_accel > 0 else TYPICAL_NOISE_ACCEL
+    sg = noise_gyro if np.isfinite(noise_gyro) and noise_gyro > 0 else TYPICAL_NOISE_GYRO
+    typical = TYPICAL_NOISE_GYRO / TYPICAL_NOISE_ACCEL
+    ratio = float(np.clip(sg / sa / typical, 1 / NOISE_RATIO_RANGE, NOISE_RATIO_RANGE))
+    # keep the larger level, lift the smaller one to the allowed ratio
+    if sg / sa / typical < ratio:
+        sg = sa * typical * ratio
+    elif sg / sa / typical > ratio:
+        sa = sg / (typical * ratio)
+    return float(sa), float(sg)
+
+
 def solve_bins(
     H: NDArray[np.complex128],
     A: NDArray[np.complex128],
@@ -175,8 +204,8 @@ def solve_bins(
     is ``regularisation / nfft`` for an unnormalised FFT). ``A``, ``Q`` may carry leading
     batch axes before the bin axis; returns ``Y[..., bin, axle]``.
     """
-    wa = 1.0 / (noise_accel if np.isfinite(noise_accel) and noise_accel > 0 else 5e-3) ** 2
-    wg = 1.0 / (noise_gyro if np.isfinite(noise_gyro) and noise_gyro > 0 else 1e-4) ** 2
+    sa, sg = noise_weights_sigma(noise_accel, noise_gyro)
+    wa, wg = 1.0 / sa**2, 1.0 / sg**2
     Wd = np.array([wa, wg])
     HW = np.conj(np.transpose(H, (0, 2, 1))) * Wd[None, None, :]
     N = HW @ H + mu_scale / (1e-3) ** 2 * np.eye(2)[None]

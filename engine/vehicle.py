@@ -24,13 +24,19 @@ SENSOR_X_LIMIT_M = 15.0
 """Largest accepted distance of the accelerometer from the body CG, m (half a 30 m car body)."""
 
 
-def _param(default: float, unit: str, what: str, kind: str = "positive") -> Any:
-    """A parameter field: default, unit, description and accepted range (``kind``).
+def _param(
+    default: float, unit: str, what: str, kind: str = "positive",
+    bounds: tuple[float, float] = (0.0, math.inf),
+) -> Any:  # fmt: skip
+    """A parameter field: default, unit, description and accepted range.
 
     ``kind`` is ``"positive"`` (> 0), ``"nonnegative"`` (>= 0) or ``"position"`` (a signed
-    distance, ``|x| <= SENSOR_X_LIMIT_M``).
+    distance, ``|x| <= SENSOR_X_LIMIT_M``); ``bounds`` is the physical range (inclusive) any
+    rail vehicle's value lies in: outside it the model is not a vehicle (1e308 masses gave
+    runs without a profile).
     """
-    return field(default=default, metadata={"unit": unit, "description": what, "kind": kind})
+    meta = {"unit": unit, "description": what, "kind": kind, "bounds": bounds}
+    return field(default=default, metadata=meta)
 
 
 @dataclass(frozen=True)
@@ -66,18 +72,18 @@ class VehicleParams:
         CG.
     """
 
-    ms: float = _param(16200.0, "kg", "Body mass")
-    Is: float = _param(111193.0, "kg m²", "Body pitch inertia")
-    mu1: float = _param(700.0, "kg", "Front axle mass")
-    mu2: float = _param(1100.0, "kg", "Rear axle mass")
-    ks1: float = _param(0.4e6, "N/m", "Front suspension stiffness")
-    ks2: float = _param(1.0e6, "N/m", "Rear suspension stiffness")
-    cs1: float = _param(10e3, "N s/m", "Front suspension damping", "nonnegative")
-    cs2: float = _param(20e3, "N s/m", "Rear suspension damping", "nonnegative")
-    kt1: float = _param(1.75e6, "N/m", "Front contact stiffness")
-    kt2: float = _param(3.5e6, "N/m", "Rear contact stiffness")
-    d1: float = _param(4.13, "m", "Distance body centre to front axle")
-    d2: float = _param(4.13, "m", "Distance body centre to rear axle")
+    ms: float = _param(16200.0, "kg", "Body mass", bounds=(500.0, 5e5))
+    Is: float = _param(111193.0, "kg m²", "Body pitch inertia", bounds=(100.0, 1e8))
+    mu1: float = _param(700.0, "kg", "Front axle mass", bounds=(10.0, 2e4))
+    mu2: float = _param(1100.0, "kg", "Rear axle mass", bounds=(10.0, 2e4))
+    ks1: float = _param(0.4e6, "N/m", "Front suspension stiffness", bounds=(1e3, 1e9))
+    ks2: float = _param(1.0e6, "N/m", "Rear suspension stiffness", bounds=(1e3, 1e9))
+    cs1: float = _param(10e3, "N s/m", "Front suspension damping", "nonnegative", (0.0, 1e8))
+    cs2: float = _param(20e3, "N s/m", "Rear suspension damping", "nonnegative", (0.0, 1e8))
+    kt1: float = _param(1.75e6, "N/m", "Front contact stiffness", bounds=(1e4, 1e11))
+    kt2: float = _param(3.5e6, "N/m", "Rear contact stiffness", bounds=(1e4, 1e11))
+    d1: float = _param(4.13, "m", "Distance body centre to front axle", bounds=(0.3, 30.0))
+    d2: float = _param(4.13, "m", "Distance body centre to rear axle", bounds=(0.3, 30.0))
     sensor_x_m: float = _param(
         0.0, "m", "Accelerometer position from the body centre, towards the front axle",
         "position",
@@ -110,6 +116,13 @@ class VehicleParams:
                     )
             elif value <= 0:
                 raise ParameterError(f"vehicle parameter {f.name} must be > 0 {unit}, got {value}")
+            lo, hi = f.metadata["bounds"]
+            if kind != "position" and not lo <= value <= hi:
+                raise ParameterError(
+                    f"vehicle parameter {f.name} ({f.metadata['description'].lower()}) must lie "
+                    f"between {lo:g} and {hi:g} {unit}, got {value:g}",
+                    field=f.name,
+                )
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> VehicleParams:

@@ -10,7 +10,6 @@ from app.schemas.tracks import TrackPublic
 from app.schemas.vehicles import (
     CalibrationPublic,
     FittedParameterPublic,
-    VehicleParamsSchema,
     VehiclePublic,
 )
 from app.services.stiffness import run_stiffness_basis
@@ -100,7 +99,7 @@ def vehicle_public(vehicle: Vehicle) -> VehiclePublic:
         id=vehicle.id,
         name=vehicle.name,
         description=vehicle.description,
-        params=VehicleParamsSchema(**vehicle.params_dict()),
+        params=dict(vehicle.params_dict()),
         version=vehicle.version,
         created_at=vehicle.created_at,
     )

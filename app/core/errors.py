@@ -14,7 +14,7 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from sqlalchemy.exc import DataError, OperationalError
+from sqlalchemy.exc import DataError, OperationalError, StatementError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from app.services.errors import (
@@ -192,6 +192,18 @@ def install_error_handlers(app: FastAPI) -> None:
     async def _overflow(request: Request, exc: OverflowError) -> JSONResponse:
         log.info("number out of range on %s %s: %s", request.method, request.url.path, exc)
         return JSONResponse(status_code=422, content={"detail": out_of_range_detail()})
+
+    # A value that passed validation but cannot be converted for the database (a date-time
+    # whose offset takes it outside years 1..9999 in UTC): the client's error as well.
+    @app.exception_handler(StatementError)
+    async def _statement_error(request: Request, exc: StatementError) -> JSONResponse:
+        if isinstance(exc.orig, OverflowError | ValueError):
+            log.info("value out of range on %s %s: %s", request.method, request.url.path,
+                     exc.orig)  # fmt: skip
+            return JSONResponse(status_code=422, content={"detail": out_of_range_detail()})
+        log.error("database statement failed on %s %s", request.method, request.url.path,
+                  exc_info=exc)  # fmt: skip
+        return JSONResponse(status_code=500, content={"detail": internal_error_detail()})
 
     @app.exception_handler(DataError)
     async def _data_error(request: Request, exc: DataError) -> JSONResponse:

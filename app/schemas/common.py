@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import re
+from datetime import UTC, datetime
 from typing import Annotated, Any
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field
 
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
@@ -24,6 +25,56 @@ Name = Annotated[str, Field(min_length=1, max_length=200), AfterValidator(_clean
 markup included, is kept as typed and must be shown as text)."""
 
 
+MAX_ID_DIGITS = 18
+"""Longest id written in a URL or filter: every id of 18 digits is below 2^63."""
+
+
+def is_id_text(ref: str) -> bool:
+    """Whether ``ref`` reads as an id: ASCII digits only (``'²'``, ``'٣'`` or ``'①'`` are
+    names, not ids: ``str.isdigit`` accepts them and ``int('٣')`` is 3)."""
+    return ref.isascii() and ref.isdigit()
+
+
+def as_id(ref: str) -> int | None:
+    """The id ``ref`` spells (ASCII digits), or None when it is a name.
+
+    Raises
+    ------
+    ValueError
+        When ``ref`` is digits but longer than :data:`MAX_ID_DIGITS` (no id is that large).
+    """
+    if not is_id_text(ref):
+        return None
+    if len(ref) > MAX_ID_DIGITS:
+        raise ValueError(f"out of range: ids are whole numbers of at most {MAX_ID_DIGITS} digits")
+    return int(ref)
+
+
+_NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*")
+
+
+def _not_a_number(value: Any) -> Any:
+    # pydantic reads numbers (and numeric strings) as Unix times: 0.5 would be 1970.
+    if isinstance(value, int | float) or (isinstance(value, str) and _NUMBER.fullmatch(value)):
+        raise ValueError(
+            "must be an ISO 8601 date or date-time (e.g. 2026-03-01 or 2026-03-01T08:00:00Z), "
+            "not a number"
+        )
+    return value
+
+
+def _in_utc_range(value: datetime) -> datetime:
+    try:
+        (value if value.tzinfo is not None else value.replace(tzinfo=UTC)).astimezone(UTC)
+    except OverflowError:
+        raise ValueError("is outside the range of dates in UTC (years 1 to 9999)") from None
+    return value
+
+
+Timestamp = Annotated[datetime, BeforeValidator(_not_a_number), AfterValidator(_in_utc_range)]
+"""A date-time from a client: ISO 8601 text (UTC when no offset), representable in UTC."""
+
+
 def url_name_problem(value: str) -> str | None:
     """Why a new track or vehicle name would address the wrong thing in URLs, or None.
 
@@ -35,7 +86,7 @@ def url_name_problem(value: str) -> str | None:
     """
     if value in (".", ".."):
         return "must not be '.' or '..' (HTTP clients drop them from URLs)"
-    if value.isdigit():
+    if is_id_text(value):
         return (
             "must not be digits only: in URLs and filters a number is read as an id; add a "
             f"word, e.g. 'line {value}'"

@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from .common import Name, StrictModel
+from .common import Name, StrictModel, Timestamp
 
 Direction = Literal["increasing", "decreasing"]
 RunStatus = Literal["processing", "done", "failed"]
@@ -64,7 +64,7 @@ class RunMetadata(StrictModel):
         "chainage column)",
     )
     direction: Direction = "increasing"
-    recorded_at: datetime | None = Field(
+    recorded_at: Timestamp | None = Field(
         default=None, description="When the run was recorded (ISO 8601; UTC if no offset)"
     )
     payload_kg: float | None = Field(

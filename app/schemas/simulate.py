@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Any, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
@@ -12,7 +11,7 @@ from engine.sensor import SensorModel
 from engine.synthetic import REALISTIC_SENSOR
 from engine.track import SoftZone
 
-from .common import Name, StrictModel
+from .common import Name, StrictModel, Timestamp
 from .runs import Direction, RunCreated
 
 
@@ -96,7 +95,7 @@ class SimulateRequest(StrictModel):
         default=0.05, ge=0, le=0.3, description="Support stiffness scatter (0.05 = ±5 %)"
     )
     seed: int = Field(default=0, ge=0, le=2**31 - 1)
-    recorded_at: datetime | None = None
+    recorded_at: Timestamp | None = None
     irregularity: IrregularitySpec | None = Field(
         default=None, description="Rail geometry (null: a straight rail, the paper's case)"
     )

@@ -3,32 +3,31 @@
 from __future__ import annotations
 
 from datetime import datetime
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from engine.track import TRACK_RANGES, TrackParams
+
 from .common import StrictModel, UrlName
 
-UIC60_EI = 210e9 * 3.055e-5
+
+def _track_field(name: str) -> Any:
+    """The pydantic field of a track parameter: the engine's default, unit and range."""
+    lo, hi, unit, what = TRACK_RANGES[name]
+    default = TrackParams.__dataclass_fields__[name].default
+    return Field(default=default, ge=lo, le=hi, allow_inf_nan=False,
+                 description=f"{what[0].upper()}{what[1:]}, {unit} ({lo:g} to {hi:g})")  # fmt: skip
 
 
 class TrackParamsFields(BaseModel):
-    """Nominal properties used by the stiffness-loss estimate."""
+    """Nominal properties used by the stiffness-loss estimate (ranges: engine.track)."""
 
-    k_nominal: float = Field(
-        default=8e7, gt=0, allow_inf_nan=False, description="Nominal support stiffness, N/m"
-    )
-    spacing: float = Field(
-        default=0.6, gt=0, le=5, allow_inf_nan=False, description="Sleeper spacing, m"
-    )
-    EI: float = Field(
-        default=UIC60_EI, gt=0, allow_inf_nan=False, description="Rail bending stiffness, N m²"
-    )
-    mass_per_m: float = Field(
-        default=60.21, gt=0, allow_inf_nan=False, description="Rail mass per metre, kg/m"
-    )
-    c_support: float = Field(
-        default=5e4, ge=0, allow_inf_nan=False, description="Support damping, N s/m"
-    )
+    k_nominal: float = _track_field("k_nominal")
+    spacing: float = _track_field("spacing")
+    EI: float = _track_field("EI")
+    mass_per_m: float = _track_field("mass_per_m")
+    c_support: float = _track_field("c_support")
 
 
 class TrackCreate(TrackParamsFields, StrictModel):
@@ -39,10 +38,17 @@ class TrackCreate(TrackParamsFields, StrictModel):
     rail: str = Field(default="UIC60", min_length=1, max_length=50)
 
 
-class TrackPublic(TrackParamsFields):
-    """A stored track."""
+class TrackPublic(BaseModel):
+    """A stored track (its parameters as stored: tracks made before the physical ranges were
+    enforced are still shown)."""
 
     model_config = ConfigDict(from_attributes=True)
+
+    k_nominal: float
+    spacing: float
+    EI: float
+    mass_per_m: float
+    c_support: float
 
     id: int
     name: str

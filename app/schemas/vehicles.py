@@ -22,6 +22,11 @@ def _schema_field(f: dataclasses.Field[Any]) -> Any:
         "position": {"ge": -SENSOR_X_LIMIT_M, "le": SENSOR_X_LIMIT_M},
     }
     default: float = f.default  # type: ignore[assignment]
+    lo, hi = f.metadata["bounds"]
+    if kind != "position":  # the physical range (engine.vehicle), besides the sign
+        ranges[kind] = ranges[kind] | {"le": hi} | ({"ge": lo} if lo > 0 else {})
+        if lo > 0:
+            ranges[kind].pop("gt", None)
     field = Field(default, allow_inf_nan=False, description=f"{what}, {unit}", **ranges[kind])
     return (float, field)
 
@@ -83,7 +88,11 @@ class VehiclePublic(BaseModel):
     id: int
     name: str
     description: str | None
-    params: VehicleParamsSchema
+    params: dict[str, float] = Field(
+        description="The half-car parameters as stored (names and units of "
+        "VehicleParamsSchema; vehicles made before the physical ranges were enforced are "
+        "shown as they are)"
+    )
     version: int = Field(description="Current parameter version (1 at registration)")
     created_at: datetime
 

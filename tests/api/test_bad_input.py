@@ -551,13 +551,13 @@ CATALOGUE: dict[str, Bad] = {
     "negative vehicle mass": Bad(
         json_body(lambda _b: {"name": "v", "params": {"ms": -16200}}),
         facts={"field": "params.ms"},
-        words=("greater than 0",),
+        words=("greater than or equal to 500",),
         path="/api/v1/vehicles",
     ),
     "negative vehicle mass, flat (inline) form": Bad(
         json_body(lambda _b: {"name": "v", "ms": -16200}),
         facts={"field": "params.ms"},
-        words=("greater than 0",),
+        words=("greater than or equal to 500",),
         path="/api/v1/vehicles",
     ),
     "vehicle parameter of the wrong type": Bad(

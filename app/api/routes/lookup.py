@@ -6,12 +6,20 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Track, Vehicle
-from app.services.errors import NotFound
+from app.schemas.common import as_id
+from app.services.errors import Invalid, NotFound
+
+
+def _id(ref: str, field: str) -> int | None:
+    try:
+        return as_id(ref)
+    except ValueError as exc:
+        raise Invalid(f"{field} {ref[:30]}...: {exc}", field=field, kind="OutOfRange") from None
 
 
 def get_track(session: Session, ref: str) -> Track:
-    """The track whose id (digits) or name is ``ref``; 404 when none."""
-    track = session.get(Track, int(ref)) if ref.isdigit() else None
+    """The track whose id (ASCII digits) or name is ``ref``; 404 when none."""
+    track = session.get(Track, tid) if (tid := _id(ref, "track")) is not None else None
     if track is None:
         track = session.scalar(select(Track).where(Track.name == ref))
     if track is None:
@@ -20,8 +28,8 @@ def get_track(session: Session, ref: str) -> Track:
 
 
 def get_vehicle(session: Session, ref: str) -> Vehicle:
-    """The vehicle whose id (digits) or name is ``ref``; 404 when none."""
-    vehicle = session.get(Vehicle, int(ref)) if ref.isdigit() else None
+    """The vehicle whose id (ASCII digits) or name is ``ref``; 404 when none."""
+    vehicle = session.get(Vehicle, vid) if (vid := _id(ref, "vehicle")) is not None else None
     if vehicle is None:
         vehicle = session.scalar(select(Vehicle).where(Vehicle.name == ref))
     if vehicle is None:

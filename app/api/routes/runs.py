@@ -5,7 +5,6 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import time
-from datetime import datetime
 from typing import Annotated, Any, Literal
 
 import orjson
@@ -19,6 +18,7 @@ from app.api.answers import CSV_RESPONSE, csv_answer
 from app.api.convert import run_public
 from app.api.deps import CtxDep, SessionDep, WindowDep
 from app.core.errors import ApiError
+from app.schemas.common import Timestamp
 from app.schemas.runs import (
     ProfilePublic,
     RunCreated,
@@ -250,8 +250,8 @@ def list_runs(
     session: SessionDep,
     track: Annotated[str | None, Query(description="Track id or name")] = None,
     status: Annotated[RunStatus | None, Query()] = None,
-    recorded_from: Annotated[datetime | None, Query(description="Recorded at or after")] = None,
-    recorded_to: Annotated[datetime | None, Query(description="Recorded at or before")] = None,
+    recorded_from: Annotated[Timestamp | None, Query(description="Recorded at or after")] = None,
+    recorded_to: Annotated[Timestamp | None, Query(description="Recorded at or before")] = None,
     offset: Annotated[int, Query(ge=0)] = 0,
     limit: Annotated[int, Query(ge=1, le=1000)] = 50,
 ) -> RunsPublic:

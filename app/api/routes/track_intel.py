@@ -17,6 +17,7 @@ from sqlalchemy.orm import Session
 from app.api.answers import CSV_RESPONSE, csv_answer
 from app.api.deps import CtxDep, SessionDep, WindowDep
 from app.db.models import Track
+from app.schemas.common import Timestamp
 from app.schemas.track_intel import (
     DefectPublic,
     LimitsPublic,
@@ -120,7 +121,7 @@ def read_alerts(
     session: SessionDep,
     track: str,
     since: Annotated[
-        datetime,
+        Timestamp,
         Query(description="ISO 8601 date or time (UTC when no offset is given)"),
     ],
     include: IncludeHistory = None,
