@@ -101,6 +101,11 @@ def score(case: Case, picks: list[tuple[str, VehicleParams, int]]) -> dict[str, 
     errors = [syn.logged_start_chainage_m - syn.start_chainage_m for syn, _ in got]
     frame = float(np.mean(errors))  # aligned chainage = true + mean logged error
     found, edge, loss, false = 0, 0.0, 0.0, 0
+    g = sep.chainage_m
+    inside = 0
+    for z in case.zones:
+        span = (g >= z.start_m + frame - 1.0) & (g <= z.end_m + frame + 1.0)
+        inside += int(span.any() and sep.separable[span].all())
     for z in case.zones:
         hits = [s for s in sep.soft_spots
                 if s.end_m - frame >= z.start_m and s.start_m - frame <= z.end_m]  # fmt: skip
@@ -113,7 +118,6 @@ def score(case: Case, picks: list[tuple[str, VehicleParams, int]]) -> dict[str, 
         if not any(s.end_m - frame >= z.start_m and s.start_m - frame <= z.end_m
                    for z in case.zones):  # fmt: skip
             false += 1
-    g = sep.chainage_m
     ok = sep.separable
     rms = float("nan")
     if ok.sum() > 400:
@@ -125,7 +129,8 @@ def score(case: Case, picks: list[tuple[str, VehicleParams, int]]) -> dict[str, 
         rms = float(np.sqrt(np.mean((est[m] - ref[m]) ** 2)))
     covered = sep.n_passes > 0
     return {
-        "found": found, "true": len(case.zones), "false": false, "edge": edge, "loss": loss,
+        "found": found, "true": len(case.zones), "inside": inside, "false": false,
+        "edge": edge, "loss": loss,
         "rms": rms, "sep": float(sep.separable[covered].mean()),
     }  # fmt: skip
 
@@ -133,6 +138,7 @@ def score(case: Case, picks: list[tuple[str, VehicleParams, int]]) -> dict[str, 
 def combine(rows: list[dict[str, float]]) -> dict[str, float]:
     return {
         "found": sum(r["found"] for r in rows), "true": sum(r["true"] for r in rows),
+        "inside": sum(r["inside"] for r in rows),
         "false": sum(r["false"] for r in rows), "edge": max(r["edge"] for r in rows),
         "loss": max(r["loss"] for r in rows),
         "rms": max((r["rms"] for r in rows if np.isfinite(r["rms"])), default=float("nan")),
@@ -144,14 +150,16 @@ def line(label: str, r: dict[str, float]) -> str:
     rms = "—" if not np.isfinite(r["rms"]) else f"{r['rms']:.3f}"
     edge = f"{r['edge']:.2f}" if r["found"] else "—"
     loss = f"{r['loss']:.1f}" if r["found"] else "—"
-    return (f"| {label} | {r['found']}/{r['true']} | {r['false']} | {edge} | {loss} | {rms} | "
+    return (f"| {label} | {r['found']}/{r['true']} | {r['inside']} | {r['false']} | {edge} | "
+            f"{loss} | {rms} | "
             f"{100 * r['sep']:.0f} % |")  # fmt: skip
 
 
 HEADER = [
-    "| case | zones found | false zones | worst edge error, m | worst loss error, pp | "
-    "geometry error 3-25 m, mm RMS (worst) | separable share of the covered track |",
-    "|---|---|---|---|---|---|---|",
+    "| case | zones found | zones inside the separable stretch | false zones | "
+    "worst edge error, m | worst loss error, pp | geometry error 3-25 m, mm RMS (worst) | "
+    "separable share of the covered track |",
+    "|---|---|---|---|---|---|---|---|",
 ]
 
 
@@ -211,7 +219,10 @@ def main() -> None:
         "shared samples' sensor noise and bias, logged starts off by up to ±2 m, aligned to "
         "one another and separated (`engine/separation.py`). Counts are summed and errors "
         f"are the worst over {ns.tracks} tracks. Targets (issue 10): every zone, ends "
-        "±1.5 m, loss ±10 pp, no false zone, geometry ≤ 0.15 mm RMS.",
+        "±1.5 m, loss ±10 pp, no false zone, geometry ≤ 0.15 mm RMS. A zone outside the "
+        "separable stretch (too little load spread, or the first/last ~90 m of the runs where "
+        "the inversion's edge error dominates) gets no figure: that stretch carries the "
+        "not-separable message instead.",
         "",
         "### Against the load ratio",
         "",
