@@ -25,7 +25,9 @@ from .context import AppContext
 from .profiles import iter_profile_rows
 from .register import load_limits, track_register
 from .report import ReportInput, ReportRun, render_report
+from .report_stiffness import stiffness_section
 from .runs import SpotOnTrack
+from .stiffness import stiffness_with_vehicles
 from .window import Window
 
 SOFT_SPOT_FIELDS = ("start_m", "end_m", "peak_m", "depth_mm", "stiffness_loss_pct")
@@ -173,6 +175,7 @@ def track_report(session: Session, trk: Track, top: int) -> str:
             chainage_m=np.asarray(cols["chainage_m"], dtype=np.float64),
             level_mm=np.asarray(cols["level_mm"], dtype=np.float64),
             spread_mm=np.asarray(cols["spread_mm"], dtype=np.float64),
+            stiffness_html=stiffness_section(stiffness_with_vehicles(session, trk.id), limits),
             top=top,
         )
     )

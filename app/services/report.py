@@ -78,6 +78,8 @@ class ReportInput:
     level_mm: NDArray[np.float64]
     spread_mm: NDArray[np.float64]
     top: int = 25
+    stiffness_html: str = ""
+    """The stiffness section (``app.services.report_stiffness``), placed after the map."""
 
 
 def _num(v: float | None, digits: int = 2) -> str:
@@ -322,6 +324,7 @@ def render_report(data: ReportInput) -> str:
         _legend(),
         '<p class="note">Levels are the loaded profile (mm, positive up): a soft spot is a dip. '
         "Bars under the profile are the defects' extents, numbered as in the table.</p>",
+        data.stiffness_html,
     ]
     parts.append(f"<h2>Top defects ({min(len(defects), data.top)} of {len(defects)})</h2>")
     if defects:

@@ -20,6 +20,7 @@ Units: chainage in m (aligned), levels and geometry in mm, forces in N, complian
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -31,12 +32,14 @@ from sqlalchemy import delete, insert, select
 from sqlalchemy.orm import Session
 
 from app.db.models import (
+    Run,
     Survey,
     SurveyLevels,
     Track,
     TrackRunLevels,
     TrackStiffness,
     TrackStiffnessSpot,
+    Vehicle,
 )
 from engine.separation import NOT_SEPARABLE_MESSAGE, Pass, SeparationResult, separate
 from engine.track import TrackParams
@@ -425,3 +428,24 @@ def separable_intervals(session: Session, track_id: int) -> list[tuple[float, fl
             out.append((start, float(x[i])))
             start = None
     return out
+
+
+def stiffness_with_vehicles(
+    session: Session, track_id: int, from_m: float | None = None, to_m: float | None = None
+) -> StiffnessWindow:
+    """:func:`read_stiffness` with each contributing run's vehicle name (``vehicle``)."""
+    window = read_stiffness(session, track_id, from_m, to_m)
+    ids = [c["id"] for c in window.contributors if c["kind"] == "run"]
+    if not ids:
+        return window
+    rows = session.execute(
+        select(Run.id, Vehicle.name)
+        .join(Vehicle, Vehicle.id == Run.vehicle_id)
+        .where(Run.id.in_(ids))
+    ).all()
+    names = {int(r[0]): str(r[1]) for r in rows}
+    contributors = [
+        c | ({"vehicle": names.get(c["id"])} if c["kind"] == "run" else {})
+        for c in window.contributors
+    ]
+    return dataclasses.replace(window, contributors=contributors)

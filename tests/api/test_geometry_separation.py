@@ -181,3 +181,15 @@ def test_one_vehicle_type_gives_no_loss_figure_and_says_so(
     header = csv.splitlines()[0].split(",")
     loss_col = header.index("stiffness_loss_pct")
     assert all(line.split(",")[loss_col] == "" for line in csv.splitlines()[1:])
+
+
+def test_report_carries_the_stiffness_map(app_client: TestClient, mixed: dict[str, Any]) -> None:
+    """The HTML report holds the stiffness map (inline SVG), the separated soft spots and the
+    contributing passes with their loads."""
+    html = app_client.get("/api/v1/tracks/mixed fleet/report").text
+    assert "<h2>Stiffness (separated from rail geometry)</h2>" in html
+    assert 'aria-labelledby="stiffness-title"' in html
+    assert html.count("kN per wheel") == len(FLEET)
+    assert "(heavy)" in html and "(table1)" in html
+    for spot in mixed["stiffness"]["soft_spots"]:
+        assert f"{spot['start_m']:.1f}–{spot['end_m']:.1f}" in html

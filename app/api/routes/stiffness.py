@@ -9,12 +9,11 @@ import orjson
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
-from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
 from app.api.deps import CtxDep, SessionDep, WindowDep
 from app.core.errors import ApiError, validation_detail
-from app.db.models import Run, Survey, Vehicle
+from app.db.models import Survey
 from app.schemas.stiffness import (
     StiffnessPublic,
     SurveyCreateJson,
@@ -23,7 +22,7 @@ from app.schemas.stiffness import (
 )
 from app.services.alignment import GRID_STEP_M
 from app.services.context import AppContext
-from app.services.stiffness import StiffnessWindow, read_stiffness
+from app.services.stiffness import stiffness_with_vehicles
 from app.services.submit import clean_filename
 from app.services.surveys import SurveyInput, create_survey, delete_survey, get_survey, list_surveys
 
@@ -35,18 +34,6 @@ STIFFNESS_CSV_FIELDS = (
     "chainage_m", "k_rel", "k_rel_lo", "k_rel_hi", "geometry_mm", "geometry_sd_mm",
     "compliance_mm_per_kn", "n_passes", "load_ratio", "separable",
 )  # fmt: skip
-
-
-def _vehicles_of(session: Any, window: StiffnessWindow) -> dict[int, str]:
-    ids = [c["id"] for c in window.contributors if c["kind"] == "run"]
-    if not ids:
-        return {}
-    rows = session.execute(
-        select(Run.id, Vehicle.name)
-        .join(Vehicle, Vehicle.id == Run.vehicle_id)
-        .where(Run.id.in_(ids))
-    ).all()
-    return {int(r[0]): str(r[1]) for r in rows}
 
 
 def _fmt(v: Any) -> str:
@@ -80,12 +67,7 @@ def read_track_stiffness(
     """
     trk = get_track(session, track)
     from_m, to_m = window.from_m, window.to_m
-    sep = read_stiffness(session, trk.id, from_m, to_m)
-    vehicles = _vehicles_of(session, sep)
-    contributors = [
-        c | ({"vehicle": vehicles.get(c["id"])} if c["kind"] == "run" else {})
-        for c in sep.contributors
-    ]
+    sep = stiffness_with_vehicles(session, trk.id, from_m, to_m)
     cols = sep.columns
     if format == "csv":
         lines = []
@@ -133,7 +115,7 @@ def read_track_stiffness(
             }  # fmt: skip
             for s in sep.spots
         ],
-        "contributors": contributors,
+        "contributors": sep.contributors,
     }
     return Response(orjson.dumps(payload), media_type="application/json")
 
