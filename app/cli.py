@@ -30,6 +30,7 @@ from app.services.context import AppContext
 from app.services.errors import DomainError
 from app.services.integrate import realign_track
 from app.services.simulation import simulate_and_submit
+from app.services.surveys import realign_surveys
 from engine.errors import EngineError
 
 
@@ -105,12 +106,14 @@ def cmd_realign(ns: argparse.Namespace) -> int:
             tracks = [by_ref[ref] for ref in ns.tracks]
         for track in tracks:
             done = realign_track(s, track.id)
+            surveys = realign_surveys(s, track.id)
             s.commit()
             counts = {st: sum(1 for _, a in done if a.status == st)
                       for st in ("reference", "aligned", "unaligned")}  # fmt: skip
             print(
                 f"track {track.id} ({track.name}): {len(done)} runs: {counts['reference']} "
                 f"reference, {counts['aligned']} aligned, {counts['unaligned']} unaligned"
+                + (f"; {len(surveys)} surveys" if surveys else "")
             )
     return 0
 

@@ -31,7 +31,7 @@ from .alignment import GRID_STEP_M, MIN_OVERLAP_M, align_to_track, on_track_grid
 from .errors import Invalid, NotFound
 from .integrate import lock_track
 from .logs import sha256_hex
-from .stiffness import recompute_stiffness
+from .stiffness import recompute_all, recompute_stiffness
 
 SURVEY_COLUMNS = ("chainage_m", "level_mm")
 """Columns a survey CSV must have (header row; other columns are ignored)."""
@@ -208,17 +208,49 @@ def create_survey(
     )  # fmt: skip
     session.add(survey)
     session.flush()
-    if al.merged:
-        i_lo, levels = on_track_grid(grid, level, al.offset_m)
-        c_lo, c_hi, parts = chunked(i_lo, levels)
-        if parts:
-            session.execute(
-                insert(SurveyLevels),
-                [{"survey_id": survey.id, "chunk": c, "track_id": track.id,
-                  "levels": buf32.tobytes()} for c, buf32 in parts.items()],
-            )  # fmt: skip
-            recompute_stiffness(session, track.id, c_lo, c_hi)
+    chunks = _place(session, survey, grid, level)
+    if chunks is not None:
+        recompute_stiffness(session, track.id, *chunks)
     return survey, True
+
+
+def _place(
+    session: Session, survey: Survey, grid: NDArray[np.float64], level: NDArray[np.float64]
+) -> tuple[int, int] | None:
+    """Keep an aligned survey's level on the track grid; the chunks written (None: none)."""
+    if survey.alignment_status not in ("reference", "aligned"):
+        return None
+    i_lo, levels = on_track_grid(grid, level, survey.chainage_offset_m)
+    c_lo, c_hi, parts = chunked(i_lo, levels)
+    if not parts:
+        return None
+    session.execute(
+        insert(SurveyLevels),
+        [{"survey_id": survey.id, "chunk": c, "track_id": survey.track_id,
+          "levels": buf32.tobytes()} for c, buf32 in parts.items()],
+    )  # fmt: skip
+    return c_lo, c_hi
+
+
+def realign_surveys(session: Session, track_id: int) -> list[Survey]:
+    """Align every survey of a track again against its (rebuilt) aggregated profile and
+    separate the whole track again (after ``integrate.realign_track``; caller commits)."""
+    lock_track(session, track_id)
+    session.execute(delete(SurveyLevels).where(SurveyLevels.track_id == track_id))
+    surveys = list_surveys(session, track_id)
+    for survey in surveys:
+        raw = np.load(io.BytesIO(survey.data))
+        meta = SurveyInput(survey.wheel_load_n, survey.band_min_m, survey.band_max_m)
+        grid, level = survey_level_on_grid(raw["chainage_m"], raw["level_mm"], meta)
+        al = align_to_track(session, track_id, grid, level)
+        survey.chainage_offset_m = al.offset_m
+        survey.alignment_status = al.status
+        survey.alignment_correlation = al.correlation
+        survey.alignment_reason = al.reason
+        session.flush()
+        _place(session, survey, grid, level)
+    recompute_all(session, track_id)
+    return surveys
 
 
 def delete_survey(session: Session, survey: Survey) -> None:

@@ -145,7 +145,7 @@ def test_vehicle_presets_by_name(client: TestClient, synthetic_run: dict[str, An
 
 
 def test_survey_is_stored_aligned_listed_and_deleted(
-    client: TestClient, stored: dict[str, Any]
+    client: TestClient, stored: dict[str, Any], settings: Settings
 ) -> None:
     """A survey at another wheel load is aligned to the track (its chainage error found),
     listed, contributes to the stiffness answer with its load, and is deleted."""
@@ -168,6 +168,20 @@ def test_survey_is_stored_aligned_listed_and_deleted(
     assert run_c["vehicle"] == "table1"
     assert run_c["mean_force_n"] == pytest.approx(stored["mean_wheel_force_n"], rel=0.02)
     assert max(v for v in st["load_ratio"] if v is not None) > 1.5
+    # realigning the track (python -m app realign) aligns the survey again, to the same place
+    from app.db.session import Database
+    from app.services.surveys import realign_surveys
+
+    db = Database(settings.sqlalchemy_url)
+    try:
+        with db.session() as s:
+            (again,) = realign_surveys(s, stored["track_id"])
+            s.commit()
+            assert again.chainage_offset_m == pytest.approx(survey["chainage_offset_m"], abs=0.01)
+    finally:
+        db.engine.dispose()
+    st2 = client.get(f"/api/v1/tracks/{TRACK}/stiffness").json()
+    assert {(c["kind"], c["id"]) for c in st2["contributors"]} == set(kinds)
     r = client.delete(f"/api/v1/tracks/{TRACK}/surveys/{survey['id']}")
     assert r.status_code == 204
     assert client.get(f"/api/v1/tracks/{TRACK}/surveys").json() == []

@@ -140,6 +140,11 @@ export async function render(main) {
     h("option", { value: "increasing" }, "Increasing chainage"),
     h("option", { value: "decreasing" }, "Decreasing chainage"));
   const recordedInput = h("input", { type: "datetime-local", name: "recorded_at", id: "recorded-at", value: nowLocalInput() });
+  // What the log cannot know about the wheel force (issue 10): the payload carried, or the
+  // static wheel load measured; runs of different loads let the track separate geometry from
+  // stiffness. Both blank: the registered vehicle's own load.
+  const payloadInput = h("input", { type: "number", name: "payload_kg", id: "payload-kg", min: "0", step: "any", placeholder: "none" });
+  const wheelLoadInput = h("input", { type: "number", name: "static_wheel_load_n", id: "static-wheel-load", min: "0", step: "any", placeholder: "from the vehicle" });
 
   form.appendChild(h("fieldset", { class: "card" },
     h("legend", {}, "3. Track, vehicle and position"),
@@ -149,6 +154,8 @@ export async function render(main) {
       field("Start chainage (m)", startInput, "Chainage of the body centre (the IMU) at the first sample."),
       field("Direction of travel", directionSel),
       field("Recorded at (local time)", recordedInput),
+      field("Payload (kg)", payloadInput, "Load carried on top of the vehicle's own mass (passengers, freight)."),
+      field("Measured static wheel load (N)", wheelLoadInput, "Instead of the payload, if a load-weigh system measured it."),
     ),
     newTrackBox,
     vehicleDetails,
@@ -515,6 +522,8 @@ export async function render(main) {
     if (startInput.value !== "") fd.append("start_chainage_m", startInput.value);
     fd.append("direction", directionSel.value);
     if (recordedInput.value) fd.append("recorded_at", new Date(recordedInput.value).toISOString());
+    if (payloadInput.value !== "") fd.append("payload_kg", payloadInput.value);
+    if (wheelLoadInput.value !== "") fd.append("static_wheel_load_n", wheelLoadInput.value);
     for (const role of ROLES) {
       const { colSel, unitSel } = selects[role.key];
       if (colSel.value) fd.append(role.column, colSel.value);
