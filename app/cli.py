@@ -7,6 +7,9 @@
     revoke-key ID        revoke an API key
     realign [TRACK ...]  align every run of the tracks again and rebuild their aggregates
                          (all tracks when none is named; runs stored before alignment existed)
+    check-aggregates [--fix] [TRACK ...]
+                         check that each track's aggregated profile is what its runs make
+                         (exit 1 when one differs; --fix rebuilds those that differ)
 
 The database is the service's: ``DATABASE_URL`` or ``TRACKPROFILE_DATA_DIR``.
 """
@@ -18,6 +21,7 @@ import sys
 from collections.abc import Sequence
 
 from sqlalchemy import select
+from sqlalchemy.orm import Session
 
 from app.core.config import get_settings
 from app.core.security import generate_key, hash_key, key_prefix
@@ -26,6 +30,7 @@ from app.db.migrate import upgrade
 from app.db.models import ApiKey, Track
 from app.db.session import Database
 from app.schemas.simulate import SimulateRequest
+from app.services.consistency import check_aggregate, rebuild_aggregate
 from app.services.context import AppContext
 from app.services.errors import DomainError
 from app.services.integrate import realign_track
@@ -118,6 +123,41 @@ def cmd_realign(ns: argparse.Namespace) -> int:
     return 0
 
 
+def _tracks(s: Session, refs: Sequence[str]) -> list[Track] | None:
+    tracks = list(s.scalars(select(Track).order_by(Track.id)))
+    if not refs:
+        return tracks
+    by_ref = {str(t.id): t for t in tracks} | {t.name: t for t in tracks}
+    unknown = [ref for ref in refs if ref not in by_ref]
+    if unknown:
+        print(f"no track {unknown[0]!r} (give its name or id)", file=sys.stderr)
+        return None
+    return [by_ref[ref] for ref in refs]
+
+
+def cmd_check_aggregates(ns: argparse.Namespace) -> int:
+    bad = 0
+    with _db().session() as s:
+        tracks = _tracks(s, ns.tracks)
+        if tracks is None:
+            return 2
+        for track in tracks:
+            chk = check_aggregate(s, track.id)
+            state = "ok" if chk.ok else "DIFFERS"
+            print(
+                f"track {track.id} ({track.name}): {state}: {chk.stored_points} points stored, "
+                f"{chk.expected_points} from its runs, {chk.differing_points} differing"
+                + (f", levels of runs not stored: {chk.orphan_runs}" if chk.orphan_runs else "")
+            )
+            if not chk.ok:
+                bad += 1
+                if ns.fix:
+                    rebuild_aggregate(s, track.id)
+                    s.commit()
+                    print(f"track {track.id} ({track.name}): aggregate rebuilt")
+    return 1 if bad and not ns.fix else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m app", description="TrackProfile service admin")
     sub = p.add_subparsers(dest="command", required=True)
@@ -135,6 +175,10 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("realign", help="align the runs of tracks again, rebuild aggregates")
     a.add_argument("tracks", nargs="*", metavar="TRACK", help="track names or ids (default all)")
     a.set_defaults(fn=cmd_realign)
+    k = sub.add_parser("check-aggregates", help="check each track's aggregate against its runs")
+    k.add_argument("--fix", action="store_true", help="rebuild the aggregates that differ")
+    k.add_argument("tracks", nargs="*", metavar="TRACK", help="track names or ids (default all)")
+    k.set_defaults(fn=cmd_check_aggregates)
     return p
 
 

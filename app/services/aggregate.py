@@ -17,7 +17,7 @@ from sqlalchemy import delete, func, insert, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Track, TrackProfilePoint, TrackRunLevels
-from engine.aggregate import aggregate_levels
+from engine.aggregate import AggregateProfile, aggregate_levels
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
 
@@ -101,38 +101,45 @@ def _batches(c_lo: int, c_hi: int) -> Iterator[tuple[int, int]]:
         yield a, min(c_hi, a + BATCH_CHUNKS - 1)
 
 
+def expected_points(
+    session: Session, track_id: int, a: int, b: int
+) -> tuple[NDArray[np.float64], AggregateProfile | None]:
+    """What the aggregate of chunks ``a..b`` must hold: the grid (m) and the aggregation of
+    the levels of the track's runs there (None: no run there). Read only."""
+    t = TrackRunLevels.__table__
+    rows = session.execute(
+        select(t.c.run_id, t.c.chunk, t.c.levels).where(
+            t.c.track_id == track_id, t.c.chunk >= a, t.c.chunk <= b
+        )
+    ).all()
+    i0 = a * CHUNK_POINTS
+    n = (b - a + 1) * CHUNK_POINTS
+    run_row = {rid: k for k, rid in enumerate(sorted({r[0] for r in rows}))}
+    levels = np.full((len(run_row), n), np.nan)
+    for rid, chunk, blob in rows:
+        at = (chunk - a) * CHUNK_POINTS
+        levels[run_row[rid], at : at + CHUNK_POINTS] = np.frombuffer(blob, dtype=_DTYPE)
+    grid = (i0 + np.arange(n, dtype=np.float64)) * GRID_STEP_M
+    return grid, (aggregate_levels(grid, levels) if rows else None)
+
+
 def recompute_aggregate(session: Session, track_id: int, c_lo: int, c_hi: int) -> int:
     """Rebuild the aggregated profile of chunks ``c_lo..c_hi`` from the runs' levels.
 
     Returns the number of grid points with data written.
     """
-    t = TrackRunLevels.__table__
     written = 0
     for a, b in _batches(c_lo, c_hi):
-        rows = session.execute(
-            select(t.c.run_id, t.c.chunk, t.c.levels).where(
-                t.c.track_id == track_id, t.c.chunk >= a, t.c.chunk <= b
-            )
-        ).all()
-        i0 = a * CHUNK_POINTS
-        n = (b - a + 1) * CHUNK_POINTS
-        x_lo, x_hi = i0 * GRID_STEP_M, (i0 + n - 1) * GRID_STEP_M
+        grid, agg = expected_points(session, track_id, a, b)
         session.execute(
             delete(TrackProfilePoint).where(
                 TrackProfilePoint.track_id == track_id,
-                TrackProfilePoint.chainage_m >= x_lo - 1e-6,
-                TrackProfilePoint.chainage_m <= x_hi + 1e-6,
+                TrackProfilePoint.chainage_m >= grid[0] - 1e-6,
+                TrackProfilePoint.chainage_m <= grid[-1] + 1e-6,
             )
         )
-        if not rows:
+        if agg is None:
             continue
-        run_row = {rid: k for k, rid in enumerate(sorted({r[0] for r in rows}))}
-        levels = np.full((len(run_row), n), np.nan)
-        for rid, chunk, blob in rows:
-            at = (chunk - a) * CHUNK_POINTS
-            levels[run_row[rid], at : at + CHUNK_POINTS] = np.frombuffer(blob, dtype=_DTYPE)
-        grid = (i0 + np.arange(n, dtype=np.float64)) * GRID_STEP_M
-        agg = aggregate_levels(grid, levels)
         keep = np.flatnonzero(agg.n_runs > 0)
         _insert_points(
             session, track_id, grid[keep], agg.level_mm[keep], agg.spread_mm[keep],

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import delete, func, select
+from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfilePoint, TrackRunLevels
@@ -25,6 +25,19 @@ from .stiffness import recompute_all, recompute_stiffness
 
 
 def lock_track(session: Session, track_id: int) -> None:
+    """Serialise the writers of one track's aligned data until the caller's transaction ends.
+
+    Call it before reading anything the change depends on (which chunks a run covers, the
+    aggregate to align against): a delete that read a run's chunks before a concurrent store
+    had committed them recomputed nothing and left the deleted run in the aggregate.
+    """
+    if session.get_bind().dialect.name == "sqlite":
+        # SQLite has no row locks and pysqlite begins a transaction only at the first write,
+        # so reads before it see an older state: a no-op write takes the database's write
+        # lock now (waiting for a concurrent store to commit) and every read after it in
+        # this transaction sees the latest data.
+        session.execute(update(Track).where(Track.id == track_id).values(name=Track.name))
+        return
     # FOR NO KEY UPDATE (key_share=True), not FOR UPDATE: the caller's transaction already
     # holds FOR KEY SHARE on the track through the foreign keys of the rows it inserted, and
     # so may a concurrent one; FOR UPDATE conflicts with KEY SHARE, so two such transactions

@@ -7,7 +7,12 @@ one transaction: the track (if new), the run, its display signals, and either it
 
 from __future__ import annotations
 
+import hashlib
+import json
 import re
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -59,6 +64,39 @@ class Submission:
     extra_signals: dict[str, Any] = field(default_factory=dict)
     payload_kg: float | None = None
     static_wheel_load_n: float | None = None
+
+    @property
+    def identity(self) -> str:
+        """What makes two submissions the same run: the log's content *and* how it is to be
+        read and placed (start chainage, direction, vehicle, loads, column/unit options).
+
+        Stored as the run's ``content_hash``: re-sending a file with a corrected start
+        chainage is a new run, not a silent ``duplicate`` that drops the correction.
+        """
+        how = {
+            "content": self.content_hash, "start_chainage_m": self.start_chainage_m,
+            "direction": self.direction, "vehicle": self.vehicle, "vehicle_id": self.vehicle_id,
+            "payload_kg": self.payload_kg, "static_wheel_load_n": self.static_wheel_load_n,
+            "options": self.options,
+        }  # fmt: skip
+        return hashlib.sha256(json.dumps(how, sort_keys=True, default=str).encode()).hexdigest()
+
+
+_inflight_guard = threading.Lock()
+_inflight: dict[str, threading.Lock] = {}
+
+
+@contextmanager
+def _one_at_a_time(key: str) -> Iterator[None]:
+    """Serialise identical submissions in this process: the second waits for the first and
+    then finds its run (a duplicate), instead of inverting the same log again."""
+    with _inflight_guard:
+        lock = _inflight.setdefault(key, threading.Lock())
+    with lock:
+        yield
+    with _inflight_guard:
+        if not lock.locked():
+            _inflight.pop(key, None)
 
 
 def clean_filename(name: str | None) -> str | None:
@@ -124,7 +162,7 @@ def _existing(session: Session, sub: Submission, track: Track | None) -> Run | N
         prev = session.scalar(select(Run).where(Run.idempotency_key == sub.idempotency_key))
         if prev is not None:
             same_track = track is not None and prev.track_id == track.id
-            if prev.content_hash != sub.content_hash or not same_track:
+            if prev.content_hash != sub.identity or not same_track:
                 raise Conflict(
                     f"Idempotency-Key {sub.idempotency_key!r} was already used for run {prev.id} "
                     "with different content or track; use a new key for a new run",
@@ -134,7 +172,7 @@ def _existing(session: Session, sub: Submission, track: Track | None) -> Run | N
             return prev
     if track is not None:
         return session.scalar(
-            select(Run).where(Run.track_id == track.id, Run.content_hash == sub.content_hash)
+            select(Run).where(Run.track_id == track.id, Run.content_hash == sub.identity)
         )
     return None
 
@@ -185,7 +223,8 @@ def submit(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
     """
     for attempt in range(3):
         try:
-            return _submit_once(ctx, sub)
+            with _one_at_a_time(f"{ctx.db.url}|{sub.track}|{sub.track_id}|{sub.identity}"):
+                return _submit_once(ctx, sub)
         except IntegrityError:
             # A concurrent request stored the same track name or content first: look again.
             if attempt == 2:
@@ -267,7 +306,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             status="processing",
             stage="queued",
             options=sub.options,
-            content_hash=sub.content_hash,
+            content_hash=sub.identity,
             idempotency_key=sub.idempotency_key,
             attempts=0,
             payload_kg=sub.payload_kg,
