@@ -2,46 +2,75 @@
 
 from __future__ import annotations
 
+import dataclasses
 from datetime import datetime
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
+from pydantic.json_schema import JsonDict
+
+from engine.logio import GRAVITY_MODES, OPTION_UNITS, ROLE_LABELS, UNIT_LABELS, CsvOptions
 
 from .common import Name, StrictModel, Timestamp
 
 Direction = Literal["increasing", "decreasing"]
 RunStatus = Literal["processing", "done", "failed"]
 RunStage = Literal["queued", "inverting", "storing"]
-_Column = Field(default=None, min_length=1, max_length=200)
 
 
-def _unit(allowed: str) -> Any:
-    return Field(
-        default=None, max_length=20, description=f"{allowed}; unset: from the column name/values"
-    )
+def _csv_option(f: dataclasses.Field[Any]) -> Any:
+    """The pydantic field of one ``CsvOptions`` field; unit fields carry their units
+    (``x-units``, ``x-unit-labels``) so the dashboard builds its choices from the schema."""
+    if f.name == "gravity":
+        modes = ", ".join(GRAVITY_MODES)
+        what = "whether the acceleration includes gravity"
+        modes_extra: JsonDict = {"x-values": list(GRAVITY_MODES)}
+        return (
+            str,
+            Field(default="auto", max_length=20, description=f"{modes}: {what}",
+                  json_schema_extra=modes_extra),
+        )  # fmt: skip
+    role, kind = f.name.rsplit("_", 1)
+    label = ROLE_LABELS[role]
+    extra: JsonDict = {"x-role": role, "x-label": label}
+    if kind == "column":
+        return (
+            str | None,
+            Field(
+                default=None, min_length=1, max_length=200, json_schema_extra=extra,
+                description=f"Name of the {label} column; unset: recognised from the header",
+            ),
+        )  # fmt: skip
+    units = OPTION_UNITS[role]
+    extra["x-units"] = list(units)
+    extra["x-unit-labels"] = {u: UNIT_LABELS.get(u, u) for u in units}
+    return (
+        str | None,
+        Field(
+            default=None, max_length=20, json_schema_extra=extra,
+            description=f"Unit of the {label} column: {' or '.join(units)} (common spellings "
+            "such as m/s^2, dps or kmh too); unset: from the column name/values",
+        ),
+    )  # fmt: skip
 
 
-class CsvOptionsFields(StrictModel):
-    """Which column is which and in what unit (unset: recognised from the header).
+# One model per idea: the options are those of the engine's CsvOptions (names, units), so an
+# option added to the reader appears in the API, the preview and the dashboard by itself.
+if TYPE_CHECKING:
 
-    Units are checked by the CSV reader, which also takes common spellings (``m/s^2``,
-    ``dps``, ``kmh``); an unsupported unit is answered 422 naming the field.
-    """
+    class CsvOptionsFields(StrictModel):
+        """Which column is which and in what unit (fields: those of ``CsvOptions``)."""
 
-    time_column: str | None = _Column
-    accel_column: str | None = _Column
-    pitch_rate_column: str | None = _Column
-    speed_column: str | None = _Column
-    chainage_column: str | None = _Column
-    time_unit: str | None = _unit("s, ms or epoch_s")
-    accel_unit: str | None = _unit("m/s2 (also m/s^2, mps2) or g")
-    pitch_rate_unit: str | None = _unit("rad/s (also radps) or deg/s (also dps)")
-    speed_unit: str | None = _unit("m/s (also mps) or km/h (also kmh, kph)")
-    chainage_unit: str | None = _unit("m or km")
-    gravity: str = Field(
-        default="auto",
-        max_length=20,
-        description="auto, included or removed: whether the acceleration includes gravity",
+        gravity: str
+
+else:
+    CsvOptionsFields = create_model(
+        "CsvOptionsFields",
+        __base__=StrictModel,
+        __doc__="Which column is which and in what unit (unset: recognised from the header). "
+        "Units are checked by the CSV reader, which also takes common spellings; an "
+        "unsupported unit is answered 422 naming the field.",
+        **{f.name: _csv_option(f) for f in dataclasses.fields(CsvOptions)},
     )
 
 

@@ -8,7 +8,6 @@ receives millions of points. Units: chainage in m, levels and depths in mm.
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any
 
 from pydantic import BaseModel, Field
 
@@ -87,29 +86,42 @@ class HeatmapPublic(BaseModel):
 
 
 class ZonePublic(BaseModel):
-    """Soft spots of several runs merged where they overlap along chainage."""
+    """A zone of the chainage map: the defect register (``engine.register``, the one zone
+    model) over the soft spots shown, also for runs that are not aligned. Spots overlapping or
+    at most 1 m apart join; one sighting per run (its deepest)."""
 
     id: int = Field(description="Index of the zone in chainage order (not stable over time)")
-    start_m: float
-    end_m: float
+    start_m: float = Field(description="Median start over the runs that saw it, m")
+    end_m: float = Field(description="Median end over the runs that saw it, m")
     peak_m: float = Field(description="Median peak chainage of the member spots, m")
     runs_seen: int = Field(description="Runs that detected a soft spot in the zone")
     runs_total: int = Field(description="Map runs whose profile covers the zone")
-    depth_mm: float = Field(description="Median depth over the runs that saw it, mm")
-    depth_max_mm: float
-    stiffness_loss_pct: float | None = Field(description="Median estimated loss, %")
+    depth_mm: float = Field(description="Depth seen by the latest run that saw it, mm")
+    depth_max_mm: float = Field(description="Deepest sighting, mm")
+    stiffness_loss_pct: float | None = Field(description="Estimated loss seen by the latest run, %")
     severity: float = Field(
-        description="Ranking key, mm: median depth x share of covering runs that saw it"
+        description="Ranking key, mm: latest depth x share of covering runs that saw it"
     )
     first_seen: datetime | None
     last_seen: datetime | None
     run_ids: list[int]
 
 
+class MapTrackPublic(BaseModel):
+    """The track of a chainage map: what the map's heading shows and the beam model needs."""
+
+    id: int
+    name: str
+    description: str | None
+    rail: str
+    k_nominal: float = Field(description="Nominal support stiffness, N/m")
+    spacing: float = Field(description="Support spacing, m")
+
+
 class ChainageMapPublic(BaseModel):
     """Everything the track view draws for one chainage window."""
 
-    track: dict[str, Any]
+    track: MapTrackPublic
     chainage_min_m: float | None = Field(description="Extent of all map runs, m")
     chainage_max_m: float | None
     from_m: float | None = Field(description="Window asked for (null: whole track)")

@@ -34,6 +34,7 @@ from app.schemas.views import (
     HeatmapPublic,
     MapRunPublic,
     MapSpotsPublic,
+    MapTrackPublic,
     ProfileViewPublic,
     WindowPublic,
     WindowRunPublic,
@@ -43,9 +44,10 @@ from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
 from engine.intervals import merge_intervals
 from engine.logio import CsvOptions, preview_csv
+from engine.register import Observation, RegisterConfig, RunCoverage, build_register
 
 from .errors import Invalid
-from .profiles import read_profile
+from .profiles import nullable, read_profile
 from .runs import done_run
 from .window import Window
 
@@ -57,16 +59,6 @@ little that the spots do not."""
 
 HEATMAP_MIN_BIN_M = GRID_STEP_M
 """Narrowest heatmap bin, m (the profile grid step)."""
-
-ZONE_GAP_M = 2.0
-"""Soft spots of different runs closer than this (or overlapping) form one zone, m."""
-
-
-def _finite_or_none(values: NDArray[np.float64]) -> list[float | None]:
-    out: list[float | None] = values.tolist()
-    for i in np.flatnonzero(~np.isfinite(values)):
-        out[i] = None
-    return out
 
 
 def _as_array(values: Sequence[float | None]) -> NDArray[np.float64]:
@@ -120,10 +112,10 @@ def run_profile_view(
         n_points=int(x.size),
         decimated=decimated,
         chainage_m=xd.tolist(),
-        level_mm=_finite_or_none(cd["level_mm"]),
-        front_level_mm=_finite_or_none(cd["front_level_mm"]),
-        rear_level_mm=_finite_or_none(cd["rear_level_mm"]),
-        baseline_mm=_finite_or_none(cd["baseline_mm"]),
+        level_mm=nullable(cd["level_mm"]),
+        front_level_mm=nullable(cd["front_level_mm"]),
+        rear_level_mm=nullable(cd["rear_level_mm"]),
+        baseline_mm=nullable(cd["baseline_mm"]),
     )
 
 
@@ -171,63 +163,73 @@ def _spots(
     return out
 
 
-def cluster_zones(
-    spots: MapSpotsPublic, runs: list[Run], gap_m: float = ZONE_GAP_M
-) -> list[ZonePublic]:
-    """Merge the soft spots of all runs into zones: spots overlapping or closer than ``gap_m``.
+def map_zones(spots: MapSpotsPublic, runs: list[Run]) -> list[ZonePublic]:
+    """The zones of the map: the register (:func:`engine.register.build_register`, the one
+    zone model) over the soft spots shown, whatever the alignment state of their runs.
 
-    A zone's depth and stiffness loss are medians over the runs that saw it (a run seeing two
-    spots in one zone counts once, with its deepest); its severity is that depth times the
-    share of the runs covering the zone that detected it, so a dip seen once in fifty passes
-    ranks below one seen every time.
+    A zone keeps the register's definitions: spots overlapping or at most
+    ``RegisterConfig.join_gap_m`` (1 m) apart join; one observation per run (its deepest) for
+    the peak (median), depth and loss (the latest run's); ``runs_total`` counts the map runs
+    covering it. Its extent is that of every spot merged into it (a map shows where soft spots
+    were seen; the register's median extent would hide a neighbouring dip it absorbed).
+    ``severity`` ranks it for the map: the depth times the share of covering runs that saw it.
     """
-    n = len(spots.start_m)
-    if n == 0:
-        return []
-    groups = [g.tolist() for g in merge_intervals(spots.start_m, spots.end_m, gap_m)]
-    extents = [r.aligned_extent() for r in runs]
-    zones: list[ZonePublic] = []
-    for k, members in enumerate(groups):
-        deepest: dict[int, int] = {}
-        for i in members:
-            ri = spots.run_index[i]
-            if ri not in deepest or spots.depth_mm[i] > spots.depth_mm[deepest[ri]]:
-                deepest[ri] = i
-        picked = list(deepest.values())
-        start = min(spots.start_m[i] for i in members)
-        stop = max(spots.end_m[i] for i in members)
-        depths = [spots.depth_mm[i] for i in picked]
-        losses = [spots.stiffness_loss_pct[i] for i in picked]
-        losses_known = [v for v in losses if v is not None]
-        covering = sum(
-            1
-            for lo, hi in extents
-            if lo is not None and hi is not None and lo <= start and hi >= stop
+    by_id = {r.id: r for r in runs}
+    observations = [
+        Observation(
+            run_id=rid,
+            recorded_at=_when(by_id[rid]),
+            start_m=a,
+            end_m=b,
+            peak_m=p,
+            depth_mm=d,
+            stiffness_loss_pct=loss,
         )
-        runs_total = max(covering, len(deepest))
-        dates = [
-            runs[ri].recorded_at or runs[ri].created_at for ri in deepest if runs[ri] is not None
-        ]
-        dates_known: list[datetime] = [d for d in dates if d is not None]
-        depth = float(np.median(depths))
-        zones.append(
-            ZonePublic(
-                id=k + 1,
-                start_m=start,
-                end_m=stop,
-                peak_m=float(np.median([spots.peak_m[i] for i in picked])),
-                runs_seen=len(deepest),
-                runs_total=runs_total,
-                depth_mm=depth,
-                depth_max_mm=float(max(depths)),
-                stiffness_loss_pct=float(np.median(losses_known)) if losses_known else None,
-                severity=depth * len(deepest) / runs_total,
-                first_seen=min(dates_known) if dates_known else None,
-                last_seen=max(dates_known) if dates_known else None,
-                run_ids=sorted(runs[ri].id for ri in deepest),
-            )
+        for rid, a, b, p, d, loss in zip(
+            spots.run_id, spots.start_m, spots.end_m, spots.peak_m, spots.depth_mm,
+            spots.stiffness_loss_pct, strict=True,
         )
-    return zones
+    ]  # fmt: skip
+    coverage = []
+    for r in runs:
+        lo, hi = r.aligned_extent()
+        if lo is not None and hi is not None:
+            coverage.append(RunCoverage(r.id, _when(r), lo, hi))
+    defects = build_register(observations, coverage)
+    # the register's clusters are merge_intervals groups: find each defect's by a member
+    group_of: dict[int, int] = {}
+    extents: list[tuple[float, float]] = []
+    gap = RegisterConfig().join_gap_m
+    for g in merge_intervals(spots.start_m, spots.end_m, gap):
+        for i in g:
+            group_of[id(observations[i])] = len(extents)
+        extents.append((min(spots.start_m[i] for i in g), max(spots.end_m[i] for i in g)))
+    spans = [extents[group_of[id(d.history[0])]] for d in defects]
+    order = sorted(range(len(defects)), key=lambda k: spans[k][0])
+    return [
+        ZonePublic(
+            id=n + 1,
+            start_m=spans[k][0],
+            end_m=spans[k][1],
+            peak_m=d.peak_m,
+            runs_seen=d.runs_seen,
+            runs_total=d.runs_covering,
+            depth_mm=d.depth_mm,
+            depth_max_mm=max(o.depth_mm for o in d.history),
+            stiffness_loss_pct=d.stiffness_loss_pct,
+            severity=d.depth_mm * d.runs_seen / d.runs_covering,
+            first_seen=d.first_seen,
+            last_seen=d.last_seen,
+            run_ids=sorted(o.run_id for o in d.history),
+        )
+        for n, k in enumerate(order)
+        for d in (defects[k],)
+    ]
+
+
+def _when(run: Run) -> datetime:
+    when: datetime = run.recorded_at or run.created_at
+    return when
 
 
 def _heatmap(
@@ -322,14 +324,9 @@ def chainage_map(
                 f"this one is {(b - a) / 1000:.1f} km (zoom in)"
             )
     return ChainageMapPublic(
-        track={
-            "id": track.id,
-            "name": track.name,
-            "description": track.description,
-            "rail": track.rail,
-            "k_nominal": track.k_nominal,
-            "spacing": track.spacing,
-        },
+        track=MapTrackPublic.model_validate(
+            {k: getattr(track, k) for k in MapTrackPublic.model_fields}
+        ),
         chainage_min_m=cmin,
         chainage_max_m=cmax,
         from_m=window.from_m,
@@ -338,7 +335,7 @@ def chainage_map(
         runs_omitted=omitted,
         runs_pending=pending,
         spots=spot_cols,
-        zones=cluster_zones(spot_cols, runs) if spot_cols is not None and zones else None,
+        zones=map_zones(spot_cols, runs) if spot_cols is not None and zones else None,
         heatmap=heat,
         heatmap_note=note,
     )
@@ -380,7 +377,7 @@ def track_window(
                 recorded_at=run.recorded_at,
                 decimated=decimated,
                 chainage_m=xd.tolist(),
-                level_mm=_finite_or_none(cd["level_mm"]),
+                level_mm=nullable(cd["level_mm"]),
             )
         )
     return WindowPublic(from_m=from_m, to_m=to_m, runs=out)

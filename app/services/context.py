@@ -1,16 +1,18 @@
-"""What the services of one app instance share: settings, database, processing slots, worker."""
+"""What the services of one app instance share: settings, database, processing slots, and
+whom to tell that a run was queued (the worker, which knows the context, not the reverse)."""
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 from app.core.config import Settings
 from app.db.session import Database
 
-if TYPE_CHECKING:
-    from .worker import Worker
+
+def _nobody() -> None:
+    """No worker in this process: queued runs are found by the workers' polling."""
 
 
 @dataclass
@@ -22,17 +24,18 @@ class AppContext:
     slots : BoundedSemaphore
         Caps the inversions running at once in this process (inline and background alike):
         each holds a few hundred MB for a long log.
+    on_queued : callable
+        Called after a run is queued for the background (the app sets its worker's ``wake``).
     """
 
     settings: Settings
     db: Database
     slots: threading.BoundedSemaphore = field(init=False)
-    worker: Worker | None = None
+    on_queued: Callable[[], None] = _nobody
 
     def __post_init__(self) -> None:
         self.slots = threading.BoundedSemaphore(self.settings.workers)
 
     def wake_worker(self) -> None:
         """Tell this process's worker a run is queued (other processes find it by polling)."""
-        if self.worker is not None:
-            self.worker.wake()
+        self.on_queued()

@@ -26,7 +26,8 @@ BATCH_ROWS = 50_000
 _PLACEHOLDER = {"qmark": "?", "format": "%s", "pyformat": "%s"}
 
 
-def _nullable(a: NDArray[np.float64]) -> list[float | None]:
+def nullable(a: NDArray[np.float64]) -> list[float | None]:
+    """Values as a list with None where there is no data (NaN, inf): JSON null, SQL NULL."""
     # NaN means "no data here" (an axle that did not pass): stored as NULL on every database.
     values: list[float | None] = a.tolist()
     bad = np.flatnonzero(~np.isfinite(a))
@@ -70,12 +71,12 @@ def insert_profile(
         hi = min(n, lo + BATCH_ROWS)
         columns = [
             chainage_m[lo:hi].tolist(),
-            _nullable(level_mm[lo:hi]),
-            _nullable(front_level_mm[lo:hi]),
-            _nullable(rear_level_mm[lo:hi]),
-            _nullable(baseline_mm[lo:hi]),
-            _nullable(front_force_n[lo:hi]),
-            _nullable(rear_force_n[lo:hi]),
+            nullable(level_mm[lo:hi]),
+            nullable(front_level_mm[lo:hi]),
+            nullable(rear_level_mm[lo:hi]),
+            nullable(baseline_mm[lo:hi]),
+            nullable(front_force_n[lo:hi]),
+            nullable(rear_force_n[lo:hi]),
         ]
         if mark is not None:
             rows = list(zip([run_id] * (hi - lo), *columns, strict=True))

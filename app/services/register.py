@@ -1,7 +1,8 @@
 """A track's soft-spot register and its limits.
 
 The register is built on request (``engine.register.build_register``) from the stored soft
-spots of the track's merged runs (reference or aligned), shifted by each run's offset, with
+spots of the track's merged runs (reference or aligned; every processed run when none is
+merged), shifted by each run's offset, with
 each run's aligned extent as its coverage and its recording time (upload time when unknown)
 as the time of its observations. Limits are stored per track; a track without its own uses
 the engine's defaults.
@@ -14,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import fields
 from datetime import datetime
 
-from sqlalchemy import select
+from sqlalchemy import ColumnElement, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, SoftSpot, TrackLimits, TrackStiffnessSpot
@@ -52,12 +53,16 @@ def save_limits(session: Session, track_id: int, limits: Limits) -> TrackLimits:
 def track_observations(
     session: Session, track_id: int
 ) -> tuple[list[Observation], list[RunCoverage]]:
-    """Every soft spot of the track's merged runs and every such run's extent (aligned, m)."""
-    merged = (
-        Run.track_id == track_id,
-        Run.status == "done",
-        Run.alignment_status.in_(MERGED_STATUSES),
-    )
+    """Every soft spot of the track's merged runs and every such run's extent (aligned, m).
+
+    A track none of whose runs is merged (all stored before alignment existed, or none could
+    be aligned) uses every processed run at its own chainage: the register is the one zone
+    model, aligned or not.
+    """
+    done = (Run.track_id == track_id, Run.status == "done")
+    merged: tuple[ColumnElement[bool], ...] = (*done, Run.alignment_status.in_(MERGED_STATUSES))
+    if session.scalar(select(Run.id).where(*merged).limit(1)) is None:
+        merged = done
     runs = session.execute(
         select(Run.id, Run.recorded_at, Run.created_at, Run.chainage_offset_m,
                Run.chainage_min_m, Run.chainage_max_m).where(*merged)

@@ -10,12 +10,10 @@ from numpy.typing import NDArray
 from engine.decimate import minmax_indices
 from engine.runlog import RunLog
 
+from .profiles import nullable
+
 MAX_SIGNAL_POINTS = 5000
 """Most points kept per signal."""
-
-
-def _clean(a: NDArray[np.float64]) -> list[float | None]:
-    return [None if not np.isfinite(v) else float(v) for v in a]
 
 
 def minmax_envelope(
@@ -38,8 +36,8 @@ def minmax_envelope(
     t = np.asarray(time_s, dtype=np.float64)
     values = np.vstack([np.asarray(v, dtype=np.float64) for v in signals.values()])
     idx = minmax_indices(values, max_points)
-    out: dict[str, list[float | None]] = {"time_s": _clean(t[idx] - t[0])}
-    out |= {k: _clean(row[idx]) for k, row in zip(signals, values, strict=True)}
+    out: dict[str, list[float | None]] = {"time_s": nullable(t[idx] - t[0])}
+    out |= {k: nullable(row[idx]) for k, row in zip(signals, values, strict=True)}
     return out, idx.size < t.size
 
 

@@ -144,6 +144,8 @@ OPTION_UNITS = _OPTION_UNITS
 """Role -> the units a column of that role can be read in (the ``<role>_unit`` options)."""
 GRAVITY_MODES = _GRAVITY_MODES
 """Values of the ``gravity`` option."""
+UNIT_LABELS = {"m/s2": "m/s²", "g": "g (9.81 m/s²)", "epoch_s": "epoch seconds"}
+"""How a unit is written for people, where that differs from its option value."""
 ROLE_LABELS = {role: r.label for role, r in _ROLES.items()}
 """Role -> its name in words (``'pitch_rate'`` -> ``'pitch rate'``)."""
 _UNIT_LABEL = {"m/s2": "m/s²", "epoch_s": "epoch s"}

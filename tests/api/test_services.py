@@ -71,3 +71,24 @@ def test_window_rule() -> None:
     with pytest.raises(Invalid) as err:
         Window(5.0, 4.0)
     assert err.value.facts["field"] == "to_m"
+
+
+def test_csv_options_are_derived_from_the_reader() -> None:
+    """The upload schema, the preview's option list and the engine CLI's flags are the fields
+    of engine.logio.CsvOptions, units included (chainage_unit among them)."""
+    import dataclasses
+
+    from app.schemas.runs import CsvOptionsFields
+    from app.services.chart_views import PREVIEW_OPTION_NAMES
+    from engine.cli import build_parser
+    from engine.logio import OPTION_UNITS, CsvOptions
+
+    names = [f.name for f in dataclasses.fields(CsvOptions)]
+    assert list(CsvOptionsFields.model_fields) == names == list(PREVIEW_OPTION_NAMES)
+    assert "chainage_unit" in names
+    schema = CsvOptionsFields.model_json_schema()["properties"]
+    for role, units in OPTION_UNITS.items():
+        assert schema[f"{role}_unit"]["x-units"] == list(units)
+    argv = ["process", "run.csv", "--out", "out", "--chainage-unit", "km"]
+    flags = build_parser().parse_args(argv)
+    assert flags.chainage_unit == "km"

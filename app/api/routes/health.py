@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel
 from sqlalchemy import func, select, text
@@ -27,7 +27,7 @@ class HealthPublic(BaseModel):
 
 
 @router.get("/healthz", response_model=HealthPublic, responses={503: {"model": HealthPublic}})
-def healthz(ctx: CtxDep) -> HealthPublic | JSONResponse:
+def healthz(request: Request, ctx: CtxDep) -> HealthPublic | JSONResponse:
     """200 when the database answers (and the worker runs), 503 otherwise."""
     processing: int | None = None
     try:
@@ -40,7 +40,8 @@ def healthz(ctx: CtxDep) -> HealthPublic | JSONResponse:
     if not ctx.settings.start_worker:
         worker: Literal["running", "stopped", "disabled"] = "disabled"
     else:
-        worker = "running" if ctx.worker is not None and ctx.worker.alive else "stopped"
+        running = request.app.state.worker
+        worker = "running" if running is not None and running.alive else "stopped"
     status: Literal["ok", "degraded", "error"] = (
         "error" if database == "error" else ("degraded" if worker == "stopped" else "ok")
     )
