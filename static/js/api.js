@@ -76,6 +76,58 @@ async function parseBody(response) {
   return await response.text();
 }
 
+// The client reads only keys the OpenAPI schema gives (no guessing between shapes). Tests check
+// it: with window.__tpKeyLog set to an array before the app loads, every key read from an
+// answer is recorded as {method, url, path}, and tests/browser/test_client_keys.py looks each
+// one up in the served /openapi.json. Without the flag answers are returned untouched.
+const NOT_KEYS = new Set(["then", "toJSON", "constructor"]);
+
+function watched(body, method, url) {
+  const log = globalThis.__tpKeyLog;
+  if (!Array.isArray(log) || body === null || typeof body !== "object") return body;
+  const seen = new Set();
+  const proxies = new WeakMap();
+  const wrap = (obj, path) => {
+    if (proxies.has(obj)) return proxies.get(obj);
+    const proxy = new Proxy(obj, {
+      get(target, prop, receiver) {
+        const value = Reflect.get(target, prop, receiver);
+        if (typeof prop !== "string" || NOT_KEYS.has(prop)) return value;
+        const index = Array.isArray(target);
+        if (index && !/^\d+$/.test(prop)) return value; // length, map, slice, ...
+        const next = index ? [...path, "[]"] : [...path, prop];
+        if (!index && (Object.hasOwn(target, prop) || value === undefined)) {
+          const key = `${method} ${url} ${next.join(".")}`;
+          if (!seen.has(key)) {
+            seen.add(key);
+            log.push({ method, url, path: next });
+          }
+        }
+        return value !== null && typeof value === "object" ? wrap(value, next) : value;
+      },
+    });
+    proxies.set(obj, proxy);
+    return proxy;
+  };
+  return wrap(body, []);
+}
+
+let openapi = null;
+
+/** The service's OpenAPI document (fetched once): the vocabulary the pages build forms from. */
+export function apiSchema() {
+  if (!openapi) {
+    openapi = fetch("/openapi.json", { headers: { Accept: "application/json" } }).then((r) => {
+      if (!r.ok) throw new ApiError(r.status, r.statusText, "/openapi.json");
+      return r.json();
+    });
+    openapi.catch(() => {
+      openapi = null;
+    });
+  }
+  return openapi;
+}
+
 /** Fetch JSON from the API; throws ApiError with the server's detail on HTTP errors. */
 export async function apiFetch(path, options = {}) {
   const url = path.startsWith("http") || path.startsWith("/") ? path : `${API}/${path}`;
@@ -90,7 +142,7 @@ export async function apiFetch(path, options = {}) {
     const detail = body && typeof body === "object" && "detail" in body ? body.detail : body;
     throw new ApiError(response.status, detail || response.statusText, url);
   }
-  return body;
+  return watched(body, (options.method || "GET").toUpperCase(), url);
 }
 
 /** GET JSON; resolves to null instead of throwing when the endpoint answers 404/405. */
@@ -110,17 +162,6 @@ export function apiPostJson(path, body) {
     headers: { "Content-Type": "application/json", Accept: "application/json" },
     body: JSON.stringify(body),
   });
-}
-
-/** Items of a list answer, whether the API returns a bare list or {items|data: [...]}. */
-export function listItems(answer) {
-  if (Array.isArray(answer)) return answer;
-  if (answer && typeof answer === "object") {
-    for (const key of ["items", "data", "results", "runs", "tracks", "vehicles"]) {
-      if (Array.isArray(answer[key])) return answer[key];
-    }
-  }
-  return [];
 }
 
 /**
@@ -146,7 +187,7 @@ export function uploadWithProgress(path, formData, onProgress) {
         /* not JSON: keep the text */
       }
       if (xhr.status >= 200 && xhr.status < 300) {
-        resolve(body);
+        resolve(watched(body, "POST", `${API}/${path}`));
       } else {
         const detail = body && typeof body === "object" && "detail" in body ? body.detail : body;
         reject(new ApiError(xhr.status, detail || xhr.statusText, path));
@@ -156,23 +197,4 @@ export function uploadWithProgress(path, formData, onProgress) {
     xhr.addEventListener("abort", () => reject(new ApiError(0, "The upload was cancelled.", path)));
     xhr.send(formData);
   });
-}
-
-/** A run's id, whichever key the API uses. */
-export function runId(run) {
-  return run.id ?? run.run_id;
-}
-
-/** The track name of a run (object or plain string, depending on the API shape). */
-export function trackName(run) {
-  const t = run.track ?? run.track_name;
-  if (t && typeof t === "object") return t.name ?? String(t.id ?? "");
-  return t ?? "";
-}
-
-/** The vehicle name of a run (object or plain string). */
-export function vehicleName(run) {
-  const v = run.vehicle ?? run.vehicle_name;
-  if (v && typeof v === "object") return v.name ?? String(v.id ?? "");
-  return v ?? "";
 }

@@ -1,6 +1,7 @@
-// Client-side look at the head of a run log (first ~64 KB): delimiter, header, first rows and a
-// first guess of which column is which and in what unit. The server's preview (engine.logio),
-// when available, has the last word; this keeps the page useful without it.
+// Client-side look at the head of a run log (first ~64 KB): its bytes (gzip decompressed), and
+// its first rows for display and the sample-rate estimate. Which column is which, and in what
+// unit, is never guessed here: the service's preview (POST /views/csv-preview, the engine's own
+// reader) answers that, so the page and an upload always agree.
 
 export const HEAD_BYTES = 64 * 1024;
 
@@ -36,7 +37,7 @@ export async function readHead(file, maxBytes = HEAD_BYTES) {
 }
 
 function detectDelimiter(line) {
-  const candidates = [",", ";", "\t", "|"];
+  const candidates = [",", ";", "\t"]; // the engine's delimiters (whitespace aside)
   let best = ",";
   let bestCount = 0;
   for (const c of candidates) {
@@ -79,14 +80,6 @@ export function parseHead(text, complete = true) {
   return { delimiter, columns, rows, numericRows, skipped };
 }
 
-const ROLE_PATTERNS = {
-  time: [/^time/i, /^t$/i, /^t_/i, /timestamp/i, /epoch/i, /^ts$/i, /^sec/i],
-  accel: [/^acc/i, /^a_?z/i, /accel/i, /^az/i, /vert.*acc/i],
-  pitch_rate: [/pitch/i, /^gyro/i, /^g_?y/i, /^gy/i, /omega/i, /rate/i, /^wy/i],
-  speed: [/speed/i, /^vel/i, /^v$/i, /^v_/i, /kmh/i],
-  chainage: [/chain/i, /^odo/i, /^dist/i, /^pos/i, /^x_?m$/i, /^km/i],
-};
-
 function median(values) {
   const v = values.filter((x) => Number.isFinite(x)).sort((a, b) => a - b);
   if (v.length === 0) return NaN;
@@ -95,66 +88,6 @@ function median(values) {
 
 function columnValues(parsed, idx) {
   return parsed.numericRows.map((r) => r[idx]);
-}
-
-/** Guess the unit of a column from its name and values (null when unsure). */
-function guessUnit(role, name, values) {
-  const n = name.toLowerCase();
-  const med = Math.abs(median(values));
-  if (role === "time") {
-    if (/epoch|unix/.test(n) || med > 1e8) return "epoch_s";
-    if (/(_|\b|\[|\()ms\b|millis/.test(n)) return "ms";
-    if (/(_|\b|\[|\()s\b|sec/.test(n)) return "s";
-    return null;
-  }
-  if (role === "accel") {
-    if (/mps2|m\/s2|m\/s\^2|ms2|m_s2/.test(n)) return "m/s2";
-    if (/(_|\b|\[|\()g\b|_g$/.test(n)) return "g";
-    if (Number.isFinite(med) && Math.abs(med - 1) < 0.2) return "g";
-    return null;
-  }
-  if (role === "pitch_rate") {
-    if (/dps|deg/.test(n)) return "deg/s";
-    if (/radps|rad/.test(n)) return "rad/s";
-    return null;
-  }
-  if (role === "speed") {
-    if (/kmh|km\/h|kph/.test(n)) return "km/h";
-    if (/mps|m\/s|ms\b/.test(n)) return "m/s";
-    return null;
-  }
-  return null;
-}
-
-/**
- * Guess the role of each column: {time, accel, pitch_rate, speed, chainage} → {column, unit}.
- * Also guesses whether gravity is included (accelerations around +1 g / +9.81 m/s²).
- */
-export function recognise(parsed) {
-  const used = new Set();
-  const mapping = {};
-  for (const [role, patterns] of Object.entries(ROLE_PATTERNS)) {
-    let found = -1;
-    for (const pattern of patterns) {
-      found = parsed.columns.findIndex((c, i) => !used.has(i) && pattern.test(c));
-      if (found >= 0) break;
-    }
-    if (found >= 0) {
-      used.add(found);
-      const name = parsed.columns[found];
-      mapping[role] = { column: name, unit: guessUnit(role, name, columnValues(parsed, found)) };
-    }
-  }
-  let gravity = null;
-  if (mapping.accel) {
-    const idx = parsed.columns.indexOf(mapping.accel.column);
-    const med = median(columnValues(parsed, idx));
-    if (Number.isFinite(med)) {
-      const g = mapping.accel.unit === "g" ? 1 : 9.80665;
-      gravity = Math.abs(med - g) < 0.2 * g ? "included" : Math.abs(med) < 0.2 * g ? "removed" : null;
-    }
-  }
-  return { mapping, gravity };
 }
 
 /** Sample rate (Hz) estimated from the time column of the preview, or null. */

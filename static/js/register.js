@@ -32,7 +32,7 @@ export const REGISTER_COLUMNS = [
   { key: "priority", label: "Priority", num: true, get: (d) => d.priority, show: (d) => String(d.priority) },
   { key: "level", label: "Level", title: "Limit level reached by the latest run (none: below the alert limits)", get: (d) => (d.level ? 3 - ["alert", "intervention", "immediate"].indexOf(d.level) : 9), show: (d) => (d.level ? SHORT_LEVEL[d.level] : "none"), cls: (d) => `level level-${d.level || "none"}` },
   { key: "status", label: "Status", get: (d) => d.status, show: (d) => d.status, cls: (d) => `defect-status defect-${d.status}` },
-  { key: "runs_seen", label: "Seen", num: true, get: (d) => d.runs_seen, show: (d) => `${d.runs_seen} of ${d.runs_covering ?? d.runs_seen}` },
+  { key: "runs_seen", label: "Seen", num: true, get: (d) => d.runs_seen, show: (d) => `${d.runs_seen} of ${d.runs_covering}` },
   { key: "depth_mm", label: "Depth (mm)", num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
   { key: "stiffness_loss_pct", label: "Loss (%)", num: true, get: (d) => d.stiffness_loss_pct, show: (d) => fmt(d.stiffness_loss_pct, 0) },
   { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month", num: true, get: (d) => d.trend_mm_per_month, show: (d) => signed(d.trend_mm_per_month, 3) },

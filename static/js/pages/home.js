@@ -1,7 +1,7 @@
 // Home: the tracks (each opens its chainage map) and the latest runs (each opens its run view).
 
 import { h, clear, announce, fmt, fmtDate, messageBox } from "../dom.js";
-import { apiFetch, listItems, runId, trackName, vehicleName } from "../api.js";
+import { apiFetch } from "../api.js";
 
 const PAGE = 50;
 
@@ -23,8 +23,8 @@ export async function render(main) {
       apiFetch("tracks?limit=1000"),
       apiFetch(`runs?limit=${PAGE}`),
     ]);
-    tracks = listItems(trackAnswer);
-    runs = listItems(runAnswer);
+    tracks = trackAnswer.data;
+    runs = runAnswer.data;
     total = typeof runAnswer.count === "number" ? runAnswer.count : runs.length;
   } catch (err) {
     status.show(`Cannot load the data: ${err.message}`, "error");
@@ -36,7 +36,7 @@ export async function render(main) {
   } else {
     const list = h("ul", { class: "track-list", id: "track-list" });
     for (const t of tracks) {
-      const count = t.run_count ?? t.n_runs ?? t.runs_count;
+      const count = t.n_runs;
       list.appendChild(h("li", {},
         h("a", { href: `#/tracks/${encodeURIComponent(t.id)}`, class: "track-link" }, t.name),
         count !== undefined ? h("span", { class: "muted" }, ` · ${count} run${count === 1 ? "" : "s"}`) : null,
@@ -57,7 +57,7 @@ export async function render(main) {
   const fill = (items) => {
     clear(tbody);
     for (const r of items) {
-      const id = runId(r);
+      const id = r.id;
       const del = h("button", {
         type: "button", class: "button small danger", "aria-label": `Delete run ${id}`,
         onclick: async () => {
@@ -65,7 +65,7 @@ export async function render(main) {
           if (!window.confirm(`Delete run ${id} and its profile? This cannot be undone.`)) return;
           try {
             await apiFetch(`runs/${encodeURIComponent(id)}`, { method: "DELETE" });
-            runs = runs.filter((x) => runId(x) !== id);
+            runs = runs.filter((x) => x.id !== id);
             total -= 1;
             fill(runs);
             update();
@@ -77,8 +77,8 @@ export async function render(main) {
       }, "Delete");
       tbody.appendChild(h("tr", {},
         h("th", { scope: "row" }, h("a", { href: `#/runs/${encodeURIComponent(id)}` }, `Run ${id}`)),
-        h("td", {}, h("a", { href: `#/tracks/${encodeURIComponent(r.track_id ?? trackName(r))}` }, trackName(r))),
-        h("td", {}, vehicleName(r) ? h("a", { href: `#/vehicles/${encodeURIComponent(vehicleName(r))}` }, vehicleName(r)) : ""),
+        h("td", {}, h("a", { href: `#/tracks/${encodeURIComponent(r.track_id)}` }, r.track)),
+        h("td", {}, h("a", { href: `#/vehicles/${encodeURIComponent(r.vehicle)}` }, r.vehicle)),
         h("td", {}, fmtDate(r.recorded_at)),
         h("td", { class: "num" }, fmt(r.start_chainage_m, 1)),
         h("td", {}, h("span", { class: `status status-${r.status}`, title: r.status === "failed" && r.error ? String(r.error.message || r.error) : "" }, r.status)),
@@ -98,7 +98,7 @@ export async function render(main) {
     };
     more.addEventListener("click", async () => {
       try {
-        const next = listItems(await apiFetch(`runs?limit=${PAGE}&offset=${runs.length}`));
+        const next = (await apiFetch(`runs?limit=${PAGE}&offset=${runs.length}`)).data;
         runs = runs.concat(next);
         fill(runs);
         update();

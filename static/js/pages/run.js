@@ -2,7 +2,7 @@
 // demand; raw signals against time; metadata and quality; downloads.
 
 import { h, clear, append, announce, fmt, fmtDate, downloadBlob, messageBox } from "../dom.js";
-import { ApiError, apiFetch, apiGetOptional, listItems, trackName, vehicleName } from "../api.js";
+import { ApiError, apiFetch, apiGetOptional } from "../api.js";
 import {
   COLORS, CONFIG, baseLayout, plotly, softSpotShapes, softSpotLabels, zoomControls, zoomTo,
 } from "../plots.js";
@@ -22,7 +22,7 @@ const META_FIELDS = [
   ["chainage_min_m", "Chainage from", (v) => `${fmt(v, 1)} m`],
   ["chainage_max_m", "Chainage to", (v) => `${fmt(v, 1)} m`],
   ["method", "Inversion method", (v) => v],
-  ["filename", "File", (v) => v],
+  ["original_filename", "File", (v) => v],
   ["content_hash", "Content hash", (v) => String(v).slice(0, 16)],
 ];
 
@@ -63,11 +63,11 @@ export async function render(main, [id]) {
     return null;
   }
 
-  const track = trackName(run);
+  const track = run.track;
   append(subtitle, [
-    "Track ", h("a", { href: `#/tracks/${encodeURIComponent(run.track_id ?? track)}`, id: "run-track-link" }, track),
-    vehicleName(run) ? [" · vehicle ", h("a", { href: `#/vehicles/${encodeURIComponent(vehicleName(run))}`, id: "run-vehicle-link" }, vehicleName(run)),
-      run.vehicle_version ? ` (parameters version ${run.vehicle_version})` : ""] : "",
+    "Track ", h("a", { href: `#/tracks/${encodeURIComponent(run.track_id)}`, id: "run-track-link" }, track),
+    " · vehicle ", h("a", { href: `#/vehicles/${encodeURIComponent(run.vehicle)}`, id: "run-vehicle-link" }, run.vehicle),
+    run.vehicle_version ? ` (parameters version ${run.vehicle_version})` : "",
     run.recorded_at ? ` · recorded ${fmtDate(run.recorded_at)}` : "",
   ]);
 
@@ -108,7 +108,7 @@ export async function render(main, [id]) {
     apiFetch(`/api/v1/views/runs/${encId}/profile?max_points=${MAX_POINTS}`),
     apiFetch(`runs/${encId}/soft-spots`),
   ]);
-  const spots = listItems(spotsAnswer).slice().sort((a, b) => a.start_m - b.start_m);
+  const spots = (spotsAnswer || []).slice().sort((a, b) => a.start_m - b.start_m);
 
   // ---- summary -------------------------------------------------------------------------------
   const summary = h("p", { class: "summary", id: "run-summary" },
@@ -334,14 +334,14 @@ async function loadSignals(encId, div, note) {
 }
 
 function metadataSection(run) {
-  const meta = { ...run, ...(run.metadata || {}) };
+  const meta = run;
   const dl = h("dl", { class: "meta", id: "run-metadata" });
   dl.append(h("dt", {}, "Status"), h("dd", {}, h("span", { class: `status status-${run.status}` }, run.status)));
   for (const [key, label, format] of META_FIELDS) {
     if (meta[key] === undefined || meta[key] === null || meta[key] === "") continue;
     dl.append(h("dt", {}, label), h("dd", {}, format(meta[key])));
   }
-  const quality = run.quality || (run.metadata && run.metadata.quality) || null;
+  const quality = run.quality;
   const qBox = h("dl", { class: "meta", id: "run-quality" });
   if (quality && typeof quality === "object") {
     for (const [key, value] of Object.entries(quality)) {

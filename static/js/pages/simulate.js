@@ -3,7 +3,7 @@
 // service's POST /api/v1/simulate, which stores the run (track "simulated") and returns the truth.
 
 import { h, clear, append, announce, field, fmt, messageBox } from "../dom.js";
-import { ApiError, apiFetch, apiPostJson, listItems, runId } from "../api.js";
+import { ApiError, apiFetch, apiPostJson } from "../api.js";
 import { COLORS, CONFIG, baseLayout, plotly, softSpotShapes, softSpotLabels, zoomControls } from "../plots.js";
 
 const NOISE_PRESETS = {
@@ -161,7 +161,7 @@ export async function render(main) {
     const t0 = performance.now();
     try {
       const answer = await apiPostJson("simulate?wait=true", simulateBody(request));
-      const id = runId(answer.run);
+      const id = answer.run.id;
       if (answer.run.status === "failed") throw new Error(answer.run.error ? answer.run.error.message : "processing failed");
       const enc = encodeURIComponent(id);
       const [profile, spots, signals] = await Promise.all([
@@ -170,7 +170,7 @@ export async function render(main) {
         apiFetch(`runs/${enc}/signals`).catch(() => null),
       ]);
       if (stopped) return;
-      const result = { truth: answer.truth, zones: answer.truth.zones, profile, soft_spots: listItems(spots), signals };
+      const result = { truth: answer.truth, zones: answer.truth.zones, profile, soft_spots: spots, signals };
       await showResults(result);
       const n = result.soft_spots.length;
       const link = h("a", { href: `#/runs/${enc}`, id: "sim-run-link" }, `open it as run ${id}`);

@@ -2,11 +2,12 @@
 // (x chainage, y run, colour + size + symbol = severity), the defect register (runs aligned,
 // soft spots merged into tracked defects with status, trend and priority) and the profiles of
 // all runs around a chosen defect, the aggregated profile, alerts since a date, the track's
-// limits and exports. Tracks whose runs were never aligned fall back to zones clustered here.
+// limits and exports. The register is the only zone model: a track whose runs were never
+// aligned gets it too, over its runs as logged.
 
-import { h, clear, append, announce, fmt, fmtDate, fmtDay, messageBox } from "../dom.js";
-import { ApiError, apiFetch, apiGetOptional, listItems } from "../api.js";
-import { CONFIG, baseLayout, plotly, softSpotShapes, viridis, zoomControls } from "../plots.js";
+import { h, clear, append, announce, fmt, fmtDate, messageBox } from "../dom.js";
+import { ApiError, apiFetch, apiGetOptional } from "../api.js";
+import { CONFIG, baseLayout, plotly, viridis, zoomControls } from "../plots.js";
 import {
   REGISTER_COLUMNS, aggregateCard, aggregateTraces, alertsCard, alignmentNotice, defectShapes,
   exportLinks, limitsCard,
@@ -26,27 +27,12 @@ function severityClass(depth) {
   return CLASSES.findIndex((c) => depth < c.max);
 }
 
-const ZONE_COLUMNS = [
-  { key: "rank", label: "Rank", num: true, get: (z) => z.rank },
-  { key: "start_m", label: "Zone (m)", num: true, get: (z) => z.start_m, show: (z) => `${fmt(z.start_m, 1)}–${fmt(z.end_m, 1)}` },
-  { key: "peak_m", label: "Peak (m)", num: true, get: (z) => z.peak_m, show: (z) => fmt(z.peak_m, 1) },
-  { key: "runs_seen", label: "Seen", num: true, get: (z) => z.runs_seen, show: (z) => (z.runs_total ? `${z.runs_seen} of ${z.runs_total}` : String(z.runs_seen)) },
-  { key: "depth_mm", label: "Depth (mm)", num: true, get: (z) => z.depth_mm, show: (z) => fmt(z.depth_mm, 2) },
-  { key: "depth_max_mm", label: "Max (mm)", num: true, get: (z) => z.depth_max_mm ?? z.depth_mm, show: (z) => fmt(z.depth_max_mm ?? z.depth_mm, 2) },
-  { key: "stiffness_loss_pct", label: "Loss (%)", num: true, get: (z) => z.stiffness_loss_pct, show: (z) => fmt(z.stiffness_loss_pct, 0) },
-  { key: "trend_mm_per_month", label: "Trend (mm/month)", num: true, optional: true, get: (z) => z.trend_mm_per_month, show: (z) => fmt(z.trend_mm_per_month, 3) },
-  { key: "status", label: "Status", optional: true, get: (z) => z.status, show: (z) => z.status ?? "—" },
-  { key: "priority", label: "Priority", optional: true, get: (z) => z.priority, show: (z) => z.priority ?? "—" },
-  { key: "first_seen", label: "First seen", get: (z) => z.first_seen || "", show: (z) => fmtDay(z.first_seen) },
-  { key: "last_seen", label: "Last seen", get: (z) => z.last_seen || "", show: (z) => fmtDay(z.last_seen) },
-];
-
 /**
  * The id of the track a route names (#/tracks/{id} or #/tracks/{name}). API calls use the id:
  * a name may hold "/" or other characters that do not survive a URL path.
  */
 async function resolveTrack(ref) {
-  const tracks = listItems(await apiFetch("tracks?limit=1000"));
+  const tracks = (await apiFetch("tracks?limit=1000")).data;
   const byId = /^\d+$/.test(ref) ? tracks.find((t) => String(t.id) === ref) : null;
   return byId || tracks.find((t) => t.name === ref) || null;
 }
@@ -73,33 +59,35 @@ export async function render(main, [ref]) {
   heading.querySelector(".track-name").textContent = name;
   const enc = encodeURIComponent(track.id);
   const t0 = performance.now();
+  // The map, the register (aligned runs; every run when none is aligned) and the track's runs
+  // are asked for at once: the register is computed while the map travels.
+  const mapP = apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200&zones=false`);
+  const registerP = Promise.all([
+    apiGetOptional(`/api/v1/tracks/${enc}/defects`),
+    apiFetch(`/api/v1/runs?track=${enc}&limit=1000`).catch(() => null),
+  ]);
+  registerP.catch(() => {}); // awaited below; no unhandled rejection while the map loads
   let map;
   try {
-    map = await apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200`);
+    map = await mapP;
   } catch (err) {
     status.show(err instanceof ApiError && err.status === 404 ? `There is no track “${name}”.` : `Cannot load the chainage map: ${err.message}`, "error");
     return null;
   }
-  // The service's register of tracked defects replaces the zones this view clusters itself,
-  // unless no run of the track was ever aligned (data stored before alignment existed).
-  let register = null;
+  let register = [];
   let trackRuns = [];
   try {
-    const [defects, runList] = await Promise.all([
-      apiGetOptional(`/api/v1/tracks/${enc}/defects`),
-      apiFetch(`/api/v1/runs?track=${enc}&limit=1000`).catch(() => null),
-    ]);
-    trackRuns = runList ? listItems(runList) : [];
-    if (defects) register = listItems(defects);
+    const [defects, runList] = await registerP;
+    trackRuns = runList ? runList.data : [];
+    if (defects) register = defects;
   } catch (err) {
     status.show(`Cannot load the defect register: ${err.message}`, "error");
-    register = null;
   }
+  // The aggregated profile is made of aligned runs only: no card for a track without any.
   const anyAligned = trackRuns.some((r) => r.alignment && r.alignment.status !== "unaligned");
-  if (register && register.length === 0 && !anyAligned) register = null;
 
   const runs = map.runs || [];
-  const doneRuns = runs.filter((r) => r.status === undefined || r.status === "done");
+  const doneRuns = runs; // the map shows processed runs only
   const trackInfo = map.track || {};
   append(lead, [
     `${doneRuns.length} processed run${doneRuns.length === 1 ? "" : "s"}`,
@@ -191,66 +179,57 @@ export async function render(main, [ref]) {
   });
 
   // ---- aggregated profile ---------------------------------------------------------------------
-  let zones = normaliseZones(register || map.zones || [], runs.length, Boolean(register));
-  let aggregate = null;
-  if (register) {
-    aggregate = await aggregateCard(enc, () => zones);
-    main.appendChild(aggregate.section);
-  }
+  let zones = ranked(register);
+  const aggregate = anyAligned ? await aggregateCard(enc, () => zones) : null;
+  if (aggregate) main.appendChild(aggregate.section);
   // Stiffness separated from rail geometry across passes of different wheel loads (issue 10).
-  const stiffness = register ? stiffnessCard(enc) : null;
+  const stiffness = anyAligned ? stiffnessCard(enc) : null;
   if (stiffness) {
     main.appendChild(stiffness.section);
     stiffness.render();
   }
 
-  // ---- register (or zones) -------------------------------------------------------------------
-  // The register comes ranked by priority; the view's own zones are ranked by severity here.
+  // ---- register ------------------------------------------------------------------------------
+  // The register comes ranked by priority.
   const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "img", "aria-label": "Profiles of all runs around the selected zone" });
   const zoneInfo = h("p", { class: "hint", id: "zone-info" }, "Choose a zone in the table to see its profile across runs.");
   const onSelect = (zone) => {
     showZone(zone);
     zonePlotDiv.scrollIntoView({ behavior: "smooth", block: "nearest" });
   };
-  const columns = register ? REGISTER_COLUMNS : ZONE_COLUMNS;
   const tableBox = h("div", { id: "register-box" });
   const drawTable = () => {
     clear(tableBox);
     tableBox.appendChild(zones.length
-      ? zoneTable(zones, onSelect, columns)
-      : h("p", { class: "muted", id: "register-empty" }, register ? "No defect: no aligned run found a soft spot on this track." : "No soft spot on this track."));
+      ? zoneTable(zones, onSelect)
+      : h("p", { class: "muted", id: "register-empty" }, "No defect: no run found a soft spot on this track."));
   };
   drawTable();
   // The register has many columns: it and its plot take the full width, one above the other.
-  main.appendChild(h("div", { class: register ? "track-register" : "track-lower" },
+  main.appendChild(h("div", { class: "track-register" },
     h("section", { class: "card", "aria-labelledby": "zones-h" },
-      h("h2", { id: "zones-h" }, register ? "Defect register" : "Zones ranked by severity"),
-      h("p", { class: "hint" }, register
-        ? "Soft spots of all aligned runs merged into tracked defects, most urgent first (priority from the limits below, then depth). Seen: runs that detected it, of the aligned runs covering it. Depth and loss: latest run. Trend: least-squares change per month. Status: new (one run), confirmed (two), worsening (significant growth) or stable. Click a column title to sort; click a defect (or its rank) to see its profile across runs."
-        : "No run of this track is aligned (stored before alignment existed): these zones are clustered as logged. Soft spots of all runs merged where they overlap. Seen: runs that detected the zone, of the runs covering it. Depth and loss: medians over those runs. Rank: median depth × share of runs that saw it, so a dip seen on every pass ranks above a one-off. Click a column title to sort; click a zone (or its rank) to see its profile across runs."),
+      h("h2", { id: "zones-h" }, "Defect register"),
+      h("p", { class: "hint" }, "Soft spots of all aligned runs (of every run, as logged, when none is aligned) merged into tracked defects, most urgent first (priority from the limits below, then depth). Seen: runs that detected it, of the runs covering it. Depth and loss: latest run. Trend: least-squares change per month. Status: new (one run), confirmed (two), worsening (significant growth) or stable. Click a column title to sort; click a defect (or its rank) to see its profile across runs."),
       tableBox),
     h("section", { class: "card", "aria-labelledby": "zoneplot-h" },
-      h("h2", { id: "zoneplot-h" }, register ? "Defect across runs" : "Zone across runs"),
+      h("h2", { id: "zoneplot-h" }, "Defect across runs"),
       zoneInfo,
       zonePlotDiv),
   ));
 
   // ---- alerts and limits ---------------------------------------------------------------------
-  let alerts = null;
-  if (register) {
-    alerts = alertsCard(enc);
-    const limits = limitsCard(enc, async () => {
-      register = listItems(await apiFetch(`/api/v1/tracks/${enc}/defects`));
-      zones = normaliseZones(register, runs.length, true);
-      drawTable();
-      if (aggregate) await aggregate.render();
-      if (stiffness) await stiffness.render();
-      await alerts.load();
-    });
-    main.appendChild(h("div", { class: "track-lower" }, alerts.section, limits.section));
-    limits.load();
-    alerts.load();
-  }
+  const alerts = alertsCard(enc);
+  const limits = limitsCard(enc, async () => {
+    register = await apiFetch(`/api/v1/tracks/${enc}/defects`);
+    zones = ranked(register);
+    drawTable();
+    if (aggregate) await aggregate.render();
+    if (stiffness) await stiffness.render();
+    await alerts.load();
+  });
+  main.appendChild(h("div", { class: "track-lower" }, alerts.section, limits.section));
+  limits.load();
+  alerts.load();
 
   async function showZone(zone) {
     const width = Math.max(zone.end_m - zone.start_m, 2);
@@ -276,7 +255,7 @@ export async function render(main, [ref]) {
       traces.push(...aggregateTraces(aggWindow));
       const layout = baseLayout({
         height: 380,
-        shapes: register ? defectShapes([zone]) : softSpotShapes([zone]),
+        shapes: defectShapes([zone]),
         xaxis: { title: { text: "Chainage (m)" }, range: [from, to], gridcolor: "#e3e6ea" },
         legend: { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
         margin: { l: 64, r: 12, t: 24, b: 52 },
@@ -379,24 +358,12 @@ function mapLayout(labels, map) {
   });
 }
 
-/** Zones from either this view's clustering or the service's defect register, ranked. */
-function normaliseZones(list, nRuns, keepOrder = false) {
-  const zones = list.map((z) => ({
-    ...z,
-    runs_seen: z.runs_seen ?? z.n_runs ?? 1,
-    runs_total: z.runs_total ?? nRuns,
-    depth_mm: z.depth_mm ?? z.depth_median_mm ?? z.depth_max_mm,
-  }));
-  if (!keepOrder) {
-    zones.sort((a, b) => (b.severity ?? b.depth_mm) - (a.severity ?? a.depth_mm) || b.runs_seen - a.runs_seen);
-  }
-  zones.forEach((z, i) => {
-    z.rank = i + 1;
-  });
-  return zones;
+/** The register's defects with their rank (the register comes most urgent first). */
+function ranked(defects) {
+  return defects.map((d, i) => ({ ...d, rank: i + 1 }));
 }
 
-function zoneTable(zones, onSelect, columns = ZONE_COLUMNS) {
+function zoneTable(zones, onSelect, columns = REGISTER_COLUMNS) {
   const cols = columns.filter((c) => !c.optional || zones.some((z) => z[c.key] !== undefined && z[c.key] !== null));
   let sortKey = "rank";
   let sortDir = 1;
@@ -461,6 +428,6 @@ function zoneTable(zones, onSelect, columns = ZONE_COLUMNS) {
   draw();
   return h("div", { class: "table-scroll zone-table-wrap" },
     h("table", { class: "data sortable", id: "zone-table" },
-      h("caption", { class: "visually-hidden" }, columns === ZONE_COLUMNS ? "Zones of soft spots ranked by severity; column titles sort the table" : "Defect register, most urgent first; column titles sort the table"),
+      h("caption", { class: "visually-hidden" }, "Defect register, most urgent first; column titles sort the table"),
       h("thead", {}, headRow), tbody));
 }

@@ -3,31 +3,43 @@
 
 import { h, clear, append, announce, field, fmt, messageBox } from "../dom.js";
 import {
-  ApiError, apiFetch, apiPostJson, listItems, uploadWithProgress, runId,
+  ApiError, apiFetch, apiPostJson, apiSchema, uploadWithProgress,
 } from "../api.js";
-import { readHead, parseHead, recognise, estimateRate, HEAD_BYTES } from "../csvpreview.js";
+import { readHead, parseHead, estimateRate, HEAD_BYTES } from "../csvpreview.js";
 
-const ROLES = [
-  { key: "time", label: "Time", column: "time_column", unit: "time_unit", units: ["s", "ms", "epoch_s"],
-    unitLabels: { s: "seconds (s)", ms: "milliseconds (ms)", epoch_s: "epoch seconds" } },
-  { key: "accel", label: "Vertical acceleration", column: "accel_column", unit: "accel_unit", units: ["m/s2", "g"],
-    unitLabels: { "m/s2": "m/s²", g: "g (9.81 m/s²)" } },
-  { key: "pitch_rate", label: "Pitch rate", column: "pitch_rate_column", unit: "pitch_rate_unit", units: ["rad/s", "deg/s"],
-    unitLabels: { "rad/s": "rad/s", "deg/s": "deg/s" } },
-  { key: "speed", label: "Speed", column: "speed_column", unit: "speed_unit", units: ["m/s", "km/h"],
-    unitLabels: { "m/s": "m/s", "km/h": "km/h" } },
-  { key: "chainage", label: "Chainage (optional)", column: "chainage_column", unit: null, units: [] },
-];
+// The vocabulary of this page comes from the service's OpenAPI schema, which is derived from
+// the engine's CsvOptions (column roles, their units) and VehicleParams (Table 1 defaults).
+const GRAVITY_TEXT = {
+  included: "Included (raw IMU, about +1 g at rest)",
+  removed: "Removed (about 0 at rest)",
+};
 
-const VEHICLE_FIELDS = [
-  ["ms", "Body mass m_s", "kg", 16200], ["Is", "Body pitch inertia I_s", "kg m²", 111193],
-  ["mu1", "Front axle mass m_u1", "kg", 700], ["mu2", "Rear axle mass m_u2", "kg", 1100],
-  ["ks1", "Front suspension stiffness K_s1", "N/m", 4e5], ["ks2", "Rear suspension stiffness K_s2", "N/m", 1e6],
-  ["cs1", "Front suspension damping C_s1", "N s/m", 1e4], ["cs2", "Rear suspension damping C_s2", "N s/m", 2e4],
-  ["kt1", "Front contact stiffness K_t1", "N/m", 1.75e6], ["kt2", "Rear contact stiffness K_t2", "N/m", 3.5e6],
-  ["d1", "Front axle to CG D1", "m", 4.13], ["d2", "Rear axle to CG D2", "m", 4.13],
-  ["sensor_x_m", "Accelerometer ahead of CG (negative: behind)", "m", 0],
-];
+/** Column roles of the upload form: [{key, label, column, unit, units, unitLabels}]. */
+function rolesOf(spec) {
+  const props = spec.components.schemas.RunCreateJson.properties;
+  const roles = [];
+  for (const [name, p] of Object.entries(props)) {
+    if (!name.endsWith("_column") || !p["x-role"]) continue;
+    const key = p["x-role"];
+    const unit = props[`${key}_unit`];
+    const label = p["x-label"].charAt(0).toUpperCase() + p["x-label"].slice(1);
+    roles.push({
+      key, label: key === "chainage" ? `${label} (optional)` : label, column: name,
+      unit: unit ? `${key}_unit` : null, units: unit ? unit["x-units"] : [],
+      unitLabels: unit ? unit["x-unit-labels"] : {},
+    });
+  }
+  return { roles, gravity: props.gravity["x-values"].filter((g) => g !== "auto") };
+}
+
+/** Vehicle parameters: [[name, label, unit, default]] (defaults: the Table 1 vehicle). */
+function vehicleFieldsOf(spec) {
+  const props = spec.components.schemas.VehicleParamsSchema.properties;
+  return Object.entries(props).map(([name, p]) => {
+    const cut = p.description.lastIndexOf(", ");
+    return [name, p.description.slice(0, cut), p.description.slice(cut + 2), p.default];
+  });
+}
 
 function nowLocalInput() {
   const d = new Date();
@@ -46,9 +58,20 @@ export async function render(main) {
   let stopped = false;
   let pollTimer = null;
   let file = null;
-  let preview = null; // {parsed, recognised, server}
+  let preview = null; // {parsed, head, serverAuto, serverNow}
 
   main.appendChild(h("h1", {}, "Upload a run"));
+  let ROLES;
+  let GRAVITY_MODES;
+  let VEHICLE_FIELDS;
+  try {
+    const spec = await apiSchema();
+    ({ roles: ROLES, gravity: GRAVITY_MODES } = rolesOf(spec));
+    VEHICLE_FIELDS = vehicleFieldsOf(spec);
+  } catch (err) {
+    main.appendChild(h("p", { class: "message error", role: "alert" }, `Cannot load the upload form: ${err.message}`));
+    return null;
+  }
   main.appendChild(h("p", { class: "lead" },
     "Drop a logger file (CSV, optionally gzip-compressed). Check that the columns were recognised, say on which track the run was recorded, and upload. The loaded profile and its soft spots are ready a few seconds later."));
 
@@ -92,8 +115,7 @@ export async function render(main) {
   }
   const gravitySel = h("select", { name: "gravity", id: "map-gravity" },
     h("option", { value: "" }, "Automatic"),
-    h("option", { value: "included" }, "Included (raw IMU, about +1 g at rest)"),
-    h("option", { value: "removed" }, "Removed (about 0 at rest)"),
+    GRAVITY_MODES.map((g) => h("option", { value: g }, GRAVITY_TEXT[g] || g)),
   );
   mappingGrid.appendChild(h("div", { class: "mapping-row" }, field("Gravity in the acceleration", gravitySel)));
   const recognisedNote = h("p", { class: "hint", id: "recognised-note" }, "Choose a file to see which columns are recognised.");
@@ -180,14 +202,14 @@ export async function render(main) {
 
   async function loadChoices() {
     try {
-      tracks = listItems(await apiFetch("tracks"));
+      tracks = (await apiFetch("tracks")).data;
       clear(trackList);
       for (const t of tracks) trackList.appendChild(h("option", { value: t.name }));
     } catch (err) {
       status.show(`Could not load the tracks: ${err.message}`, "error");
     }
     try {
-      vehicles = listItems(await apiFetch("vehicles"));
+      vehicles = (await apiFetch("vehicles")).data;
       const previous = vehicleSel.value;
       clear(vehicleSel);
       for (const v of vehicles) vehicleSel.appendChild(h("option", { value: v.name }, v.name));
@@ -264,7 +286,7 @@ export async function render(main) {
         return;
       }
       const parsed = parseHead(head.text, head.complete);
-      preview = { parsed, guess: recognise(parsed), head, serverAuto: null, serverNow: null };
+      preview = { parsed, head, serverAuto: null, serverNow: null };
       showPreview();
       // The engine's own reading of the head has the last word when the service answers.
       const server = await serverPreview(head.text, {});
@@ -299,13 +321,11 @@ export async function render(main) {
     fd.append("file", body, "head.csv");
     for (const [k, v] of Object.entries(options)) fd.append(k, v);
     try {
-      const resp = await fetch("/api/v1/views/csv-preview", { method: "POST", body: fd });
-      if (resp.status === 404 || resp.status === 405) return null;
-      const data = await resp.json().catch(() => null);
-      if (!resp.ok) return { error: data && data.detail ? data.detail : { message: `HTTP ${resp.status}` } };
-      return data;
-    } catch {
-      return null;
+      return { answer: await apiFetch("views/csv-preview", { method: "POST", body: fd }) };
+    } catch (err) {
+      // Unreachable or an older service without the preview: the page's own first look stays.
+      if (!(err instanceof ApiError) || [0, 404, 405].includes(err.status)) return null;
+      return { error: err.detail || { message: err.message } };
     }
   }
 
@@ -338,17 +358,18 @@ export async function render(main) {
     return { mapping, gravity: s.gravity || null, source: "server" };
   }
 
-  /** What "Automatic" would pick: the service's reading without options, else the page's guess. */
+  /** What "Automatic" would pick: the service's reading without options (the page never
+   * recognises columns itself: the engine's reader is the one authority). */
   function currentRecognition() {
     const s = preview && preview.serverAuto;
-    if (s && !s.error) return fromServer(s);
-    return { ...(preview ? preview.guess : { mapping: {}, gravity: null }), source: "browser" };
+    if (s && s.answer) return fromServer(s.answer);
+    return { mapping: {}, gravity: null, source: "none" };
   }
 
   /** How the file will be read with the current choices (for the column badges). */
   function effectiveReading() {
     const s = preview && preview.serverNow;
-    if (s && !s.error) return fromServer(s);
+    if (s && s.answer) return fromServer(s.answer);
     return currentRecognition();
   }
 
@@ -359,7 +380,7 @@ export async function render(main) {
 
   function showPreview() {
     const { parsed, head } = preview;
-    const server = preview.serverNow && !preview.serverNow.error ? preview.serverNow : null;
+    const server = preview.serverNow && preview.serverNow.answer ? preview.serverNow.answer : null;
     const rec = currentRecognition();
     const eff = effectiveReading();
     clear(previewBox);
@@ -370,7 +391,7 @@ export async function render(main) {
       return;
     }
     const delim = server ? server.delimiter : parsed.delimiter;
-    const delimName = { ",": "comma", ";": "semicolon", "\t": "tab", "|": "pipe", " ": "space" }[delim] || delim;
+    const delimName = { ",": "comma", ";": "semicolon", "\t": "tab", " ": "space" }[delim] || delim;
     const rate = eff.mapping.time ? estimateRate(parsed, eff.mapping.time.column, eff.mapping.time.unit) : null;
     const facts = [
       `${columns.length} columns`, `${delimName}-separated`, head.gzip ? "gzip-compressed" : null,
@@ -417,7 +438,9 @@ export async function render(main) {
     gravitySel.options[0].textContent = rec.gravity ? `Automatic: ${rec.gravity}` : "Automatic";
     const found = ROLES.filter((r) => eff.mapping[r.key]).map((r) => `${r.label.replace(" (optional)", "")} = ${eff.mapping[r.key].column}`);
     const missing = ROLES.filter((r) => !eff.mapping[r.key] && !["chainage", "speed"].includes(r.key)).map((r) => r.label);
-    recognisedNote.textContent = `Recognised${eff.source === "server" ? " by the service" : " (first guess; the service could not be asked)"}: ${found.join("; ") || "nothing"}.`
+    recognisedNote.textContent = (eff.source === "server"
+      ? `Recognised by the service: ${found.join("; ") || "nothing"}.`
+      : "The service could not be asked to read the file.")
       + (missing.length ? ` Not recognised: ${missing.join(", ")} — choose the columns below.` : " Change a choice below if it is wrong.");
     recognisedNote.className = missing.length ? "message warning" : "hint";
     announce(`Preview ready: ${columns.length} columns.`);
@@ -546,7 +569,7 @@ export async function render(main) {
       });
       uploadBar.value = 1;
       uploadLabel.textContent = "Upload 100 %";
-      const id = runId(created);
+      const id = created.id;
       status.show(`Uploaded as run ${id}. Processing…`, "info");
       announce("Upload complete, processing the run.");
       const run = created.status === "done" ? created : await poll(id, Date.now());
@@ -557,14 +580,14 @@ export async function render(main) {
       announce(`Run ${id} processed.`);
       // Take the user straight to the result; the link stays for the back button.
       setTimeout(() => {
-        if (!stopped) window.location.hash = `#/runs/${encodeURIComponent(runId(run) ?? id)}`;
+        if (!stopped) window.location.hash = `#/runs/${encodeURIComponent(run.id)}`;
       }, 400);
     } catch (err) {
       processBar.value = 0;
       const failedRun = err.run;
       if (failedRun) {
         processLabel.textContent = "Processing failed";
-        const link = h("a", { href: `#/runs/${encodeURIComponent(runId(failedRun))}` }, "See the run");
+        const link = h("a", { href: `#/runs/${encodeURIComponent(failedRun.id)}` }, "See the run");
         status.show(`Processing failed: ${err.message} `, "error", [errorFactsOfRun(failedRun.error), link]);
       } else {
         status.show(errorText(err), "error", errorList(err));

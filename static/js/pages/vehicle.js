@@ -3,7 +3,7 @@
 // alerts, and a button that calibrates it from its stored runs.
 
 import { h, clear, announce, fmt, fmtDate, fmtDay, messageBox } from "../dom.js";
-import { apiFetch, apiPostJson, listItems } from "../api.js";
+import { apiFetch, apiPostJson } from "../api.js";
 import { baseLayout, CONFIG, plotly, COLORS } from "../plots.js";
 
 const PARAM_LABELS = {
@@ -75,7 +75,7 @@ export async function render(main, params) {
     fillParams(vehicle);
     fillVersions(versions);
     fillHealth(health);
-    const items = listItems(cals);
+    const items = cals.data;
     fillCalibrations(items);
     return items.some((c) => c.status === "running");
   }
@@ -96,7 +96,7 @@ export async function render(main, params) {
   function fillVersions(answer) {
     clear(versionsSection);
     versionsSection.appendChild(h("h2", { id: "versions-h" }, "Parameter versions"));
-    const data = listItems(answer);
+    const data = answer.data;
     const rows = data.map((v, i) => {
       const prev = data[i + 1];
       const changed = prev ? Object.keys(v.params).filter((k) => v.params[k] !== prev.params[k])
@@ -218,7 +218,7 @@ async function renderList(main) {
   main.appendChild(status.el);
   let vehicles;
   try {
-    vehicles = listItems(await apiFetch("vehicles?limit=1000"));
+    vehicles = (await apiFetch("vehicles?limit=1000")).data;
   } catch (err) {
     status.show(`Cannot load the vehicles: ${err.message}`, "error");
     return null;
