@@ -134,7 +134,11 @@ def fill_big_track(
             for p, d, w in zip(peaks, depths, widths, strict=True):
                 if profile_from_m - 10 <= p <= profile_to_m + 10:
                     level -= d * np.exp(-0.5 * ((grid - p) / (w / 4)) ** 2)
-            insert_profile(s, run.id, grid, level, level + 0.01, level - 0.01, np.zeros_like(grid))
+            force = np.full_like(grid, 58_000.0)  # a steady wheel force, N
+            insert_profile(
+                s, run.id, grid, level, level + 0.01, level - 0.01, np.zeros_like(grid),
+                force, force,
+            )  # fmt: skip
         s.commit()
     db.dispose()
     return BigTrack(name, n_runs, length_m, n_spots, profile_from_m, profile_to_m, zone_peaks)
