@@ -71,7 +71,7 @@ export async function render(main) {
     apiFetch("/api/v1/vehicles?limit=1000").catch(() => null),
     apiFetch("/api/v1/simulate/spectra").catch(() => ({})),
   ]).then(([presets, stored, spectra]) => {
-    const names = new Set([...Object.keys(presets), ...(stored ? listItems(stored).map((v) => v.name) : [])]);
+    const names = new Set([...Object.keys(presets), ...(stored ? stored.data.map((v) => v.name) : [])]);
     vehicleSel.replaceChildren(...[...names].sort().map((n) => h("option", { value: n, selected: n === "table1" }, n)));
     for (const name of Object.keys(spectra)) railSel.appendChild(h("option", { value: name }, name));
   });
