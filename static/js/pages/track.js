@@ -218,18 +218,22 @@ export async function render(main, [ref]) {
   ));
 
   // ---- alerts and limits ---------------------------------------------------------------------
-  const alerts = alertsCard(enc);
-  const limits = limitsCard(enc, async () => {
-    register = await apiFetch(`/api/v1/tracks/${enc}/defects`);
-    zones = ranked(register);
-    drawTable();
-    if (aggregate) await aggregate.render();
-    if (stiffness) await stiffness.render();
-    await alerts.load();
-  });
-  main.appendChild(h("div", { class: "track-lower" }, alerts.section, limits.section));
-  limits.load();
-  alerts.load();
+  // Alerts and limits serve the maintenance of aligned tracks (a track whose runs were never
+  // aligned has its register as logged, but nothing to plan from yet).
+  if (anyAligned) {
+    const alerts = alertsCard(enc);
+    const limits = limitsCard(enc, async () => {
+      register = await apiFetch(`/api/v1/tracks/${enc}/defects`);
+      zones = ranked(register);
+      drawTable();
+      if (aggregate) await aggregate.render();
+      if (stiffness) await stiffness.render();
+      await alerts.load();
+    });
+    main.appendChild(h("div", { class: "track-lower" }, alerts.section, limits.section));
+    limits.load();
+    alerts.load();
+  }
 
   async function showZone(zone) {
     const width = Math.max(zone.end_m - zone.start_m, 2);
