@@ -19,7 +19,7 @@ from fastapi.openapi.utils import get_openapi
 from pydantic.json_schema import models_json_schema
 
 from app import __version__
-from app.api.access import AccessMiddleware, KeyRegister
+from app.api.access import AccessMiddleware, KeyRegister, keys_required
 from app.api.main import UPLOAD_PATHS, api_router
 from app.api.routes import health
 from app.core.config import Settings, get_settings
@@ -126,11 +126,27 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 [(RunCreateJson, "validation")], ref_template="#/components/schemas/{model}"
             )
             schema.setdefault("components", {}).setdefault("schemas", {}).update(defs["$defs"])
+            _security_as_configured(schema, settings)
             app.openapi_schema = schema
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]
     return app
+
+
+def _security_as_configured(schema: dict[str, Any], settings: Settings) -> None:
+    """State on each operation the key this configuration asks for (none, or a key in
+    X-API-Key or as a bearer token), instead of FastAPI's "a key, always"."""
+    for item in schema.get("paths", {}).values():
+        for method, op in item.items():
+            if not isinstance(op, dict) or "security" not in op:
+                continue
+            if keys_required(settings, method.upper()):
+                op["security"] = [{"APIKeyHeader": []}, {"HTTPBearer": []}]
+            else:
+                del op["security"]
+    if not (settings.require_api_key or settings.require_api_key_for_reads):
+        schema.get("components", {}).pop("securitySchemes", None)
 
 
 app = create_app()

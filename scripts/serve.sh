@@ -12,4 +12,6 @@ python -m app demo
 host="${HOST:-127.0.0.1}"
 port="${PORT:-8000}"
 echo "serving on http://${host}:${port}  (dashboard at /, API docs at /docs; Ctrl-C stops)"
-exec python -m uvicorn app.main:app --host "$host" --port "$port"
+# uvicorn's own limits (a proxy in front adds header/body timeouts and TLS: see README)
+exec python -m uvicorn app.main:app --host "$host" --port "$port" \
+  --timeout-keep-alive 5 --limit-concurrency "${LIMIT_CONCURRENCY:-256}"

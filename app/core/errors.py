@@ -16,6 +16,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy.exc import DataError, OperationalError, StatementError
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from app.services.errors import (
     Conflict,
@@ -151,6 +152,18 @@ def validation_detail(errors: Sequence[Any]) -> dict[str, Any]:
     return detail
 
 
+HTTP_METHODS = ("DELETE", "GET", "HEAD", "OPTIONS", "PATCH", "POST", "PUT")
+
+
+def allowed_methods(request: Request) -> list[str]:
+    """Every method some route of the app serves on the request's path (sorted)."""
+    routes = request.app.router.routes
+    return [
+        m for m in HTTP_METHODS
+        if any(r.matches({**request.scope, "method": m})[0] == Match.FULL for r in routes)
+    ]  # fmt: skip
+
+
 def install_error_handlers(app: FastAPI) -> None:
     """Register the handlers that give every error the ``{"detail": {...}}`` shape."""
 
@@ -177,12 +190,20 @@ def install_error_handlers(app: FastAPI) -> None:
         return JSONResponse(status_code=422, content={"detail": validation_detail(exc.errors())})
 
     @app.exception_handler(StarletteHTTPException)
-    async def _http(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
-        detail = exc.detail if isinstance(exc.detail, dict) else {"message": str(exc.detail)}
+    async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        detail: dict[str, Any] = (
+            exc.detail if isinstance(exc.detail, dict) else {"message": str(exc.detail)}
+        )
+        headers = dict(getattr(exc, "headers", None) or {})
+        if exc.status_code == 405:
+            # Starlette names the methods of the first route whose path matched; a path
+            # served by several routes (GET and DELETE /runs/{id}) allows all of theirs.
+            allowed = allowed_methods(request)
+            headers["Allow"] = ", ".join(allowed)
+            detail = {"message": f"method {request.method} is not allowed here; allowed: "
+                      f"{', '.join(allowed)}", "allowed": allowed}  # fmt: skip
         return JSONResponse(
-            status_code=exc.status_code,
-            content={"detail": detail},
-            headers=getattr(exc, "headers", None),
+            status_code=exc.status_code, content={"detail": detail}, headers=headers or None
         )
 
     # A value of the request that the database cannot take (an id or offset beyond 64 bits,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import unicodedata
 from datetime import UTC, datetime
 from typing import Annotated, Any
 
@@ -11,18 +12,36 @@ from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Fie
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
 
+def _invisible(value: str) -> str | None:
+    """The first character of ``value`` that shows as something else or nothing: format
+    characters (right-to-left overrides, zero-width joiners, BOM) and spaces other than the
+    plain one (no-break, thin, ideographic...), which make two names look alike."""
+    for ch in value:
+        cat = unicodedata.category(ch)
+        if cat == "Cf" or (cat in ("Zs", "Zl", "Zp") and ch != " "):
+            return ch
+    return None
+
+
 def _clean_name(value: str) -> str:
-    value = value.strip()
+    value = unicodedata.normalize("NFC", value).strip()
     if not value:
         raise ValueError("must not be empty")
     if _CONTROL.search(value):
         raise ValueError("must not contain control characters (newlines, tabs, NUL)")
+    bad = _invisible(value)
+    if bad is not None:
+        raise ValueError(
+            f"must not contain U+{ord(bad):04X} ({unicodedata.name(bad, 'unnamed')}): "
+            "invisible characters and spaces other than ' ' make names look alike"
+        )
     return value
 
 
 Name = Annotated[str, Field(min_length=1, max_length=200), AfterValidator(_clean_name)]
-"""A user-given name: 1-200 characters, trimmed, no control characters (any other text,
-markup included, is kept as typed and must be shown as text)."""
+"""A user-given name: 1-200 characters, NFC-normalised, trimmed, no control or invisible
+characters and no spaces but ' ' (any other text, markup included, is kept as typed and must
+be shown as text)."""
 
 
 MAX_ID_DIGITS = 18

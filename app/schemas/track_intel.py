@@ -9,7 +9,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from engine.register import Limits
 
@@ -111,6 +111,9 @@ class LimitsFields(StrictModel):
     value; each criterion must grow from alert to intervention to immediate. A field left out
     of a PUT takes its default; null switches that criterion off.
     """
+
+    # strict: ``true`` is not a number (it was stored as 1.0), nor is the text "5"
+    model_config = ConfigDict(extra="forbid", strict=True)
 
     alert_depth_mm: float | None = _limit(_DEFAULTS.alert_depth_mm, "mm", "Alert depth")
     intervention_depth_mm: float | None = _limit(

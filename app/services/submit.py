@@ -121,11 +121,11 @@ def resolve_vehicle(session: Session, name: str | None, vehicle_id: int | None) 
         # A preset's name is a vehicle everywhere: stored on first use, like table1.
         v = vehicle_from_preset(session, wanted)
     if v is None:
-        known = session.scalars(select(Vehicle.name).order_by(Vehicle.name).limit(20)).all()
-        names = sorted(set(known) | set(PRESETS))
+        # Only the engine's presets are named: the stored vehicles are listed by
+        # GET /api/v1/vehicles to those who may read them, not in every error.
         raise Invalid(
-            f"vehicle {wanted!r} does not exist; known vehicles and presets: "
-            f"{', '.join(names)} (create it with POST /api/v1/vehicles)",
+            f"vehicle {wanted!r} does not exist; the presets are {', '.join(sorted(PRESETS))} "
+            "(the stored vehicles: GET /api/v1/vehicles; a new one: POST /api/v1/vehicles)",
             field="vehicle",
         )
     return v

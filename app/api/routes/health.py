@@ -28,12 +28,16 @@ class HealthPublic(BaseModel):
 
 @router.get("/healthz", response_model=HealthPublic, responses={503: {"model": HealthPublic}})
 def healthz(request: Request, ctx: CtxDep) -> HealthPublic | JSONResponse:
-    """200 when the database answers (and the worker runs), 503 otherwise."""
+    """200 when the database answers (and the worker runs), 503 otherwise.
+
+    ``runs_processing`` is null when reads need an API key (the count is data)."""
     processing: int | None = None
     try:
         with ctx.db.session() as s:
             s.execute(text("SELECT 1"))
-            processing = s.scalar(select(func.count()).where(Run.status == "processing"))
+            # The count is data: hidden when reads need a key (health itself stays open).
+            if not ctx.settings.require_api_key_for_reads:
+                processing = s.scalar(select(func.count()).where(Run.status == "processing"))
         database: Literal["ok", "error"] = "ok"
     except Exception:
         database = "error"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
+import hashlib
 import time
 from typing import Annotated, Any, Literal
 
@@ -16,7 +17,7 @@ from starlette.datastructures import UploadFile
 
 from app.api.answers import CSV_RESPONSE, csv_answer
 from app.api.convert import run_public
-from app.api.deps import CtxDep, SessionDep, WindowDep
+from app.api.deps import CallerDep, CtxDep, SessionDep, WindowDep
 from app.core.errors import ApiError
 from app.schemas.common import Timestamp
 from app.schemas.runs import (
@@ -189,6 +190,7 @@ async def create_run(
     request: Request,
     response: Response,
     ctx: CtxDep,
+    caller: CallerDep,
     idempotency_key: IdempotencyKey = None,
     wait: Annotated[
         bool, Query(description="Wait (up to TRACKPROFILE_WAIT_TIMEOUT_S) for the result")
@@ -208,6 +210,12 @@ async def create_run(
     A log that cannot be read or inverted is answered 422 naming the field, column, row or
     unit, and nothing is stored.
     """
+    if idempotency_key is not None and caller.key_id is not None:
+        # Idempotency keys are the caller's: two pipelines with their own API keys may
+        # both use "run-1" without one receiving the other's run (or a 409).
+        # (Hashed: the stored key keeps its 200-character column whatever the prefix.)
+        digest = hashlib.sha256(idempotency_key.encode()).hexdigest()
+        idempotency_key = f"key{caller.key_id}:{digest}"
     ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if ctype == "multipart/form-data":
         async with request.form(max_files=1, max_fields=64) as form:
