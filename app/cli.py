@@ -2,8 +2,9 @@
 
     migrate              apply the database migrations
     demo                 store a simulated demo run (track "demo", two soft zones) if absent
-    create-key NAME      create an API key for a pipeline (printed once, stored hashed)
-    list-keys            list API keys (id, name, prefix, state)
+    create-key NAME [--scopes read,write,admin]
+                         create an API key for a pipeline (printed once, stored hashed)
+    list-keys            list API keys (id, name, prefix, scopes, state)
     revoke-key ID        revoke an API key
     realign [TRACK ...]  align every run of the tracks again and rebuild their aggregates
                          (all tracks when none is named; runs stored before alignment existed)
@@ -24,6 +25,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.config import get_settings
+from app.core.scopes import format_scopes, parse_scopes
 from app.core.security import generate_key, hash_key, key_prefix
 from app.db.base import utcnow
 from app.db.migrate import upgrade
@@ -67,12 +69,18 @@ def cmd_demo(ns: argparse.Namespace) -> int:
 
 def cmd_create_key(ns: argparse.Namespace) -> int:
     db = _db()
+    try:
+        scopes = format_scopes(parse_scopes(ns.scopes or get_settings().default_key_scopes))
+    except ValueError as exc:
+        print(f"--scopes: {exc}", file=sys.stderr)
+        return 2
     key = generate_key()
     with db.session() as s:
-        row = ApiKey(name=ns.name, prefix=key_prefix(key), key_hash=hash_key(key))
+        row = ApiKey(name=ns.name, prefix=key_prefix(key), key_hash=hash_key(key), scopes=scopes)
         s.add(row)
         s.commit()
-        print(f"API key {row.id} ({ns.name}) created. Send it as the X-API-Key header;")
+        print(f"API key {row.id} ({ns.name}, scopes: {scopes}) created. Send it as the "
+              "X-API-Key header;")  # fmt: skip
         print("it is shown only now (only its hash is stored):")
         print(key)
     return 0
@@ -82,7 +90,7 @@ def cmd_list_keys(_ns: argparse.Namespace) -> int:
     with _db().session() as s:
         for k in s.scalars(select(ApiKey).order_by(ApiKey.id)):
             state = f"revoked {k.revoked_at:%Y-%m-%d %H:%M}" if k.revoked_at else "active"
-            print(f"{k.id}\t{k.name}\t{k.prefix}...\t{state}")
+            print(f"{k.id}\t{k.name}\t{k.prefix}...\t{k.scopes}\t{state}")
     return 0
 
 
@@ -167,6 +175,12 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(fn=cmd_demo)
     c = sub.add_parser("create-key", help="create an API key")
     c.add_argument("name", help="who or what uses the key, e.g. 'fleet-pipeline'")
+    c.add_argument(
+        "--scopes",
+        help="what the key may do, comma-separated: read, write (uploads, changes), admin "
+        "(deletes, vehicle edits, calibration); default TRACKPROFILE_DEFAULT_KEY_SCOPES "
+        "(all three)",
+    )
     c.set_defaults(fn=cmd_create_key)
     sub.add_parser("list-keys", help="list API keys").set_defaults(fn=cmd_list_keys)
     r = sub.add_parser("revoke-key", help="revoke an API key")

@@ -27,6 +27,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from app.core.config import Settings
 from app.core.errors import ApiError, database_busy_error
+from app.core.scopes import READ_METHODS, KeyScope, required_scope
 from app.core.security import hash_key
 from app.db.base import utcnow
 from app.db.models import ApiKey
@@ -34,7 +35,6 @@ from app.db.session import Database
 
 log = logging.getLogger(__name__)
 
-READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 PROTECTED_PREFIX = "/api/"
 """Paths whose requests go through the access check (the whole API)."""
 STAMP_INTERVAL_S = 60.0
@@ -43,9 +43,26 @@ STAMP_INTERVAL_S = 60.0
 
 @dataclass(frozen=True)
 class Caller:
-    """Who sends a request: the API key's id (None when no key was needed or sent)."""
+    """Who sends a request: the API key's id and scopes (None when no key was needed)."""
 
     key_id: int | None = None
+    scopes: frozenset[str] | None = None
+
+    def may(self, scope: KeyScope) -> bool:
+        """Whether the caller holds ``scope`` (always, when no key was needed)."""
+        return self.scopes is None or scope in self.scopes
+
+
+def missing_scope_error(scope: KeyScope, what: str) -> ApiError:
+    """403 for a key without the scope ``what`` (e.g. ``"DELETE /api/v1/runs/1"``) needs."""
+    return ApiError(
+        403,
+        f"this API key lacks the {scope!r} scope, which {what} needs (the key's scopes are "
+        f"set by `python -m app create-key NAME --scopes ...`)",
+        field="X-API-Key",
+        kind="MissingScope",
+        scope=scope,
+    )
 
 
 def key_from_headers(headers: dict[str, str]) -> str | None:
@@ -80,16 +97,19 @@ class KeyRegister:
         self._lock = threading.Lock()
         self._stamper = ThreadPoolExecutor(max_workers=1, thread_name_prefix="key-stamp")
 
-    def lookup(self, key: str) -> int | None:
-        """The id of the valid (known, not revoked) key ``key``, or None."""
+    def lookup(self, key: str) -> Caller | None:
+        """The caller holding the valid (known, not revoked) key ``key``, or None."""
         digest = hash_key(key)
         with self.db.session() as s:
-            key_id = s.scalar(
-                select(ApiKey.id).where(ApiKey.key_hash == digest, ApiKey.revoked_at.is_(None))
-            )
-        if key_id is not None:
-            self._maybe_stamp(key_id)
-        return key_id
+            row = s.execute(
+                select(ApiKey.id, ApiKey.scopes).where(
+                    ApiKey.key_hash == digest, ApiKey.revoked_at.is_(None)
+                )
+            ).first()
+        if row is None:
+            return None
+        self._maybe_stamp(row.id)
+        return Caller(key_id=row.id, scopes=frozenset(row.scopes.split()))
 
     def _maybe_stamp(self, key_id: int) -> None:
         now = time.monotonic()
@@ -119,8 +139,11 @@ class KeyRegister:
         self._stamper.shutdown(wait=True)
 
 
-def decide(settings: Settings, keys: KeyRegister, method: str, headers: dict[str, str]) -> Caller:
-    """The caller of a request, or :class:`ApiError` 401/403 when it may not proceed."""
+def decide(
+    settings: Settings, keys: KeyRegister, method: str, headers: dict[str, str], path: str = ""
+) -> Caller:
+    """The caller of a request, or :class:`ApiError` 401/403 when it may not proceed (403
+    also for a key without the scope the method and path need, :mod:`app.core.scopes`)."""
     if method not in READ_METHODS and settings.read_only:
         raise ApiError(403, "this service is read-only: uploads and changes are disabled")
     key = key_from_headers(headers)
@@ -133,15 +156,18 @@ def decide(settings: Settings, keys: KeyRegister, method: str, headers: dict[str
             field="X-API-Key",
             headers={"WWW-Authenticate": "Bearer"},
         )
-    key_id = keys.lookup(key)
-    if key_id is None:
+    caller = keys.lookup(key)
+    if caller is None:
         raise ApiError(
             401,
             "the API key is not valid (unknown or revoked)",
             field="X-API-Key",
             headers={"WWW-Authenticate": "Bearer"},
         )
-    return Caller(key_id=key_id)
+    scope = required_scope(method, path)
+    if not caller.may(scope):
+        raise missing_scope_error(scope, f"{method} {path}")
+    return caller
 
 
 class AccessMiddleware:
@@ -165,10 +191,10 @@ class AccessMiddleware:
         try:
             if keys_required(self.settings, method) and key_from_headers(headers):
                 caller = await anyio.to_thread.run_sync(
-                    decide, self.settings, self.keys, method, headers
+                    decide, self.settings, self.keys, method, headers, scope["path"]
                 )
             else:  # no database work: decide here
-                caller = decide(self.settings, self.keys, method, headers)
+                caller = decide(self.settings, self.keys, method, headers, scope["path"])
         except ApiError as exc:
             await _send_error(send, exc)
             return

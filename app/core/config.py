@@ -13,6 +13,8 @@ from typing import Annotated
 from pydantic import AliasChoices, Field, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
+from app.core.scopes import format_scopes, parse_scopes
+
 REPO_ROOT = Path(__file__).resolve().parents[2]
 """The project checkout (``app/`` and ``static/``, ``migrations/`` beside it)."""
 
@@ -38,6 +40,10 @@ class Settings(BaseSettings):
         When true, reads need a key too (and so do writes, even if ``require_api_key`` was
         left false: closing reads alone would be a mistake; a warning is logged); by default
         the dashboard reads without one.
+    default_key_scopes : str
+        Scopes of a key made by ``python -m app create-key`` without ``--scopes``
+        (comma-separated: ``read``, ``write``, ``admin``; see :mod:`app.core.scopes`). The
+        default, every scope, is what keys could do before scopes existed.
     read_only : bool
         Refuse every write with 403 (a read-only replica or a public dashboard).
     cors_origins : list of str
@@ -81,6 +87,7 @@ class Settings(BaseSettings):
     max_body_kb: float = Field(default=1024.0, gt=0)
     require_api_key: bool = False
     require_api_key_for_reads: bool = False
+    default_key_scopes: str = "read,write,admin"
     read_only: bool = False
     cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)
     workers: int = Field(default=1, ge=1, le=16)
@@ -101,6 +108,11 @@ class Settings(BaseSettings):
         if isinstance(value, str):
             return [v.strip() for v in value.split(",") if v.strip()]
         return value
+
+    @field_validator("default_key_scopes")
+    @classmethod
+    def _known_scopes(cls, value: str) -> str:
+        return format_scopes(parse_scopes(value))
 
     @property
     def sqlalchemy_url(self) -> str:

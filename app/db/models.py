@@ -319,6 +319,8 @@ class ApiKey(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
     revoked_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     last_used_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    scopes: Mapped[str] = mapped_column(String(64), default="read write admin")
+    """What the key may do: space-separated scopes of :mod:`app.core.scopes`."""
 
 
 class TrackRunLevels(Base):
