@@ -4,9 +4,9 @@
 
 import { h, clear, announce } from "./dom.js";
 import * as home from "./pages/home.js";
-import * as upload from "./pages/upload.js";
+import * as upload from "./pages/upload/index.js";
 import * as run from "./pages/run.js";
-import * as track from "./pages/track.js";
+import * as track from "./pages/track/index.js";
 import * as simulate from "./pages/simulate.js";
 import * as vehicle from "./pages/vehicle.js";
 

@@ -6,7 +6,7 @@ import { ApiError, apiFetch, apiGetOptional } from "../api.js";
 import {
   COLORS, CONFIG, baseLayout, plotly, softSpotShapes, softSpotLabels, zoomControls, zoomTo,
 } from "../plots.js";
-import { runErrorMessage } from "./upload.js";
+import { runErrorMessage } from "./upload/index.js";
 
 const META_FIELDS = [
   ["recorded_at", "Recorded", (v) => fmtDate(v)],

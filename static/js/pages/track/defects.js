@@ -1,0 +1,155 @@
+// The track page's defect register: the sortable table of tracked defects (most urgent first)
+// and the profiles of all runs around the chosen defect.
+
+import { h, clear, announce, fmt } from "../../dom.js";
+import { apiFetch, apiGetOptional } from "../../api.js";
+import { CONFIG, baseLayout, plotly, viridis } from "../../plots.js";
+import { REGISTER_COLUMNS, aggregateTraces, defectShapes } from "../../register.js";
+
+function escapeExtra(text) {
+  // Plotly renders <extra> content as pseudo-HTML: keep user text literal.
+  return String(text).replace(/&/g, "&amp;").replace(/</g, "&lt;").replace(/>/g, "&gt;");
+}
+
+export function zoneTable(zones, onSelect, columns = REGISTER_COLUMNS) {
+  const cols = columns.filter((c) => !c.optional || zones.some((z) => z[c.key] !== undefined && z[c.key] !== null));
+  let sortKey = "rank";
+  let sortDir = 1;
+  const tbody = h("tbody", {});
+  const headers = {};
+  const headRow = h("tr", {});
+  for (const c of cols) {
+    const btn = h("button", { type: "button", class: "sort", title: c.title, onclick: () => sortBy(c.key) }, c.label);
+    const th = h("th", { scope: "col", class: c.num ? "num" : "" }, btn);
+    headers[c.key] = th;
+    headRow.appendChild(th);
+  }
+  let selected = null;
+
+  function sortBy(key) {
+    if (sortKey === key) sortDir = -sortDir;
+    else {
+      sortKey = key;
+      sortDir = ["depth_mm", "depth_max_mm", "stiffness_loss_pct", "runs_seen", "trend_mm_per_month", "trend_loss_pct_per_month"].includes(key) ? -1 : 1;
+    }
+    draw();
+    announce(`Zones sorted by ${cols.find((c) => c.key === key).label}, ${sortDir > 0 ? "ascending" : "descending"}.`);
+  }
+
+  function draw() {
+    const col = cols.find((c) => c.key === sortKey);
+    const sorted = zones.slice().sort((a, b) => {
+      const va = col.get(a);
+      const vb = col.get(b);
+      if (va === vb) return a.rank - b.rank;
+      if (va === null || va === undefined) return 1;
+      if (vb === null || vb === undefined) return -1;
+      return (va < vb ? -1 : 1) * sortDir;
+    });
+    for (const [key, th] of Object.entries(headers)) {
+      if (key === sortKey) th.setAttribute("aria-sort", sortDir > 0 ? "ascending" : "descending");
+      else th.removeAttribute("aria-sort");
+    }
+    clear(tbody);
+    for (const z of sorted) {
+      const btn = h("button", {
+        type: "button", class: "button small", "aria-label": `Show the profiles around zone ${fmt(z.start_m, 1)} to ${fmt(z.end_m, 1)} m`,
+        onclick: () => {
+          selected = z;
+          for (const tr of tbody.querySelectorAll("tr")) tr.classList.remove("selected");
+          row.classList.add("selected");
+          onSelect(z);
+        },
+      }, String(z.rank));
+      // The rank is the row's button (its profile across runs): one column fewer to fit 1366 px.
+      const row = h("tr", { class: z === selected ? "selected" : "", "data-zone": String(z.rank) },
+        cols.map((c) => (c.key === "rank"
+          ? h("th", { scope: "row", class: "num" }, btn)
+          : h("td", { class: [c.num ? "num" : "", c.cls ? c.cls(z) : ""].join(" ").trim() || null }, c.show ? c.show(z) : String(c.get(z) ?? "—")))));
+      row.addEventListener("click", (e) => {
+        if (e.target.closest("button")) return;
+        btn.click();
+      });
+      tbody.appendChild(row);
+    }
+  }
+  draw();
+  return h("div", { class: "table-scroll zone-table-wrap" },
+    h("table", { class: "data sortable", id: "zone-table" },
+      h("caption", { class: "visually-hidden" }, "Defect register, most urgent first; column titles sort the table"),
+      h("thead", {}, headRow), tbody));
+}
+
+/**
+ * The register card and the "defect across runs" card, appended to `main`. `getZones` gives
+ * the current ranked defects. Returns {draw (redraw the table), showZone}.
+ */
+export function registerCards(main, { enc, getZones, isStopped }) {
+  const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "img", "aria-label": "Profiles of all runs around the selected zone" });
+  const zoneInfo = h("p", { class: "hint", id: "zone-info" }, "Choose a zone in the table to see its profile across runs.");
+  const onSelect = (zone) => {
+    showZone(zone);
+    zonePlotDiv.scrollIntoView({ behavior: "smooth", block: "nearest" });
+  };
+  const tableBox = h("div", { id: "register-box" });
+  const draw = () => {
+    const zones = getZones();
+    clear(tableBox);
+    tableBox.appendChild(zones.length
+      ? zoneTable(zones, onSelect)
+      : h("p", { class: "muted", id: "register-empty" }, "No defect: no run found a soft spot on this track."));
+  };
+  draw();
+  // The register has many columns: it and its plot take the full width, one above the other.
+  main.appendChild(h("div", { class: "track-register" },
+    h("section", { class: "card", "aria-labelledby": "zones-h" },
+      h("h2", { id: "zones-h" }, "Defect register"),
+      h("p", { class: "hint" }, "Soft spots of all aligned runs (of every run, as logged, when none is aligned) merged into tracked defects, most urgent first (priority from the limits below, then depth). Seen: runs that detected it, of the runs covering it. Depth and loss: latest run. Trend: least-squares change per month. Status: new (one run), confirmed (two), worsening (significant growth) or stable. Click a column title to sort; click a defect (or its rank) to see its profile across runs."),
+      tableBox),
+    h("section", { class: "card", "aria-labelledby": "zoneplot-h" },
+      h("h2", { id: "zoneplot-h" }, "Defect across runs"),
+      zoneInfo,
+      zonePlotDiv),
+  ));
+
+  async function showZone(zone) {
+    const width = Math.max(zone.end_m - zone.start_m, 2);
+    const from = zone.start_m - Math.max(20, 2 * width);
+    const to = zone.end_m + Math.max(20, 2 * width);
+    zoneInfo.textContent = `Loading the profiles of ${fmt(from, 0)}–${fmt(to, 0)} m…`;
+    try {
+      const [win, aggWindow] = await Promise.all([
+        apiFetch(`/api/v1/views/tracks/${enc}/window?from_m=${from}&to_m=${to}`),
+        apiGetOptional(`/api/v1/tracks/${enc}/profile?from_m=${from}&to_m=${to}`).catch(() => null),
+      ]);
+      if (isStopped()) return;
+      const traces = [];
+      const wr = win.runs || [];
+      wr.forEach((r, i) => {
+        traces.push({
+          type: "scatter", mode: "lines", name: r.label || `run ${r.id}`,
+          x: r.chainage_m, y: r.level_mm, meta: `run-${r.id}`,
+          line: { color: viridis(wr.length > 1 ? i / (wr.length - 1) : 0), width: 1.3 },
+          hovertemplate: `%{y:.3f} mm<extra>${escapeExtra(r.label || `run ${r.id}`)}</extra>`,
+        });
+      });
+      traces.push(...aggregateTraces(aggWindow));
+      const layout = baseLayout({
+        height: 380,
+        shapes: defectShapes([zone]),
+        xaxis: { title: { text: "Chainage (m)" }, range: [from, to], gridcolor: "#e3e6ea" },
+        legend: { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
+        margin: { l: 64, r: 12, t: 24, b: 52 },
+      });
+      await plotly().react(zonePlotDiv, traces, layout, CONFIG);
+      const covers = wr.length === 1 ? "1 run covers it" : `${wr.length} runs cover it`;
+      zoneInfo.textContent = `Zone ${fmt(zone.start_m, 1)}–${fmt(zone.end_m, 1)} m (shaded): ${covers}, ${zone.runs_seen} detected a soft spot there.`
+        + (wr.length > 1 ? " Lines run from dark (oldest) to light (newest)." : "");
+      announce(`Showing zone at ${fmt(zone.peak_m, 1)} m across ${wr.length} runs.`);
+    } catch (err) {
+      zoneInfo.textContent = `Cannot load the zone's profiles: ${err.message}`;
+    }
+  }
+
+  return { draw, showZone };
+}

@@ -1,0 +1,118 @@
+// Track view (the chainage map): every run of a track along chainage, soft spots as a map
+// (x chainage, y run, colour + size + symbol = severity), the defect register (runs aligned,
+// soft spots merged into tracked defects with status, trend and priority) and the profiles of
+// all runs around a chosen defect, the aggregated profile, alerts since a date, the track's
+// limits and exports. The register is the only zone model: a track whose runs were never
+// aligned gets it too, over its runs as logged.
+// state.js: what the page loads; map.js: the chainage map; defects.js: the register.
+
+import { h, append, announce, fmt, messageBox } from "../../dom.js";
+import { ApiError, apiFetch } from "../../api.js";
+import { aggregateCard, alertsCard, alignmentNotice, exportLinks, limitsCard } from "../../register.js";
+import { stiffnessCard } from "../../stiffness.js";
+import { loadTrackData, ranked, resolveTrack } from "./state.js";
+import { mapCard } from "./map.js";
+import { registerCards } from "./defects.js";
+
+export async function render(main, [ref]) {
+  let stopped = false;
+  const isStopped = () => stopped;
+  const heading = h("h1", { id: "track-title" }, "Track ", h("span", { class: "track-name" }, ref));
+  const lead = h("p", { class: "lead", id: "track-lead" });
+  const status = messageBox("info");
+  main.append(heading, lead, status.el);
+
+  let track;
+  try {
+    track = await resolveTrack(ref);
+  } catch (err) {
+    status.show(`Cannot load the tracks: ${err.message}`, "error");
+    return null;
+  }
+  if (!track) {
+    status.show(`There is no track “${ref}”.`, "error");
+    return null;
+  }
+  const name = track.name;
+  heading.querySelector(".track-name").textContent = name;
+  const enc = encodeURIComponent(track.id);
+  const t0 = performance.now();
+  const { mapP, registerP } = loadTrackData(enc);
+  let map;
+  try {
+    map = await mapP;
+  } catch (err) {
+    status.show(err instanceof ApiError && err.status === 404 ? `There is no track “${name}”.` : `Cannot load the chainage map: ${err.message}`, "error");
+    return null;
+  }
+  let register = [];
+  let trackRuns = [];
+  try {
+    const [defects, runList] = await registerP;
+    trackRuns = runList ? runList.data : [];
+    if (defects) register = defects;
+  } catch (err) {
+    status.show(`Cannot load the defect register: ${err.message}`, "error");
+  }
+  // The aggregated profile is made of aligned runs only: no card for a track without any.
+  const anyAligned = trackRuns.some((r) => r.alignment && r.alignment.status !== "unaligned");
+
+  const runs = map.runs || []; // the map shows processed runs only
+  const trackInfo = map.track || {};
+  append(lead, [
+    `${runs.length} processed run${runs.length === 1 ? "" : "s"}`,
+    map.chainage_min_m !== null && map.chainage_min_m !== undefined ? ` covering ${fmt(map.chainage_min_m, 0)}–${fmt(map.chainage_max_m, 0)} m` : "",
+    trackInfo.description ? ` · ${trackInfo.description}` : "",
+    " · ",
+    h("a", { href: "#/upload" }, "Upload another run"),
+  ]);
+  if (runs.length === 0) {
+    main.appendChild(h("p", { class: "muted" }, "No runs on this track yet."));
+    return null;
+  }
+  main.appendChild(exportLinks(enc, track.id));
+  const notice = alignmentNotice(trackRuns);
+  if (notice) main.appendChild(notice);
+
+  const mapView = await mapCard(main, { enc, map, t0, isStopped });
+
+  // ---- aggregated profile ---------------------------------------------------------------------
+  let zones = ranked(register);
+  const aggregate = anyAligned ? await aggregateCard(enc, () => zones) : null;
+  if (aggregate) main.appendChild(aggregate.section);
+  // Stiffness separated from rail geometry across passes of different wheel loads (issue 10).
+  const stiffness = anyAligned ? stiffnessCard(enc) : null;
+  if (stiffness) {
+    main.appendChild(stiffness.section);
+    stiffness.render();
+  }
+
+  // ---- register (ranked by priority) ---------------------------------------------------------
+  const registerView = registerCards(main, { enc, getZones: () => zones, isStopped });
+
+  // ---- alerts and limits ---------------------------------------------------------------------
+  // Alerts and limits serve the maintenance of aligned tracks (a track whose runs were never
+  // aligned has its register as logged, but nothing to plan from yet).
+  if (anyAligned) {
+    const alerts = alertsCard(enc);
+    const limits = limitsCard(enc, async () => {
+      register = await apiFetch(`/api/v1/tracks/${enc}/defects`);
+      zones = ranked(register);
+      registerView.draw();
+      if (aggregate) await aggregate.render();
+      if (stiffness) await stiffness.render();
+      await alerts.load();
+    });
+    main.appendChild(h("div", { class: "track-lower" }, alerts.section, limits.section));
+    limits.load();
+    alerts.load();
+  }
+
+  if (zones.length) registerView.showZone(zones[0]);
+  if (aggregate) aggregate.render();
+  announce(`Track ${name}: ${runs.length} runs, ${zones.length} zones.`);
+  return () => {
+    stopped = true;
+    mapView.stop();
+  };
+}

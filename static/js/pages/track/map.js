@@ -1,0 +1,158 @@
+// The track page's chainage map: every run along chainage, soft spots as markers (x chainage,
+// y run, colour + size + symbol = severity) over an optional level background. Zooming asks
+// the server for that window only.
+
+import { h, fmt, fmtDate } from "../../dom.js";
+import { apiFetch } from "../../api.js";
+import { CONFIG, baseLayout, plotly, viridis, zoomControls } from "../../plots.js";
+import { CLASSES, runLabels, severityClass } from "./state.js";
+
+function legendBox() {
+  return h("ul", { class: "severity-legend", "aria-label": "Severity classes by depth" },
+    CLASSES.map((c, i) => h("li", {}, h("span", { class: `sym sym-${c.symbol}`, "aria-hidden": "true", style: `--c:${viridis(1 - (i + 0.5) / CLASSES.length)}` }), c.label)));
+}
+
+function heatmapTrace(heat, labels, visible) {
+  return {
+    type: "heatmap", meta: "heatmap", name: "Level", x: heat.x, y: labels, z: heat.z,
+    colorscale: [[0, "#4b5563"], [0.5, "#d1d5db"], [1, "#f9fafb"]],
+    zmid: 0, showscale: false, visible, hoverongaps: false,
+    hovertemplate: "%{x:.0f} m · %{y}<br>lowest level %{z:.2f} mm<extra></extra>",
+  };
+}
+
+export function mapTraces(map, heat) {
+  const labels = runLabels(map);
+  const traces = [];
+  if (map.heatmap) traces.push(heatmapTrace(map.heatmap, labels, heat));
+  const s = map.spots || { run_index: [], start_m: [], end_m: [], peak_m: [], depth_mm: [], stiffness_loss_pct: [] };
+  const n = s.peak_m.length;
+  if (n) {
+    const segX = [];
+    const segY = [];
+    for (let i = 0; i < n; i += 1) {
+      segX.push(s.start_m[i], s.end_m[i], null);
+      const y = labels[s.run_index[i]];
+      segY.push(y, y, null);
+    }
+    traces.push({
+      type: "scatter", mode: "lines", name: "Extent", x: segX, y: segY, hoverinfo: "skip", showlegend: false,
+      line: { color: "#1b1f24", width: 3 },
+    });
+    const depthMax = Math.max(0.5, ...s.depth_mm);
+    traces.push({
+      type: "scatter", mode: "markers", name: "Soft spots", meta: "spots",
+      x: s.peak_m, y: s.run_index.map((i) => labels[i]),
+      marker: {
+        color: s.depth_mm, colorscale: "Viridis", reversescale: true, cmin: 0, cmax: depthMax,
+        // Dense overviews (a whole line) get smaller markers so that zones stay apart.
+        size: s.depth_mm.map((d) => (n > 1500 ? 5 + 8 * Math.min(d / depthMax, 1) : 8 + 14 * Math.min(d / depthMax, 1))),
+        symbol: s.depth_mm.map((d) => CLASSES[severityClass(d)].symbol),
+        line: { color: "#1b1f24", width: 1 },
+        colorbar: { title: { text: "Depth (mm)" }, thickness: 14, len: 0.9 },
+      },
+      customdata: s.peak_m.map((_, i) => [s.start_m[i], s.end_m[i], s.depth_mm[i], s.stiffness_loss_pct[i]]),
+      hovertemplate: "%{y}<br>%{customdata[0]:.1f}–%{customdata[1]:.1f} m, depth %{customdata[2]:.2f} mm, stiffness −%{customdata[3]:.0f} %<extra></extra>",
+    });
+  }
+  return traces;
+}
+
+export function mapLayout(labels, map) {
+  const rowHeight = labels.length > 30 ? 14 : 34;
+  return baseLayout({
+    height: Math.min(900, Math.max(320, 140 + rowHeight * labels.length)),
+    hovermode: "closest",
+    showlegend: false,
+    margin: { l: 190, r: 24, t: 16, b: 52 },
+    xaxis: {
+      title: { text: "Chainage (m)" }, gridcolor: "#e3e6ea", zeroline: false,
+      range: map.chainage_min_m !== null && map.chainage_min_m !== undefined ? [map.chainage_min_m, map.chainage_max_m] : undefined,
+    },
+    yaxis: { type: "category", categoryorder: "array", categoryarray: labels.slice().reverse(), automargin: true, gridcolor: "#eef0f3", fixedrange: true },
+  });
+}
+
+/**
+ * Draw the chainage map card into `main`. `t0` is when the page started loading (the note
+ * reports the load time). Returns {stop} for the page's cleanup.
+ */
+export async function mapCard(main, { enc, map, t0, isStopped }) {
+  const runs = map.runs || [];
+  const mapDiv = h("div", { class: "plot plot-map", id: "chainage-map", role: "img", "aria-label": "Chainage map of soft spots: chainage across, runs down, severity as colour, size and symbol" });
+  const heatToggle = h("input", { type: "checkbox", id: "toggle-heatmap", checked: true });
+  const mapNote = h("p", { class: "hint", id: "map-note" });
+  const legend = legendBox();
+  const mapSection = h("section", { class: "card", "aria-labelledby": "map-h" },
+    h("div", { class: "section-head" },
+      h("h2", { id: "map-h" }, "Chainage map"),
+      h("label", { class: "check" }, heatToggle, " Profile level as background")),
+    h("p", { class: "hint" }, "Each row is a run (newest at the top). Markers are soft spots at their deepest point; the bar shows their extent. Darker, larger and more angular markers are deeper. Drag to zoom; the background is recomputed for the zoomed window."),
+    mapDiv,
+    legend,
+    mapNote,
+  );
+  main.appendChild(mapSection);
+
+  const labels = runs.map((r) => r.label || `${fmtDate(r.recorded_at)} · run ${r.id}`);
+  const P = plotly();
+  const layout = mapLayout(labels, map);
+  await P.newPlot(mapDiv, mapTraces(map, heatToggle.checked), layout, { ...CONFIG, scrollZoom: false });
+  mapSection.insertBefore(zoomControls(mapDiv, { label: "Chainage map view" }), legend);
+  const elapsed = performance.now() - t0;
+  const describe = (m, prefix) => {
+    mapNote.textContent = prefix
+      + (m.heatmap ? `Background: lowest level per ${fmt(m.heatmap.bin_m, m.heatmap.bin_m < 10 ? 2 : 0)} m cell.` : `No background: ${m.heatmap_note || "no profile stored in this window"}.`)
+      + (map.runs_omitted ? ` ${map.runs_omitted} older runs not shown.` : "")
+      + (map.runs_pending ? ` ${map.runs_pending} runs still processing or failed are not shown.` : "");
+  };
+  describe(map, `${(map.spots ? map.spots.peak_m.length : 0).toLocaleString()} soft spots from ${runs.length} runs, loaded in ${(elapsed / 1000).toFixed(2)} s. `);
+
+  // Zooming asks the server for that window only: its soft spots and, up to 10 km wide, the
+  // binned levels; the plot then holds what it shows rather than the whole line.
+  let relayoutTimer = null;
+  let requestSeq = 0;
+  let current = map;
+  const redraw = (m, range) => {
+    current = m;
+    const lay = { ...mapLayout(labels, map), xaxis: { ...layout.xaxis } };
+    if (range) lay.xaxis = { ...lay.xaxis, range, autorange: false };
+    return P.react(mapDiv, mapTraces(m, heatToggle.checked), lay, { ...CONFIG, scrollZoom: false });
+  };
+
+  async function loadWindow(range) {
+    const seq = ++requestSeq;
+    if (range === "full") {
+      if (current !== map) await redraw(map, null);
+      describe(map, "Whole line. ");
+      return;
+    }
+    const [a, b] = range;
+    try {
+      const part = await apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200&zones=false&heatmap=${heatToggle.checked}&from_m=${encodeURIComponent(a)}&to_m=${encodeURIComponent(b)}`);
+      if (isStopped() || seq !== requestSeq) return;
+      await redraw(part, [a, b]);
+      describe(part, `${fmt(a, 0)}–${fmt(b, 0)} m: ${part.spots.peak_m.length.toLocaleString()} soft spots. `);
+    } catch (err) {
+      mapNote.textContent = `Cannot load this window: ${err.message}`;
+    }
+  }
+
+  mapDiv.on("plotly_relayout", (ev) => {
+    let range = null;
+    if (ev["xaxis.range[0]"] !== undefined) range = [Number(ev["xaxis.range[0]"]), Number(ev["xaxis.range[1]"])];
+    else if (Array.isArray(ev["xaxis.range"])) range = ev["xaxis.range"].map(Number);
+    else if (ev["xaxis.autorange"]) range = "full";
+    if (!range) return;
+    clearTimeout(relayoutTimer);
+    relayoutTimer = setTimeout(() => loadWindow(range), 150);
+  });
+
+  heatToggle.addEventListener("change", () => {
+    const idx = mapDiv.data.findIndex((t) => t.meta === "heatmap");
+    if (idx >= 0) P.restyle(mapDiv, { visible: heatToggle.checked }, [idx]);
+    else if (heatToggle.checked) loadWindow(mapDiv.layout.xaxis.range.map(Number));
+  });
+
+  return { stop: () => clearTimeout(relayoutTimer) };
+}

@@ -1,0 +1,277 @@
+// Upload page actions: load the choices, read and preview a chosen file (the service's reader
+// has the last word), create a vehicle, create the track, upload with progress and follow the
+// processing until the run is ready.
+
+import { h, announce } from "../../dom.js";
+import { ApiError, apiFetch, apiPostJson, uploadWithProgress } from "../../api.js";
+import { readHead, parseHead } from "../../csvpreview.js";
+import { formatBytes, runErrorMessage } from "./state.js";
+import {
+  errorFactsOfRun, errorList, errorText, highlightFields, showChoices, showPreview,
+  showPreviewMessage, updateNewTrack,
+} from "./view.js";
+
+export async function loadChoices(ui, state) {
+  try {
+    state.tracks = (await apiFetch("tracks")).data;
+  } catch (err) {
+    ui.status.show(`Could not load the tracks: ${err.message}`, "error");
+  }
+  try {
+    state.vehicles = (await apiFetch("vehicles")).data;
+  } catch (err) {
+    ui.status.show(`Could not load the vehicles: ${err.message}`, "error");
+  }
+  showChoices(ui, state);
+}
+
+async function createVehicle(ui, state) {
+  const { vehicleName, vehicleInputs, vehicleMsg } = ui;
+  const name = vehicleName.value.trim();
+  if (!name) {
+    vehicleMsg.show("Give the vehicle a name.", "error");
+    vehicleName.focus();
+    return;
+  }
+  const params = {};
+  for (const [key, input] of Object.entries(vehicleInputs)) {
+    const v = Number(input.value);
+    if (input.value === "" || !Number.isFinite(v)) {
+      vehicleMsg.show(`${key} must be a number.`, "error");
+      input.focus();
+      return;
+    }
+    params[key] = v;
+  }
+  try {
+    await apiPostJson("vehicles", { name, params });
+    await loadChoices(ui, state);
+    ui.vehicleSel.value = name;
+    vehicleMsg.show(`Vehicle ${name} created and selected.`, "success");
+  } catch (err) {
+    vehicleMsg.show(errorText(err), "error", errorList(err));
+  }
+}
+
+/** The column/unit options the user set explicitly (blank = automatic). */
+export function chosenOptions(ui, state) {
+  const out = {};
+  for (const role of state.roles) {
+    const { colSel, unitSel } = ui.selects[role.key];
+    if (colSel.value) out[role.column] = colSel.value;
+    if (unitSel && unitSel.value) out[role.unit] = unitSel.value;
+  }
+  if (ui.gravitySel.value) out.gravity = ui.gravitySel.value;
+  return out;
+}
+
+async function serverPreview(text, options) {
+  const cut = text.lastIndexOf("\n");
+  const body = new Blob([cut > 0 ? text.slice(0, cut + 1) : text], { type: "text/csv" });
+  const fd = new FormData();
+  fd.append("file", body, "head.csv");
+  for (const [k, v] of Object.entries(options)) fd.append(k, v);
+  try {
+    return { answer: await apiFetch("views/csv-preview", { method: "POST", body: fd }) };
+  } catch (err) {
+    // Unreachable or an older service without the preview: the page's own first look stays.
+    if (!(err instanceof ApiError) || [0, 404, 405].includes(err.status)) return null;
+    return { error: err.detail || { message: err.message } };
+  }
+}
+
+async function chooseFile(ui, state, f) {
+  state.file = f;
+  ui.status.hide();
+  ui.fileInfo.textContent = `${f.name} — ${formatBytes(f.size)}`;
+  showPreviewMessage(ui, "Reading the first rows…");
+  try {
+    const head = await readHead(f);
+    if (head.unsupported) {
+      showPreviewMessage(ui, "This browser cannot preview gzip files; the server will still read it.", "hint");
+      return;
+    }
+    const parsed = parseHead(head.text, head.complete);
+    state.preview = { parsed, head, serverAuto: null, serverNow: null };
+    showPreview(ui, state);
+    // The engine's own reading of the head has the last word when the service answers.
+    const server = await serverPreview(head.text, {});
+    if (server && !state.stopped && state.file === f) {
+      state.preview.serverAuto = server;
+      state.preview.serverNow = server;
+      showPreview(ui, state);
+      if (Object.keys(chosenOptions(ui, state)).length) refreshServerPreview(ui, state);
+    }
+  } catch (err) {
+    showPreviewMessage(ui, `Cannot preview this file: ${err.message}`, "error");
+  }
+}
+
+function refreshServerPreview(ui, state) {
+  if (!state.preview || !state.preview.serverAuto) return;
+  clearTimeout(state.previewTimer);
+  state.previewTimer = setTimeout(async () => {
+    const f = state.file;
+    const server = await serverPreview(state.preview.head.text, chosenOptions(ui, state));
+    if (server && !state.stopped && state.file === f) {
+      state.preview.serverNow = server;
+      showPreview(ui, state);
+    }
+  }, 250);
+}
+
+async function ensureTrack(ui, state, name) {
+  if (state.tracks.some((t) => t.name === name)) return;
+  const { trackRail, trackDesc, trackK, trackSpacing } = ui;
+  const body = { name, rail: trackRail.value.trim() || "UIC60" };
+  if (trackDesc.value.trim()) body.description = trackDesc.value.trim();
+  const k = Number(trackK.value);
+  const s = Number(trackSpacing.value);
+  if (trackK.value !== "" && Number.isFinite(k)) body.k_nominal = k * 1e6; // kN/mm -> N/m
+  if (trackSpacing.value !== "" && Number.isFinite(s)) body.spacing = s;
+  try {
+    await apiPostJson("tracks", body);
+  } catch (err) {
+    // A track created meanwhile (409) is fine: the upload names it.
+    if (!(err instanceof ApiError && err.status === 409)) throw err;
+  }
+}
+
+function poll(ui, state, id, started) {
+  return new Promise((resolve, reject) => {
+    const tick = async () => {
+      if (state.stopped) return;
+      try {
+        const run = await apiFetch(`runs/${encodeURIComponent(id)}`);
+        const elapsed = (Date.now() - started) / 1000;
+        if (typeof run.progress === "number") ui.processBar.value = Math.max(0, Math.min(1, run.progress));
+        ui.processLabel.textContent = `Processing (${elapsed.toFixed(0)} s)`;
+        if (run.status === "done") return resolve(run);
+        if (run.status === "failed") return reject(Object.assign(new Error(runErrorMessage(run.error)), { run }));
+        state.pollTimer = setTimeout(tick, 600);
+      } catch (err) {
+        reject(err);
+      }
+    };
+    tick();
+  });
+}
+
+/** The upload's form data, or null after telling the user what is missing. */
+function formData(ui, state) {
+  const { status, fileInput, trackInput, startInput } = ui;
+  if (!state.file) {
+    status.show("Choose a run log file first.", "error");
+    fileInput.focus();
+    return null;
+  }
+  const track = trackInput.value.trim();
+  if (!track) {
+    status.show("Name the track the run was recorded on.", "error");
+    trackInput.setAttribute("aria-invalid", "true");
+    trackInput.focus();
+    return null;
+  }
+  if (startInput.value !== "" && !Number.isFinite(Number(startInput.value))) {
+    status.show("The start chainage must be a number of metres.", "error");
+    startInput.focus();
+    return null;
+  }
+  const fd = new FormData();
+  fd.append("file", state.file, state.file.name);
+  fd.append("track", track);
+  if (ui.vehicleSel.value) fd.append("vehicle", ui.vehicleSel.value);
+  if (startInput.value !== "") fd.append("start_chainage_m", startInput.value);
+  fd.append("direction", ui.directionSel.value);
+  if (ui.recordedInput.value) fd.append("recorded_at", new Date(ui.recordedInput.value).toISOString());
+  if (ui.payloadInput.value !== "") fd.append("payload_kg", ui.payloadInput.value);
+  if (ui.wheelLoadInput.value !== "") fd.append("static_wheel_load_n", ui.wheelLoadInput.value);
+  for (const [k, v] of Object.entries(chosenOptions(ui, state))) fd.append(k, v);
+  return { fd, track };
+}
+
+async function submit(ui, state) {
+  const { status, submitBtn, progressBox, uploadBar, processBar, uploadLabel, processLabel } = ui;
+  status.hide();
+  highlightFields(ui, state, null);
+  const data = formData(ui, state);
+  if (!data) return;
+  submitBtn.disabled = true;
+  progressBox.hidden = false;
+  uploadBar.value = 0;
+  processBar.removeAttribute("value");
+  uploadLabel.textContent = "Upload 0 %";
+  processLabel.textContent = "Processing (waiting)";
+  status.show("Uploading…", "info");
+  try {
+    await ensureTrack(ui, state, data.track);
+    const created = await uploadWithProgress("runs", data.fd, (frac) => {
+      uploadBar.value = frac;
+      uploadLabel.textContent = `Upload ${Math.round(frac * 100)} %`;
+    });
+    uploadBar.value = 1;
+    uploadLabel.textContent = "Upload 100 %";
+    const id = created.id;
+    status.show(`Uploaded as run ${id}. Processing…`, "info");
+    announce("Upload complete, processing the run.");
+    const run = created.status === "done" ? created : await poll(ui, state, id, Date.now());
+    processBar.value = 1;
+    processLabel.textContent = "Processing done";
+    const link = h("a", { href: `#/runs/${encodeURIComponent(id)}`, id: "open-run" }, "Open the run");
+    status.show(`Run ${id} processed. `, "success", [link]);
+    announce(`Run ${id} processed.`);
+    // Take the user straight to the result; the link stays for the back button.
+    setTimeout(() => {
+      if (!state.stopped) window.location.hash = `#/runs/${encodeURIComponent(run.id)}`;
+    }, 400);
+  } catch (err) {
+    processBar.value = 0;
+    const failedRun = err.run;
+    if (failedRun) {
+      processLabel.textContent = "Processing failed";
+      const link = h("a", { href: `#/runs/${encodeURIComponent(failedRun.id)}` }, "See the run");
+      status.show(`Processing failed: ${err.message} `, "error", [errorFactsOfRun(failedRun.error), link]);
+    } else {
+      status.show(errorText(err), "error", errorList(err));
+      highlightFields(ui, state, err);
+    }
+    announce("The upload failed.");
+  } finally {
+    submitBtn.disabled = false;
+  }
+}
+
+/** Wire the form's events to the actions above. */
+export function bind(ui, state) {
+  const { dropZone, fileInput, form } = ui;
+  ui.trackInput.addEventListener("input", () => updateNewTrack(ui, state));
+  ui.createVehicleBtn.addEventListener("click", () => createVehicle(ui, state));
+  for (const ev of ["dragenter", "dragover"]) {
+    dropZone.addEventListener(ev, (e) => {
+      e.preventDefault();
+      dropZone.classList.add("dragging");
+    });
+  }
+  for (const ev of ["dragleave", "drop"]) {
+    dropZone.addEventListener(ev, (e) => {
+      e.preventDefault();
+      dropZone.classList.remove("dragging");
+    });
+  }
+  dropZone.addEventListener("drop", (e) => {
+    const dropped = e.dataTransfer && e.dataTransfer.files && e.dataTransfer.files[0];
+    if (dropped) chooseFile(ui, state, dropped);
+  });
+  fileInput.addEventListener("change", () => {
+    if (fileInput.files && fileInput.files[0]) chooseFile(ui, state, fileInput.files[0]);
+  });
+  for (const { colSel, unitSel } of Object.values(ui.selects)) {
+    colSel.addEventListener("change", () => refreshServerPreview(ui, state));
+    if (unitSel) unitSel.addEventListener("change", () => refreshServerPreview(ui, state));
+  }
+  ui.gravitySel.addEventListener("change", () => refreshServerPreview(ui, state));
+  form.addEventListener("submit", (e) => {
+    e.preventDefault();
+    submit(ui, state);
+  });
+}

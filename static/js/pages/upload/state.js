@@ -1,0 +1,106 @@
+// Upload page state: the form's vocabulary (derived from the service's OpenAPI schema) and the
+// page's mutable state (chosen file, its preview, the tracks and vehicles to choose from).
+
+// The vocabulary of this page comes from the service's OpenAPI schema, which is derived from
+// the engine's CsvOptions (column roles, their units) and VehicleParams (Table 1 defaults).
+export const GRAVITY_TEXT = {
+  included: "Included (raw IMU, about +1 g at rest)",
+  removed: "Removed (about 0 at rest)",
+};
+
+/** Column roles of the upload form: [{key, label, column, unit, units, unitLabels}]. */
+export function rolesOf(spec) {
+  const props = spec.components.schemas.RunCreateJson.properties;
+  const roles = [];
+  for (const [name, p] of Object.entries(props)) {
+    if (!name.endsWith("_column") || !p["x-role"]) continue;
+    const key = p["x-role"];
+    const unit = props[`${key}_unit`];
+    const label = p["x-label"].charAt(0).toUpperCase() + p["x-label"].slice(1);
+    roles.push({
+      key, label: key === "chainage" ? `${label} (optional)` : label, column: name,
+      unit: unit ? `${key}_unit` : null, units: unit ? unit["x-units"] : [],
+      unitLabels: unit ? unit["x-unit-labels"] : {},
+    });
+  }
+  return { roles, gravity: props.gravity["x-values"].filter((g) => g !== "auto") };
+}
+
+/** Vehicle parameters: [[name, label, unit, default]] (defaults: the Table 1 vehicle). */
+export function vehicleFieldsOf(spec) {
+  const props = spec.components.schemas.VehicleParamsSchema.properties;
+  return Object.entries(props).map(([name, p]) => {
+    const cut = p.description.lastIndexOf(", ");
+    return [name, p.description.slice(0, cut), p.description.slice(cut + 2), p.default];
+  });
+}
+
+/** The page's vocabulary from the OpenAPI schema: {roles, gravityModes, vehicleFields}. */
+export function vocabularyOf(spec) {
+  const { roles, gravity } = rolesOf(spec);
+  return { roles, gravityModes: gravity, vehicleFields: vehicleFieldsOf(spec) };
+}
+
+/** A fresh page state. `preview` is {parsed, head, serverAuto, serverNow} once a file is read. */
+export function createState(vocabulary) {
+  return {
+    ...vocabulary,
+    stopped: false,
+    pollTimer: null,
+    previewTimer: null,
+    file: null,
+    preview: null,
+    tracks: [],
+    vehicles: [],
+  };
+}
+
+/** A server preview as {mapping: role → {column, unit}, gravity}. */
+export function fromServer(roles, s) {
+  const mapping = {};
+  for (const role of roles) {
+    const col = s.mapping ? s.mapping[role.key] : null;
+    if (col) mapping[role.key] = { column: col, unit: s.units ? s.units[role.key] || null : null };
+  }
+  return { mapping, gravity: s.gravity || null, source: "server" };
+}
+
+/** What "Automatic" would pick: the service's reading without options (the page never
+ * recognises columns itself: the engine's reader is the one authority). */
+export function currentRecognition(state) {
+  const s = state.preview && state.preview.serverAuto;
+  if (s && s.answer) return fromServer(state.roles, s.answer);
+  return { mapping: {}, gravity: null, source: "none" };
+}
+
+/** How the file will be read with the current choices (for the column badges). */
+export function effectiveReading(state) {
+  const s = state.preview && state.preview.serverNow;
+  if (s && s.answer) return fromServer(state.roles, s.answer);
+  return currentRecognition(state);
+}
+
+export function roleOf(column, reading) {
+  for (const [role, m] of Object.entries(reading.mapping)) if (m && m.column === column) return role;
+  return null;
+}
+
+export function nowLocalInput() {
+  const d = new Date();
+  d.setSeconds(0, 0);
+  const pad = (n) => String(n).padStart(2, "0");
+  return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())}T${pad(d.getHours())}:${pad(d.getMinutes())}`;
+}
+
+export function formatBytes(n) {
+  if (n < 1024) return `${n} B`;
+  if (n < 1024 * 1024) return `${(n / 1024).toFixed(1)} KB`;
+  return `${(n / 1024 / 1024).toFixed(1)} MB`;
+}
+
+/** The readable message of a stored run error (text or structured). */
+export function runErrorMessage(error) {
+  if (!error) return "unknown error";
+  if (typeof error === "string") return error;
+  return error.message || JSON.stringify(error);
+}

@@ -1,0 +1,276 @@
+// Upload page view: the form (file, columns and units, track/vehicle/position, upload), the
+// preview of the file's first rows and the way errors are shown. No requests are made here.
+
+import { h, clear, append, announce, field, fmt, messageBox } from "../../dom.js";
+import { ApiError } from "../../api.js";
+import { estimateRate, HEAD_BYTES } from "../../csvpreview.js";
+import { GRAVITY_TEXT, currentRecognition, effectiveReading, nowLocalInput, roleOf } from "./state.js";
+
+/** Build the form into `main`; returns the elements the actions work with. */
+export function buildForm(main, state) {
+  const ui = {};
+  main.appendChild(h("p", { class: "lead" },
+    "Drop a logger file (CSV, optionally gzip-compressed). Check that the columns were recognised, say on which track the run was recorded, and upload. The loaded profile and its soft spots are ready a few seconds later."));
+
+  const form = h("form", { class: "upload-form", novalidate: true, "aria-describedby": "upload-status" });
+  ui.form = form;
+  main.appendChild(form);
+
+  // ---- 1. File -------------------------------------------------------------------------------
+  // The native input stays in the tab order (visually hidden); its label is the visible button.
+  ui.fileInput = h("input", { type: "file", id: "file-input", name: "file", class: "visually-hidden", accept: ".csv,.txt,.gz,.tsv,text/csv,application/gzip" });
+  ui.fileInfo = h("p", { class: "file-info", id: "file-info", "aria-live": "polite" }, "No file chosen yet.");
+  ui.dropZone = h("div", { class: "drop-zone", id: "drop-zone" },
+    h("p", { class: "drop-title" }, "Drag and drop a run log here"),
+    h("p", {}, "or"),
+    ui.fileInput,
+    h("label", { for: "file-input", class: "button secondary" }, "Choose a file…"),
+    ui.fileInfo,
+  );
+  ui.previewBox = h("div", { class: "preview", id: "csv-preview" });
+  form.appendChild(h("fieldset", { class: "card" },
+    h("legend", {}, "1. Run log file"),
+    ui.dropZone,
+    ui.previewBox,
+  ));
+
+  // ---- 2. Columns and units ------------------------------------------------------------------
+  const mappingGrid = h("div", { class: "mapping-grid", id: "mapping" });
+  ui.selects = {};
+  for (const role of state.roles) {
+    const colSel = h("select", { name: role.column, id: `map-${role.key}-column`, "data-role": role.key });
+    colSel.appendChild(h("option", { value: "" }, "Automatic"));
+    const parts = [field(`${role.label} column`, colSel)];
+    let unitSel = null;
+    if (role.unit) {
+      unitSel = h("select", { name: role.unit, id: `map-${role.key}-unit` });
+      unitSel.appendChild(h("option", { value: "" }, "Automatic"));
+      for (const u of role.units) unitSel.appendChild(h("option", { value: u }, role.unitLabels[u]));
+      parts.push(field(`${role.label} unit`, unitSel));
+    }
+    ui.selects[role.key] = { colSel, unitSel };
+    mappingGrid.appendChild(h("div", { class: "mapping-row" }, parts));
+  }
+  ui.gravitySel = h("select", { name: "gravity", id: "map-gravity" },
+    h("option", { value: "" }, "Automatic"),
+    state.gravityModes.map((g) => h("option", { value: g }, GRAVITY_TEXT[g] || g)),
+  );
+  mappingGrid.appendChild(h("div", { class: "mapping-row" }, field("Gravity in the acceleration", ui.gravitySel)));
+  ui.recognisedNote = h("p", { class: "hint", id: "recognised-note" }, "Choose a file to see which columns are recognised.");
+  form.appendChild(h("fieldset", { class: "card" },
+    h("legend", {}, "2. Columns and units"),
+    ui.recognisedNote,
+    mappingGrid,
+  ));
+
+  // ---- 3. Where and when ---------------------------------------------------------------------
+  ui.trackInput = h("input", { type: "text", name: "track", id: "track-input", list: "track-list", required: true, autocomplete: "off", maxlength: 200 });
+  ui.trackList = h("datalist", { id: "track-list" });
+  ui.newTrackBox = h("div", { class: "new-track", hidden: true });
+  ui.trackDesc = h("input", { type: "text", id: "track-description", maxlength: 500 });
+  ui.trackK = h("input", { type: "number", id: "track-k", value: "80", min: "1", step: "any" });
+  ui.trackSpacing = h("input", { type: "number", id: "track-spacing", value: "0.6", min: "0.1", step: "any" });
+  ui.trackRail = h("input", { type: "text", id: "track-rail", value: "UIC60", maxlength: 50 });
+  append(ui.newTrackBox, [
+    h("p", { class: "hint" }, "New track: it is created with these details when you upload."),
+    h("div", { class: "grid-2" },
+      field("Description", ui.trackDesc),
+      field("Rail", ui.trackRail),
+      field("Nominal support stiffness (kN/mm)", ui.trackK),
+      field("Sleeper spacing (m)", ui.trackSpacing)),
+  ]);
+
+  ui.vehicleSel = h("select", { name: "vehicle", id: "vehicle-select" });
+  ui.vehicleMsg = messageBox("info");
+  ui.vehicleInputs = {};
+  ui.vehicleName = h("input", { type: "text", id: "vehicle-name", maxlength: 200 });
+  const vehicleForm = h("div", { class: "grid-3" }, field("Name", ui.vehicleName));
+  for (const [key, label, unit, def] of state.vehicleFields) {
+    const input = h("input", { type: "number", id: `veh-${key}`, value: String(def), step: "any" });
+    ui.vehicleInputs[key] = input;
+    vehicleForm.appendChild(field(`${label} (${unit})`, input));
+  }
+  ui.createVehicleBtn = h("button", { type: "button", class: "button secondary", id: "create-vehicle" }, "Create vehicle");
+  const vehicleDetails = h("details", { class: "new-vehicle" },
+    h("summary", {}, "Create a vehicle (half-car parameters)"),
+    vehicleForm, ui.createVehicleBtn, ui.vehicleMsg.el);
+
+  ui.startInput = h("input", { type: "number", name: "start_chainage_m", id: "start-chainage", value: "0", step: "any" });
+  ui.directionSel = h("select", { name: "direction", id: "direction" },
+    h("option", { value: "increasing" }, "Increasing chainage"),
+    h("option", { value: "decreasing" }, "Decreasing chainage"));
+  ui.recordedInput = h("input", { type: "datetime-local", name: "recorded_at", id: "recorded-at", value: nowLocalInput() });
+  // What the log cannot know about the wheel force (issue 10): the payload carried, or the
+  // static wheel load measured; runs of different loads let the track separate geometry from
+  // stiffness. Both blank: the registered vehicle's own load.
+  ui.payloadInput = h("input", { type: "number", name: "payload_kg", id: "payload-kg", min: "0", step: "any", placeholder: "none" });
+  ui.wheelLoadInput = h("input", { type: "number", name: "static_wheel_load_n", id: "static-wheel-load", min: "0", step: "any", placeholder: "from the vehicle" });
+
+  form.appendChild(h("fieldset", { class: "card" },
+    h("legend", {}, "3. Track, vehicle and position"),
+    h("div", { class: "grid-2" },
+      h("div", {}, field("Track", ui.trackInput, "Pick an existing track or type a new name."), ui.trackList),
+      field("Vehicle", ui.vehicleSel),
+      field("Start chainage (m)", ui.startInput, "Chainage of the body centre (the IMU) at the first sample."),
+      field("Direction of travel", ui.directionSel),
+      field("Recorded at (local time)", ui.recordedInput),
+      field("Payload (kg)", ui.payloadInput, "Load carried on top of the vehicle's own mass (passengers, freight)."),
+      field("Measured static wheel load (N)", ui.wheelLoadInput, "Instead of the payload, if a load-weigh system measured it."),
+    ),
+    ui.newTrackBox,
+    vehicleDetails,
+  ));
+
+  // ---- 4. Upload -----------------------------------------------------------------------------
+  ui.submitBtn = h("button", { type: "submit", class: "button primary", id: "upload-button" }, "Upload and process");
+  ui.uploadBar = h("progress", { id: "upload-progress", max: "1", value: "0", "aria-label": "Upload progress" });
+  ui.processBar = h("progress", { id: "process-progress", max: "1", "aria-label": "Processing progress" });
+  ui.uploadLabel = h("span", { class: "progress-label" }, "Upload");
+  ui.processLabel = h("span", { class: "progress-label" }, "Processing");
+  ui.progressBox = h("div", { class: "progress-box", hidden: true },
+    h("div", { class: "progress-row" }, ui.uploadLabel, ui.uploadBar),
+    h("div", { class: "progress-row" }, ui.processLabel, ui.processBar));
+  ui.status = messageBox("info");
+  ui.status.el.id = "upload-status";
+  form.appendChild(h("div", { class: "card actions" }, ui.submitBtn, ui.progressBox, ui.status.el));
+  return ui;
+}
+
+/** Fill the track and vehicle choices (keeps the chosen vehicle). */
+export function showChoices(ui, state) {
+  clear(ui.trackList);
+  for (const t of state.tracks) ui.trackList.appendChild(h("option", { value: t.name }));
+  const previous = ui.vehicleSel.value;
+  clear(ui.vehicleSel);
+  for (const v of state.vehicles) ui.vehicleSel.appendChild(h("option", { value: v.name }, v.name));
+  if (previous) ui.vehicleSel.value = previous;
+}
+
+/** The new-track details show when the typed name is not an existing track. */
+export function updateNewTrack(ui, state) {
+  const name = ui.trackInput.value.trim();
+  ui.newTrackBox.hidden = !name || state.tracks.some((t) => t.name === name);
+}
+
+export function showPreviewMessage(ui, text, kind = "muted") {
+  clear(ui.previewBox);
+  const attrs = kind === "error" ? { class: "message error", role: "alert" } : { class: kind };
+  ui.previewBox.appendChild(h("p", attrs, text));
+}
+
+function unitLabel(role, unit) {
+  return role.unitLabels[unit] || unit;
+}
+
+/** The preview table with its column badges, the problems found and the mapping choices. */
+export function showPreview(ui, state) {
+  const { roles, file } = state;
+  const { parsed, head } = state.preview;
+  const server = state.preview.serverNow && state.preview.serverNow.answer ? state.preview.serverNow.answer : null;
+  const rec = currentRecognition(state);
+  const eff = effectiveReading(state);
+  const { previewBox, selects, gravitySel, recognisedNote } = ui;
+  clear(previewBox);
+  const columns = server ? server.columns : parsed.columns;
+  const rows = server ? server.rows : parsed.rows.slice(0, 10);
+  if (columns.length === 0) {
+    previewBox.appendChild(h("p", { class: "message error", role: "alert" }, "The file looks empty: no header line found."));
+    return;
+  }
+  const delim = server ? server.delimiter : parsed.delimiter;
+  const delimName = { ",": "comma", ";": "semicolon", "\t": "tab", " ": "space" }[delim] || delim;
+  const rate = eff.mapping.time ? estimateRate(parsed, eff.mapping.time.column, eff.mapping.time.unit) : null;
+  const facts = [
+    `${columns.length} columns`, `${delimName}-separated`, head.gzip ? "gzip-compressed" : null,
+    rate ? `about ${fmt(rate, rate >= 100 ? 0 : 1)} Hz` : null,
+    rate && head.complete ? `${fmt(parsed.rows.length / rate, 1)} s long` : null,
+    rate && !head.complete && !head.gzip && file ? `about ${fmt((file.size / (HEAD_BYTES / Math.max(parsed.rows.length, 1))) / rate, 0)} s long` : null,
+  ].filter(Boolean);
+  previewBox.appendChild(h("p", { class: "hint" }, `First rows (${facts.join(", ")}):`));
+  const thead = h("tr", {});
+  for (const c of columns) {
+    const role = roleOf(c, eff);
+    const roleLabel = role ? roles.find((r) => r.key === role).label.replace(" (optional)", "") : null;
+    const unit = role && eff.mapping[role] ? eff.mapping[role].unit : null;
+    thead.appendChild(h("th", { scope: "col" }, c,
+      roleLabel ? h("span", { class: "badge" }, unit ? `${roleLabel}, ${unit}` : roleLabel) : null));
+  }
+  const tbody = h("tbody", {});
+  for (const r of rows.slice(0, 10)) tbody.appendChild(h("tr", {}, r.map((cell) => h("td", {}, String(cell)))));
+  previewBox.appendChild(h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "Preview of the first rows" },
+    h("table", { class: "data preview-table", id: "preview-table" }, h("thead", {}, thead), tbody)));
+  const problems = [];
+  if (state.preview.serverNow && state.preview.serverNow.error) {
+    const d = state.preview.serverNow.error;
+    problems.push(typeof d === "string" ? d : d.message || JSON.stringify(d));
+  }
+  if (server && Array.isArray(server.warnings)) problems.push(...server.warnings);
+  if (problems.length) {
+    previewBox.appendChild(h("div", { class: "message warning", role: "status", id: "preview-warnings" },
+      "Check before uploading:", h("ul", {}, problems.map((p) => h("li", {}, p)))));
+  }
+  // Fill the mapping selects with the file's columns; keep the user's explicit choices.
+  for (const role of roles) {
+    const { colSel, unitSel } = selects[role.key];
+    const chosen = colSel.value;
+    clear(colSel);
+    const auto = rec.mapping[role.key];
+    colSel.appendChild(h("option", { value: "" }, auto ? `Automatic: ${auto.column}` : "Automatic (not recognised)"));
+    for (const c of columns) colSel.appendChild(h("option", { value: c }, c));
+    if (chosen && columns.includes(chosen)) colSel.value = chosen;
+    if (unitSel) {
+      unitSel.options[0].textContent = auto && auto.unit ? `Automatic: ${unitLabel(role, auto.unit)}` : "Automatic";
+    }
+  }
+  gravitySel.options[0].textContent = rec.gravity ? `Automatic: ${rec.gravity}` : "Automatic";
+  const found = roles.filter((r) => eff.mapping[r.key]).map((r) => `${r.label.replace(" (optional)", "")} = ${eff.mapping[r.key].column}`);
+  const missing = roles.filter((r) => !eff.mapping[r.key] && !["chainage", "speed"].includes(r.key)).map((r) => r.label);
+  recognisedNote.textContent = (eff.source === "server"
+    ? `Recognised by the service: ${found.join("; ") || "nothing"}.`
+    : "The service could not be asked to read the file.")
+    + (missing.length ? ` Not recognised: ${missing.join(", ")} — choose the columns below.` : " Change a choice below if it is wrong.");
+  recognisedNote.className = missing.length ? "message warning" : "hint";
+  announce(`Preview ready: ${columns.length} columns.`);
+}
+
+export function errorText(err) {
+  if (err instanceof ApiError) {
+    const prefix = err.status === 413 ? "The file is too large. " : "";
+    return `${prefix}${err.message}`;
+  }
+  return err.message || String(err);
+}
+
+export function errorList(err) {
+  if (!(err instanceof ApiError) || !err.items || err.items.length === 0) return [];
+  return [h("ul", { class: "error-facts" }, err.items.map((i) => h("li", {}, i)))];
+}
+
+/** Mark the fields an error names (by form name, or the column the file's reader named). */
+export function highlightFields(ui, state, err) {
+  for (const el of ui.form.querySelectorAll("[aria-invalid]")) el.removeAttribute("aria-invalid");
+  if (!(err instanceof ApiError)) return;
+  const names = [...(err.fields || [])];
+  const column = err.detail && typeof err.detail === "object" && !Array.isArray(err.detail) ? err.detail.column : null;
+  if (column) {
+    for (const role of state.roles) {
+      const rec = currentRecognition(state);
+      const chosen = ui.selects[role.key].colSel.value || (rec.mapping[role.key] && rec.mapping[role.key].column);
+      if (chosen === column) names.push(role.column);
+    }
+  }
+  for (const name of names) {
+    const el = ui.form.querySelector(`[name="${CSS.escape(name)}"]`);
+    if (el) el.setAttribute("aria-invalid", "true");
+  }
+}
+
+/** The column/row/unit facts of a stored run error, as a list (or null). */
+export function errorFactsOfRun(error) {
+  if (!error || typeof error !== "object") return null;
+  const facts = [];
+  for (const key of ["column", "row", "unit"]) {
+    if (error[key] !== undefined && error[key] !== null) facts.push(`${key[0].toUpperCase()}${key.slice(1)}: ${error[key]}`);
+  }
+  return facts.length ? h("ul", { class: "error-facts" }, facts.map((f) => h("li", {}, f))) : null;
+}
