@@ -48,13 +48,19 @@ STEP_TOLERANCE = 0.01
 GAP_FACTOR = 1.5
 """A step longer than this many median steps is reported as a gap."""
 
+WHEEL_LOAD_MIN_N = 5e3
+"""Lightest plausible static wheel load, N (a light railcar's empty wheel is ~30 kN)."""
+
+WHEEL_LOAD_MAX_N = 300e3
+"""Heaviest plausible static wheel load, N (a 40 t axle is ~196 kN per wheel)."""
+
 CHAINAGE_RESOLUTION_M = 0.1
 """Coarsest odometer resolution allowed for, m: a chainage step may exceed the fastest
 plausible speed times the time step by this much."""
 
 CANONICAL_NAMES = {
     "time_s": "time_s", "accel_z_mps2": "accel_z_mps2", "pitch_rate_radps": "pitch_rate_radps",
-    "speed_mps": "speed_mps", "chainage_m": "chainage_m",
+    "speed_mps": "speed_mps", "chainage_m": "chainage_m", "wheel_load_n": "wheel_load_n",
 }  # fmt: skip
 
 RowOf = Callable[[int], int]
@@ -200,7 +206,8 @@ def check_plausible(
         beyond ±:data:`ACCEL_LIMIT_MPS2`, a pitch rate beyond ±:data:`PITCH_RATE_LIMIT_RADPS`,
         a speed outside :data:`SPEED_MIN_MPS`..:data:`SPEED_MAX_MPS`, a chainage that stands
         still, turns back or moves faster than :data:`SPEED_MAX_MPS` between two samples, or
-        a chainage whose mean speed disagrees with the speed column by more than 2x.
+        a chainage whose mean speed disagrees with the speed column by more than 2x, or a
+        static wheel load outside :data:`WHEEL_LOAD_MIN_N`..:data:`WHEEL_LOAD_MAX_N`.
     """
     n = {**CANONICAL_NAMES, **(names or {})}
     check_time_steps(log.time_s, n["time_s"], row_of)
@@ -218,6 +225,12 @@ def check_plausible(
             log.speed_mps, n["speed_mps"], row_of, SPEED_MIN_MPS, SPEED_MAX_MPS, "m/s",
             f"the speed must be between {SPEED_MIN_MPS:g} m/s (standstills cannot be inverted: "
             f"cut them out) and {SPEED_MAX_MPS:g} m/s ({SPEED_MAX_MPS * 3.6:g} km/h)",
+        )  # fmt: skip
+    if log.wheel_load_n is not None:
+        _magnitude(
+            log.wheel_load_n, n["wheel_load_n"], row_of, WHEEL_LOAD_MIN_N, WHEEL_LOAD_MAX_N, "N",
+            f"a static wheel load lies between {WHEEL_LOAD_MIN_N / 1e3:g} and "
+            f"{WHEEL_LOAD_MAX_N / 1e3:g} kN (is the unit right? N, kN or t)",
         )  # fmt: skip
     if log.chainage_m is not None:
         check_chainage(log.chainage_m, log.time_s, n["chainage_m"], row_of)

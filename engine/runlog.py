@@ -13,6 +13,9 @@ from numpy.typing import NDArray
 
 from .errors import LogFormatError
 
+COLUMNS = ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps", "chainage_m", "wheel_load_n")
+"""The fields of a :class:`RunLog`, each an array of one value per sample (or None)."""
+
 
 @dataclass(frozen=True)
 class RunLog:
@@ -30,6 +33,10 @@ class RunLog:
         Vehicle speed, m/s (> 0). Needed unless ``chainage_m`` is given.
     chainage_m : ndarray, shape (n,), optional
         Chainage of the body centre at each sample, m (odometer).
+    wheel_load_n : ndarray, shape (n,), optional
+        Static wheel load from a load-weigh system, N (mean of the half-car's wheels): what the
+        vehicle carries on this run. Not used by the inversion itself; see
+        :meth:`static_wheel_load_n`.
     """
 
     time_s: NDArray[np.float64]
@@ -37,12 +44,13 @@ class RunLog:
     pitch_rate_radps: NDArray[np.float64]
     speed_mps: NDArray[np.float64] | None = None
     chainage_m: NDArray[np.float64] | None = None
+    wheel_load_n: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         n = np.shape(self.time_s)[0] if np.ndim(self.time_s) == 1 else -1
         if n < 2:
             raise LogFormatError("a run log needs a 1-D time column with at least 2 samples")
-        for name in ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps", "chainage_m"):
+        for name in COLUMNS:
             arr = getattr(self, name)
             if arr is None:
                 continue
@@ -98,6 +106,14 @@ class RunLog:
             return self.speed_mps
         assert self.chainage_m is not None
         return np.abs(np.gradient(self.chainage_m, self.time_s))
+
+    def static_wheel_load_n(self) -> float | None:
+        """The load-weigh column's static wheel load, N: its median (a load-weigh reading
+        jitters with the body's motion; the load itself does not change while moving), or None
+        when the log has none."""
+        if self.wheel_load_n is None:
+            return None
+        return float(np.median(self.wheel_load_n))
 
     def distance(self) -> NDArray[np.float64]:
         """Distance travelled since the first sample, m (from chainage or integrated speed)."""

@@ -9,7 +9,15 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
 from pydantic.json_schema import JsonDict
 
-from engine.logio import GRAVITY_MODES, OPTION_UNITS, ROLE_LABELS, UNIT_LABELS, CsvOptions
+from engine.logio import (
+    GRAVITY_MODES,
+    OPTION_UNITS,
+    OPTIONAL_ROLES,
+    ROLE_LABELS,
+    UNIT_LABELS,
+    CsvOptions,
+)
+from engine.plausibility import WHEEL_LOAD_MAX_N, WHEEL_LOAD_MIN_N
 
 from .common import Name, StrictModel, Timestamp
 
@@ -33,6 +41,8 @@ def _csv_option(f: dataclasses.Field[Any]) -> Any:
     role, kind = f.name.rsplit("_", 1)
     label = ROLE_LABELS[role]
     extra: JsonDict = {"x-role": role, "x-label": label}
+    if role in OPTIONAL_ROLES:
+        extra["x-optional"] = True
     if kind == "column":
         return (
             str | None,
@@ -102,9 +112,9 @@ class RunMetadata(StrictModel):
         "(passengers, freight); sets the static wheel load the run is inverted with",
     )  # fmt: skip
     static_wheel_load_n: float | None = Field(
-        default=None, gt=0, le=500_000, allow_inf_nan=False,
+        default=None, ge=WHEEL_LOAD_MIN_N, le=WHEEL_LOAD_MAX_N, allow_inf_nan=False,
         description="Measured static wheel load during the run (mean of the axles), N; "
-        "instead of payload_kg",
+        "instead of payload_kg. Unset: the median of the log's load-weigh column if it has one",
     )  # fmt: skip
 
     @model_validator(mode="after")
@@ -147,6 +157,11 @@ class RunColumns(StrictModel):
     pitch_rate_radps: list[float] = Field(description="Body pitch rate, rad/s, nose-up positive")
     speed_mps: list[float] | None = Field(default=None, description="Speed, m/s")
     chainage_m: list[float] | None = Field(default=None, description="Body-centre chainage, m")
+    wheel_load_n: list[float] | None = Field(
+        default=None,
+        description="Static wheel load from a load-weigh system, N (its median is the run's "
+        "static_wheel_load_n unless that or payload_kg is given)",
+    )
 
 
 class RunCreateJson(RunUploadForm):

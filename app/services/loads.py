@@ -5,7 +5,9 @@ static part is that of the registered vehicle. A client that knows better declar
 ``payload_kg`` carried (on top of the registered body mass) or the measured
 ``static_wheel_load_n`` (mean static wheel load of the half-car's two axles, N); either gives
 the body mass the run is inverted with. The payload is assumed spread like the body's own mass
-(pitch inertia scaled with the body mass, axle loads shared as before).
+(pitch inertia scaled with the body mass, axle loads shared as before). A log with a
+load-weigh column (:attr:`engine.runlog.RunLog.wheel_load_n`) declares its static wheel load
+itself; a value given with the upload wins over it.
 
 Units: kg, N.
 """
@@ -14,17 +16,39 @@ from __future__ import annotations
 
 import dataclasses
 
+from engine.runlog import RunLog
 from engine.vehicle import GRAVITY, VehicleParams
 
 from .errors import Invalid
+
+LOGGED_LOAD_FIELD = "wheel_load_column"
+"""Field named when the static wheel load read from a log's load-weigh column is refused."""
+
+
+def declared_wheel_load(
+    log: RunLog, payload_kg: float | None, static_wheel_load_n: float | None
+) -> tuple[float | None, str]:
+    """The static wheel load a run declares, N, and the field it came from.
+
+    The upload's ``static_wheel_load_n`` wins; a ``payload_kg`` says the load instead (None is
+    returned); else the median of the log's load-weigh column; else None (the registered
+    vehicle's load).
+    """
+    if static_wheel_load_n is not None or payload_kg is not None:
+        return static_wheel_load_n, "static_wheel_load_n"
+    return log.static_wheel_load_n(), LOGGED_LOAD_FIELD
 
 
 def loaded_vehicle(
     vehicle: VehicleParams,
     payload_kg: float | None = None,
     static_wheel_load_n: float | None = None,
+    *,
+    field: str = "static_wheel_load_n",
 ) -> VehicleParams:
     """The vehicle as it ran: registered parameters with the declared load applied.
+
+    ``field`` is the field named when the wheel load is refused (where it came from).
 
     Raises
     ------
@@ -47,7 +71,7 @@ def loaded_vehicle(
                 f"static_wheel_load_n {static_wheel_load_n:g} N is not plausible for this "
                 f"vehicle: its axles alone weigh {axles:.0f} N per wheel and the body "
                 f"{0.5 * vehicle.ms * GRAVITY:.0f} N (give the mean static wheel load, N)",
-                field="static_wheel_load_n",
+                field=field,
             )
     else:
         return vehicle

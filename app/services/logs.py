@@ -15,9 +15,13 @@ import numpy as np
 from app.services.errors import Invalid, TooLarge
 from engine.errors import InputTooLarge, LogFormatError, ParameterError
 from engine.logio import MAX_DECOMPRESSED_BYTES, CsvOptions, read_run_csv
+from engine.runlog import COLUMNS as RUNLOG_COLUMNS
 from engine.runlog import RunLog
 
-LOG_COLUMNS = ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps", "chainage_m")
+LOG_COLUMNS = RUNLOG_COLUMNS
+_FIRST_COLUMNS = LOG_COLUMNS[:5]
+"""The columns of the first release: hashed even when absent (later ones only when present),
+so that a log hashes as it did before columns were added."""
 
 
 def sha256_hex(*chunks: bytes) -> str:
@@ -87,6 +91,8 @@ def hash_columns(log: RunLog) -> str:
     h = hashlib.sha256()
     for name in LOG_COLUMNS:
         arr = getattr(log, name)
+        if arr is None and name not in _FIRST_COLUMNS:
+            continue
         h.update(name.encode())
         h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())
     return h.hexdigest()

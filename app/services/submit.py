@@ -33,7 +33,7 @@ from engine.vehicle import PRESETS, VehicleParams
 from .calibration import maybe_auto_calibrate
 from .context import AppContext
 from .errors import Conflict, Invalid
-from .loads import loaded_vehicle
+from .loads import declared_wheel_load, loaded_vehicle
 from .logs import pack_log, summarize
 from .processing import Processed, invert, store_result
 from .signals import log_signals
@@ -244,9 +244,12 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             return prev.id, False
         failed_id = prev.id if prev is not None else None
         vehicle_id = vehicle.id
+        wheel_load_n, load_field = declared_wheel_load(
+            sub.log, sub.payload_kg, sub.static_wheel_load_n
+        )
         vp = loaded_vehicle(
-            VehicleParams.from_dict(vehicle.params_dict()), sub.payload_kg,
-            sub.static_wheel_load_n,
+            VehicleParams.from_dict(vehicle.params_dict()), sub.payload_kg, wheel_load_n,
+            field=load_field,
         )  # fmt: skip
         vehicle_version = vehicle.version
         track_fields = track.params_dict() if track is not None else None
@@ -310,7 +313,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             idempotency_key=sub.idempotency_key,
             attempts=0,
             payload_kg=sub.payload_kg,
-            static_wheel_load_n=sub.static_wheel_load_n,
+            static_wheel_load_n=wheel_load_n,
         )
         s.add(run)
         s.flush()

@@ -33,7 +33,15 @@ The package, one module per step (each imports only from the ones above it):
 from .options import CsvOptions
 from .parse import MIN_SAMPLES, ParsedRun, parse_run_csv, read_run_csv
 from .preview import PREVIEW_BYTES, CsvPreview, preview_csv
-from .roles import G_UNIT_MPS2, GRAVITY_MODES, OPTION_UNITS, ROLE_LABELS, ROLES, UNIT_LABELS
+from .roles import (
+    G_UNIT_MPS2,
+    GRAVITY_MODES,
+    OPTION_UNITS,
+    OPTIONAL_ROLES,
+    ROLE_LABELS,
+    ROLES,
+    UNIT_LABELS,
+)
 from .source import MAX_DECOMPRESSED_BYTES, Source
 from .units import (
     ACCEL_LIMIT_MPS2,
@@ -53,7 +61,8 @@ from .write import write_run_csv
 __all__ = [
     "ACCEL_LIMIT_MPS2", "EPOCH_MS_THRESHOLD", "EPOCH_THRESHOLD_S", "GAP_FACTOR",
     "GRAVITY_MODES", "GRAVITY_TOLERANCE_MPS2", "G_UNIT_MPS2", "MAX_DECOMPRESSED_BYTES",
-    "MAX_RATE_HZ", "MIN_RATE_HZ", "MIN_SAMPLES", "OPTION_UNITS", "PITCH_RATE_LIMIT_RADPS",
+    "MAX_RATE_HZ", "MIN_RATE_HZ", "MIN_SAMPLES", "OPTIONAL_ROLES", "OPTION_UNITS",
+    "PITCH_RATE_LIMIT_RADPS",
     "PREVIEW_BYTES", "ROLES", "ROLE_LABELS", "SPEED_MAX_MPS", "SPEED_MIN_MPS", "STEP_TOLERANCE",
     "UNIT_LABELS", "CsvOptions", "CsvPreview", "ParsedRun", "Source", "parse_run_csv",
     "preview_csv", "read_run_csv", "write_run_csv",

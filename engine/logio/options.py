@@ -26,6 +26,9 @@ class CsvOptions:
         Header name of the column holding the sample time, the vertical body acceleration, the
         body pitch rate, the vehicle speed and the chainage (odometer). Matched exactly, else
         ignoring case and surrounding spaces. Explicit names always win over recognition.
+    wheel_load_column : str, optional
+        Header name of a load-weigh system's static wheel load (optional: a log without one
+        uses the declared or registered load).
     time_unit : {'s', 'ms', 'epoch_s'}, optional
         Unit of the time column. ``'epoch_s'`` (Unix seconds) is shifted to start at 0.
         Default: from the column name's suffix (``_s``, ``_ms``), else epoch seconds when the
@@ -42,6 +45,9 @@ class CsvOptions:
     chainage_unit : {'m', 'km'}, optional
         Unit of the chainage. Default: from the name (``_m``, ``_km``, a column called ``km``),
         else m.
+    wheel_load_unit : {'N', 'kN', 't'}, optional
+        Unit of the static wheel load (``'t'``: tonne-force, 9.81 kN). Default: from the name
+        (``_n``, ``_kn``, ``_t``), else kN.
     gravity : {'auto', 'included', 'removed'}
         Whether the acceleration includes gravity (reads about +1 g at rest). ``'included'``
         subtracts 9.81 m/s²; ``'auto'`` decides from the mean acceleration.
@@ -58,11 +64,13 @@ class CsvOptions:
     pitch_rate_column: str | None = None
     speed_column: str | None = None
     chainage_column: str | None = None
+    wheel_load_column: str | None = None
     time_unit: str | None = None
     accel_unit: str | None = None
     pitch_rate_unit: str | None = None
     speed_unit: str | None = None
     chainage_unit: str | None = None
+    wheel_load_unit: str | None = None
     gravity: str = "auto"
 
     def __post_init__(self) -> None:

@@ -22,6 +22,7 @@ from .limits import check_lines
 from .options import CsvOptions
 from .roles import (
     _ROLES,
+    OPTION_UNITS,
     _label,
 )
 from .source import (
@@ -38,6 +39,8 @@ from .units import (
     PITCH_RATE_LIMIT_RADPS,
     SPEED_MAX_MPS,
     SPEED_MIN_MPS,
+    WHEEL_LOAD_MAX_N,
+    WHEEL_LOAD_MIN_N,
     _auto_gravity,
     resolve_units,
 )
@@ -59,11 +62,12 @@ class ParsedRun:
     encoding : str
         Text encoding the file was read with.
     columns : dict
-        Role (``time``, ``accel``, ``pitch_rate``, ``speed``, ``chainage``) -> header name, or
-        None when the file has no such column.
+        Role (one of :data:`~engine.logio.ROLES`) -> header name, or None when the file has
+        no such column.
     units : dict
         Role -> unit the column was read in (``'s'``, ``'ms'``, ``'epoch_s'``, ``'m/s2'``,
-        ``'g'``, ``'rad/s'``, ``'deg/s'``, ``'m/s'``, ``'km/h'``, ``'m'``, ``'km'``) or None.
+        ``'g'``, ``'rad/s'``, ``'deg/s'``, ``'m/s'``, ``'km/h'``, ``'m'``, ``'km'``, ``'N'``,
+        ``'kN'``, ``'t'``) or None.
     gravity : str
         ``'included'`` (9.81 m/s² was subtracted) or ``'removed'``.
     notes : list of str
@@ -279,6 +283,21 @@ def _chainage(
     return c
 
 
+def _wheel_load(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
+    raw = table.columns[j]
+    f = table.columns[j] * _ROLES["wheel_load"].factors[unit]
+    i = _first((f < WHEEL_LOAD_MIN_N) | (f > WHEEL_LOAD_MAX_N))
+    if i is not None:
+        others = " or ".join(repr(u) for u in OPTION_UNITS["wheel_load"] if u != unit)
+        raise _limit_error(
+            table, i, name, float(raw[i]), unit, float(f[i]), "N",
+            f"a static wheel load lies between {WHEEL_LOAD_MIN_N / 1e3:g} and "
+            f"{WHEEL_LOAD_MAX_N / 1e3:g} kN, so the unit looks wrong: the column is read in "
+            f"{_label(unit)} (set wheel_load_unit to {others})",
+        )  # fmt: skip
+    return f
+
+
 def _known(units: dict[str, str | None], role: str) -> str:
     unit = units[role]
     if unit is None:  # resolve_units decides every unit when given the data
@@ -349,6 +368,10 @@ def parse_run_csv(
         jc = idx["chainage"]
         sp = (speed, names[idx["speed"]], _known(units, "speed")) if speed is not None else None
         chainage = _chainage(table, jc, names[jc], _known(units, "chainage"), t, sp)
+    wheel_load = None
+    if "wheel_load" in idx:
+        jl = idx["wheel_load"]
+        wheel_load = _wheel_load(table, jl, names[jl], _known(units, "wheel_load"))
 
     log = RunLog(
         time_s=t,
@@ -356,10 +379,12 @@ def parse_run_csv(
         pitch_rate_radps=pitch,
         speed_mps=speed,
         chainage_m=chainage,
+        wheel_load_n=wheel_load,
     )
     # The file's own checks above give unit hints; this is the check every input path shares.
     fields = {"time": "time_s", "accel": "accel_z_mps2", "pitch_rate": "pitch_rate_radps",
-              "speed": "speed_mps", "chainage": "chainage_m"}  # fmt: skip
+              "speed": "speed_mps", "chainage": "chainage_m",
+              "wheel_load": "wheel_load_n"}  # fmt: skip
     check_plausible(log, {fields[r]: names[j] for r, j in idx.items()}, table.line)
     return ParsedRun(
         log=log,
@@ -394,7 +419,7 @@ def read_run_csv(
     RunLog
         ``time_s`` in s (epoch times shifted to start at 0), ``accel_z_mps2`` in m/s² with
         gravity removed, ``pitch_rate_radps`` in rad/s, ``speed_mps`` in m/s and/or
-        ``chainage_m`` in m.
+        ``chainage_m`` in m, and ``wheel_load_n`` in N when the log has a load-weigh column.
 
     Raises
     ------
@@ -404,10 +429,11 @@ def read_run_csv(
         belongs, has a line with the wrong number of fields or a decimal comma, a time column
         that is not strictly increasing with a constant step (gaps, irregular sampling), fewer
         than :data:`MIN_SAMPLES` samples, or values implausible in the unit read (acceleration
-        beyond 50 m/s², pitch rate beyond 5 rad/s, speed outside 0.5 to 150 m/s). The message
-        names the column, the 1-based file line (``.row``; the header is line 1 when nothing
-        precedes it) and the unit expected. A line too long for the header's columns (see
-        :mod:`engine.logio.limits`) is refused before it is split.
+        beyond 50 m/s², pitch rate beyond 5 rad/s, speed outside 0.5 to 150 m/s, static wheel
+        load outside 5 to 300 kN). The message names the column, the 1-based file line
+        (``.row``; the header is line 1 when nothing precedes it) and the unit expected. A
+        line too long for the header's columns (see :mod:`engine.logio.limits`) is refused
+        before it is split.
     InputTooLarge
         A gzip source expands to more than ``max_bytes``.
     ParameterError

@@ -52,8 +52,8 @@ class CsvPreview:
     rows : list of list of str
         The first data rows, fields as written.
     mapping : dict
-        Role (``time``, ``accel``, ``pitch_rate``, ``speed``, ``chainage``) -> column name, or
-        None when no column is recognised (or two are: see ``warnings``).
+        Role (one of :data:`~engine.logio.ROLES`) -> column name, or None when no column is
+        recognised (or two are: see ``warnings``).
     units : dict
         Role -> unit the column would be read in, or None.
     gravity : str or None

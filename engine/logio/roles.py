@@ -14,7 +14,9 @@ G_UNIT_MPS2 = GRAVITY
 standard 9.80665) so that a logger at rest reading exactly 1 g gives exactly zero once gravity
 is removed."""
 
-ROLES = ("time", "accel", "pitch_rate", "speed", "chainage")
+ROLES = ("time", "accel", "pitch_rate", "speed", "chainage", "wheel_load")
+"""Every column role, in display order. ``wheel_load`` (a load-weigh system's static wheel load)
+is optional; the others are needed (speed or chainage, at least one)."""
 
 
 @dataclass(frozen=True)
@@ -130,6 +132,23 @@ _ROLES: dict[str, _Role] = {
         examples="chainage_m, odometer_m, position, chainage, km",
         alias_units={"km": "km", "kilometrage": "km"},
     ),
+    # A load-weigh system (air-spring pressure or strain gauges) measures the static load the
+    # vehicle carries today: the wheel force the inversion cannot know from the log alone.
+    "wheel_load": _Role(
+        key="wheel_load",
+        label="static wheel load",
+        canonical="wheel_load_n",
+        aliases=frozenset(
+            _words(
+                "wheel_load static_wheel_load wheelload static_load load_weigh loadweigh "
+                "load_weigh_wheel lw_wheel_load weighed_wheel_load wheel_load_static"
+            )
+        ),
+        units=_units({"N": ["n"], "kN": ["kn"], "t": _words("t tf tonne tonnes")}),
+        unsupported=frozenset(_words("kg lb lbs lbf kip kips bar psi")),
+        factors={"N": 1.0, "kN": 1e3, "t": 1e3 * GRAVITY},
+        examples="wheel_load_kn, static_wheel_load_n, load_weigh_kn",
+    ),
 }
 
 _OPTION_UNITS: dict[str, tuple[str, ...]] = {
@@ -138,16 +157,21 @@ _OPTION_UNITS: dict[str, tuple[str, ...]] = {
     "pitch_rate": ("rad/s", "deg/s"),
     "speed": ("m/s", "km/h"),
     "chainage": ("m", "km"),
+    "wheel_load": ("N", "kN", "t"),
 }
 _GRAVITY_MODES = ("auto", "included", "removed")
 OPTION_UNITS = _OPTION_UNITS
 """Role -> the units a column of that role can be read in (the ``<role>_unit`` options)."""
 GRAVITY_MODES = _GRAVITY_MODES
 """Values of the ``gravity`` option."""
-UNIT_LABELS = {"m/s2": "m/s²", "g": "g (9.81 m/s²)", "epoch_s": "epoch seconds"}
+UNIT_LABELS = {
+    "m/s2": "m/s²", "g": "g (9.81 m/s²)", "epoch_s": "epoch seconds", "t": "t (tonne-force)",
+}  # fmt: skip
 """How a unit is written for people, where that differs from its option value."""
 ROLE_LABELS = {role: r.label for role, r in _ROLES.items()}
 """Role -> its name in words (``'pitch_rate'`` -> ``'pitch rate'``)."""
+OPTIONAL_ROLES = ("wheel_load",)
+"""Roles a log may lack without anything else standing in for them."""
 _UNIT_LABEL = {"m/s2": "m/s²", "epoch_s": "epoch s"}
 
 

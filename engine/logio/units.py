@@ -15,6 +15,8 @@ from ..plausibility import (  # noqa: F401
     SPEED_MAX_MPS,
     SPEED_MIN_MPS,
     STEP_TOLERANCE,
+    WHEEL_LOAD_MAX_N,
+    WHEEL_LOAD_MIN_N,
 )
 from ..vehicle import GRAVITY
 from .options import CsvOptions
@@ -53,7 +55,9 @@ def _auto_gravity(mean_mps2: float) -> str | None:
     return None
 
 
-DEFAULT_UNITS: dict[str, str] = {"pitch_rate": "rad/s", "speed": "m/s", "chainage": "m"}
+DEFAULT_UNITS: dict[str, str] = {
+    "pitch_rate": "rad/s", "speed": "m/s", "chainage": "m", "wheel_load": "kN",
+}  # fmt: skip
 """Unit assumed for a column whose option and name say nothing (time and acceleration are
 told from their values instead)."""
 

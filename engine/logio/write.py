@@ -10,9 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ParameterError
-from ..runlog import RunLog
-
-# ---------------------------------------------------------------------------------------------
+from ..runlog import COLUMNS, RunLog
 
 _WRITE_CHUNK = 100_000
 
@@ -22,8 +20,9 @@ def write_run_csv(
 ) -> None:
     """Write a run log as canonical CSV.
 
-    Columns ``time_s,accel_z_mps2,pitch_rate_radps`` then ``speed_mps`` and ``chainage_m``
-    when the log has them; SI units (s, m/s², rad/s, m/s, m), gravity removed.
+    Columns ``time_s,accel_z_mps2,pitch_rate_radps`` then ``speed_mps``, ``chainage_m`` and
+    ``wheel_load_n`` when the log has them; SI units (s, m/s², rad/s, m/s, m, N), gravity
+    removed.
 
     Parameters
     ----------
@@ -42,13 +41,8 @@ def write_run_csv(
     """
     if digits is not None and (not isinstance(digits, int) or not 1 <= digits <= 17):
         raise ParameterError(f"digits must be an integer from 1 to 17, got {digits!r}")
-    names = ["time_s", "accel_z_mps2", "pitch_rate_radps"]
-    cols = [log.time_s, log.accel_z_mps2, log.pitch_rate_radps]
-    for name in ("speed_mps", "chainage_m"):
-        arr = getattr(log, name)
-        if arr is not None:
-            names.append(name)
-            cols.append(arr)
+    names = [name for name in COLUMNS if getattr(log, name) is not None]
+    cols = [getattr(log, name) for name in names]
     one = "%r" if digits is None else f"%.{digits}g"
     fmt = ",".join([one] * len(cols))
     if isinstance(dest, str | os.PathLike):

@@ -298,3 +298,35 @@ def test_simulate_with_a_preset_and_rail_geometry(client: TestClient) -> None:
     r = client.post("/api/v1/simulate", json={**body, "irregularity": {"spectrum": "bumpy"}})
     assert r.status_code == 422
     assert r.json()["detail"]["field"] == "irregularity.spectrum"
+
+
+def _with_load_column(csv: bytes, header: str, value: str) -> bytes:
+    lines = csv.decode().splitlines()
+    return (
+        "\n".join([f"{lines[0]},{header}"] + [f"{ln},{value}" for ln in lines[1:]]) + "\n"
+    ).encode()
+
+
+def test_load_weigh_column_sets_the_wheel_force(
+    client: TestClient, synthetic_run: dict[str, Any], settings: Settings
+) -> None:
+    """A log's load-weigh column is the run's static wheel load (its median), unless the
+    upload declares one; a load the vehicle cannot have is a 422 naming the column option,
+    and nothing is stored."""
+    csv = _with_load_column(synthetic_run["csv"], "wheel_load_kn", "120")
+    start = synthetic_run["start_chainage_m"]
+    r = upload(client, csv, track="weighed", start_chainage_m=start)
+    assert r.status_code == 201, r.text
+    assert r.json()["static_wheel_load_n"] == pytest.approx(120_000)
+    assert r.json()["mean_wheel_force_n"] == pytest.approx(120_000, rel=0.03)
+    r = upload(client, csv, track="weighed 2", start_chainage_m=start, static_wheel_load_n=100_000)
+    assert r.status_code == 201, r.text
+    assert r.json()["static_wheel_load_n"] == 100_000  # declared wins over the column
+    r = upload(client, csv, track="weighed 3", start_chainage_m=start, payload_kg=0)
+    assert r.json()["static_wheel_load_n"] is None  # a payload says the load instead
+    before = row_counts(settings)
+    light = _with_load_column(synthetic_run["csv"], "wheel_load_kn", "6")  # below the axles
+    r = upload(client, light, track="weighed 4", start_chainage_m=start)
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"]["field"] == "wheel_load_column"
+    assert row_counts(settings) == before
