@@ -58,3 +58,23 @@ class InputTooLarge(LogFormatError):
 
 class InversionError(EngineError):
     """The log cannot be inverted (too short, speed out of range, not enough coverage)."""
+
+
+class BudgetExceeded(EngineError):
+    """A computation ran past its wall-time budget and was stopped.
+
+    Attributes
+    ----------
+    budget_s : float
+        The budget, s.
+    elapsed_s : float
+        Time spent when it was stopped, s.
+    stage : str
+        The last stage completed.
+    """
+
+    def __init__(self, message: str, *, budget_s: float, elapsed_s: float, stage: str) -> None:
+        super().__init__(message)
+        self.budget_s = budget_s
+        self.elapsed_s = elapsed_s
+        self.stage = stage

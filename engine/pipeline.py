@@ -8,6 +8,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from .budget import TimeBudget
 from .chainage import GRID_STEP_M, AxlePositions, axle_positions, to_grid
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .errors import InversionError, ParameterError
@@ -151,6 +152,10 @@ class RunCheck:
     travelled_m: float
 
 
+def _no_budget(_stage: str) -> None:
+    """The budget check of a computation without a budget."""
+
+
 def check_run(
     log: RunLog,
     *,
@@ -202,6 +207,7 @@ def process_run(
     vehicle: VehicleParams = TABLE1,
     track: TrackParams | None = None,
     config: ProcessConfig | None = None,
+    budget: TimeBudget | None = None,
 ) -> ProcessResult:
     """Invert a run log into a loaded profile along chainage and find its soft spots.
 
@@ -219,6 +225,9 @@ def process_run(
         Nominal track properties (for stiffness-loss estimates); default UIC60 on 80 kN/mm.
     config : ProcessConfig, optional
         Method, band, grid and thresholds.
+    budget : TimeBudget, optional
+        Wall-time budget, checked between the stages (checks, inversion, wheel forces,
+        detection).
 
     Returns
     -------
@@ -229,7 +238,10 @@ def process_run(
     ------
     InversionError
         If the log is too short for the band, too slow, or its sampling too coarse.
+    BudgetExceeded
+        If ``budget`` is spent before the result is complete.
     """
+    spent = budget.check if budget is not None else _no_budget
     cfg = config or ProcessConfig()
     trk = track or TrackParams()
     dt = log.dt
@@ -237,6 +249,7 @@ def process_run(
         log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle, config=cfg
     )
     pos, speed, f_lo, f_hi = chk.positions, chk.speed, chk.f_lo_hz, chk.f_hi_hz
+    spent("the checks of the log")
 
     step = cfg.grid_step_m
     lo = min(pos.front.min(), pos.rear.min())
@@ -249,6 +262,7 @@ def process_run(
             taper=cfg.taper,
         )
     )  # fmt: skip
+    spent(f"the {cfg.method} inversion")
     y1, y2, front, rear = inv.y_front, inv.y_rear, inv.front_mm, inv.rear_mm
     sa, sg = inv.noise_accel_mps2, inv.noise_pitch_rate_radps
     # wheel force per axle: static load + dynamic part from the vehicle equations, on the grid
@@ -259,12 +273,14 @@ def process_run(
     both = np.isfinite(front) & np.isfinite(rear)
     with np.errstate(invalid="ignore"):
         fused = np.where(both, 0.5 * (front + rear), np.where(np.isfinite(front), front, rear))
+    spent("the wheel forces")
     baseline = robust_baseline(fused, step, cfg.detection.baseline_window_m)
     residual = fused - baseline
     dips, _thr = find_dips(grid, residual, cfg.detection)
     loads = vehicle.static_axle_loads()
     load = 0.5 * (loads[0] + loads[1])
     spots = _soft_spots(grid, residual, dips, cfg, trk, load)
+    spent("the soft-spot detection")
     geometry_check = is_smooth_rail(robust_sigma(residual))
     if not geometry_check.smooth:
         # a dip may be rail geometry: depth only, never a stiffness-loss figure

@@ -53,6 +53,10 @@ class Settings(BaseSettings):
     inline_max_samples : int
         Logs with at most this many samples are processed inside the upload request (the
         answer already carries the result); longer ones go to the background worker.
+    processing_budget_s : float
+        Longest wall time the inversion of one run may take, s; a run that takes longer fails
+        with ``"kind": "BudgetExceeded"`` (checked between the engine's stages) and frees its
+        processing slot for the next run.
     poll_interval_s : float
         How often an idle worker looks for queued runs in the database, s.
     lease_s : float
@@ -92,6 +96,7 @@ class Settings(BaseSettings):
     cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)
     workers: int = Field(default=1, ge=1, le=16)
     inline_max_samples: int = Field(default=300_000, ge=0)
+    processing_budget_s: float = Field(default=600.0, gt=0)
     poll_interval_s: float = Field(default=1.0, gt=0)
     lease_s: float = Field(default=60.0, gt=0)
     max_attempts: int = Field(default=3, ge=1)

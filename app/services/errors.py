@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from engine.errors import EngineError, LogFormatError, ParameterError
+from engine.errors import BudgetExceeded, EngineError, LogFormatError, ParameterError
 
 
 class DomainError(Exception):
@@ -81,5 +81,7 @@ def engine_error_facts(exc: EngineError) -> dict[str, Any]:
             detail["row"] = exc.row
     if isinstance(exc, ParameterError) and exc.field is not None:
         detail["field"] = exc.field
+    if isinstance(exc, BudgetExceeded):
+        detail["limit_s"] = exc.budget_s
     detail["kind"] = type(exc).__name__
     return detail

@@ -12,6 +12,7 @@ from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
 from app.db.models import Run, SoftSpot
+from engine.budget import TimeBudget
 from engine.pipeline import process_run
 from engine.results import ProcessResult
 from engine.runlog import RunLog
@@ -37,12 +38,21 @@ def invert(
     direction: str,
     vehicle: VehicleParams,
     track: TrackParams,
+    budget_s: float | None = None,
 ) -> Processed:
-    """Invert and detect (engine pipeline); raises the engine's errors unchanged."""
+    """Invert and detect (engine pipeline); raises the engine's errors unchanged, and
+    :class:`~engine.errors.BudgetExceeded` past ``budget_s`` of wall time (s;
+    ``TRACKPROFILE_PROCESSING_BUDGET_S``)."""
     t0 = time.perf_counter()
-    result = process_run(
-        log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle, track=track
+    budget = (
+        TimeBudget(budget_s, "processing", "TRACKPROFILE_PROCESSING_BUDGET_S")
+        if budget_s is not None
+        else None
     )
+    result = process_run(
+        log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle,
+        track=track, budget=budget,
+    )  # fmt: skip
     return Processed(result, time.perf_counter() - t0)
 
 

@@ -273,6 +273,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
                     direction=sub.direction,
                     vehicle=vp,
                     track=tp,
+                    budget_s=settings.processing_budget_s,
                 )
             except EngineError as exc:
                 raise Invalid.from_engine(exc) from None

@@ -356,8 +356,9 @@ class Worker:
                 runlog = unpack_log(data)
                 del data
                 processed = invert(
-                    runlog, start_chainage_m=start, direction=direction, vehicle=vp, track=tp
-                )
+                    runlog, start_chainage_m=start, direction=direction, vehicle=vp, track=tp,
+                    budget_s=settings.processing_budget_s,
+                )  # fmt: skip
                 del runlog
         except EngineError as exc:
             with self.ctx.db.session() as s:
@@ -373,15 +374,15 @@ class Worker:
                      "kind": "InternalError"},
                 )  # fmt: skip
             return
+        # The stage is committed on its own, so that clients see "storing" while the store
+        # (which may wait for the track's lock) runs.
+        with self.ctx.db.session() as s:
+            _rowcount(s, self._owned(run_id).values(stage="storing", heartbeat_at=utcnow()))
+            s.commit()
         with self.ctx.db.session() as s:
             # The UPDATE takes the write lock first and proves the claim is still ours (the run
             # may have been deleted or taken over meanwhile): then everything is written at once.
-            owned = _rowcount(
-                s,
-                update(Run)
-                .where(Run.id == run_id, Run.claimed_by == self.id, Run.status == "processing")
-                .values(stage="storing", heartbeat_at=utcnow()),
-            )
+            owned = _rowcount(s, self._owned(run_id).values(heartbeat_at=utcnow()))
             if owned != 1:
                 s.rollback()
                 log.info(
@@ -393,6 +394,12 @@ class Worker:
             store_result(s, run, processed, vehicle_version)
             s.commit()
             maybe_auto_calibrate(s, vehicle_id, settings.auto_calibrate_runs)
+
+    def _owned(self, run_id: int) -> Update:
+        """An UPDATE of run ``run_id`` while this worker still owns its processing."""
+        return update(Run).where(
+            Run.id == run_id, Run.claimed_by == self.id, Run.status == "processing"
+        )
 
     def _fail(self, s: Session, run_id: int, detail: dict[str, Any]) -> None:
         failed = _rowcount(
