@@ -95,6 +95,9 @@ def test_upload_page_previews_and_recognises_columns(
     assert page.locator("#preview-table tbody tr").count() == 10
     note = page.locator("#recognised-note").inner_text()
     assert "time_s" in note and "pitch_rate_radps" in note
+    # Optional roles the file lacks (chainage, the load-weigh column) are not asked for.
+    assert "Not recognised" not in note, note
+    assert page.locator("#map-wheel_load-column").count() == 1
     assert "Automatic: time_s" in page.locator("#map-time-column").inner_text()
     page.watch.assert_clean()
 

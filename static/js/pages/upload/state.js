@@ -8,7 +8,9 @@ export const GRAVITY_TEXT = {
   removed: "Removed (about 0 at rest)",
 };
 
-/** Column roles of the upload form: [{key, label, column, unit, units, unitLabels}]. */
+/** Column roles of the upload form: [{key, label, column, optional, unit, units, unitLabels}].
+ * A role is optional when the schema says so (x-optional) or, for the chainage, when the
+ * speed stands in for it. */
 export function rolesOf(spec) {
   const props = spec.components.schemas.RunCreateJson.properties;
   const roles = [];
@@ -17,8 +19,9 @@ export function rolesOf(spec) {
     const key = p["x-role"];
     const unit = props[`${key}_unit`];
     const label = p["x-label"].charAt(0).toUpperCase() + p["x-label"].slice(1);
+    const optional = key === "chainage" || Boolean(p["x-optional"]);
     roles.push({
-      key, label: key === "chainage" ? `${label} (optional)` : label, column: name,
+      key, label: optional ? `${label} (optional)` : label, column: name, optional,
       unit: unit ? `${key}_unit` : null, units: unit ? unit["x-units"] : [],
       unitLabels: unit ? unit["x-unit-labels"] : {},
     });

@@ -224,7 +224,7 @@ export function showPreview(ui, state) {
   }
   gravitySel.options[0].textContent = rec.gravity ? `Automatic: ${rec.gravity}` : "Automatic";
   const found = roles.filter((r) => eff.mapping[r.key]).map((r) => `${r.label.replace(" (optional)", "")} = ${eff.mapping[r.key].column}`);
-  const missing = roles.filter((r) => !eff.mapping[r.key] && !["chainage", "speed"].includes(r.key)).map((r) => r.label);
+  const missing = roles.filter((r) => !eff.mapping[r.key] && !r.optional && r.key !== "speed").map((r) => r.label);
   recognisedNote.textContent = (eff.source === "server"
     ? `Recognised by the service: ${found.join("; ") || "nothing"}.`
     : "The service could not be asked to read the file.")
