@@ -137,6 +137,9 @@ async function ensureTrack(ui, state, name) {
   }
 }
 
+// What the worker is doing (the run's `stage`), as the progress label says it.
+const STAGE_TEXT = { queued: "Waiting to be processed", inverting: "Processing", storing: "Storing the result" };
+
 function poll(ui, state, id, started) {
   return new Promise((resolve, reject) => {
     const tick = async () => {
@@ -145,7 +148,8 @@ function poll(ui, state, id, started) {
         const run = await apiFetch(`runs/${encodeURIComponent(id)}`);
         const elapsed = (Date.now() - started) / 1000;
         if (typeof run.progress === "number") ui.processBar.value = Math.max(0, Math.min(1, run.progress));
-        ui.processLabel.textContent = `Processing (${elapsed.toFixed(0)} s)`;
+        const stage = STAGE_TEXT[run.stage] || "Processing";
+        ui.processLabel.textContent = `${stage} (${elapsed.toFixed(0)} s)`;
         if (run.status === "done") return resolve(run);
         if (run.status === "failed") return reject(Object.assign(new Error(runErrorMessage(run.error)), { run }));
         state.pollTimer = setTimeout(tick, 600);
