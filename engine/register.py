@@ -8,6 +8,7 @@ and a priority from limits in the style of EN 13848 (alert, intervention, immedi
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, fields
 from datetime import datetime
@@ -207,6 +208,8 @@ def build_register(
     """
     lim = limits or Limits()
     cfg = config or RegisterConfig()
+    cov_from = np.array([c.from_m for c in coverage], dtype=np.float64)
+    cov_to = np.array([c.to_m for c in coverage], dtype=np.float64)
     obs = sorted(observations, key=lambda o: (o.start_m, o.end_m))
     clusters = [
         [obs[i] for i in g]
@@ -228,9 +231,11 @@ def build_register(
         slope, se = _slope_per_month(t, depth)
         lm = np.isfinite(loss)
         lslope, lse = _slope_per_month(t[lm], loss[lm]) if lm.sum() >= 2 else (0.0, math.inf)
-        start = float(np.median([o.start_m for o in hist]))
-        end = float(np.median([o.end_m for o in hist]))
-        peak = float(np.median([o.peak_m for o in hist]))
+        # statistics.median: a cluster holds a few dozen values at most, where numpy's
+        # per-call overhead dominated the register of a long line (thousands of clusters)
+        start = float(statistics.median([o.start_m for o in hist]))
+        end = float(statistics.median([o.end_m for o in hist]))
+        peak = float(statistics.median([o.peak_m for o in hist]))
         latest = hist[-1]
         latest_loss = latest.stiffness_loss_pct
         if latest_loss is not None and not math.isfinite(latest_loss):
@@ -254,7 +259,7 @@ def build_register(
                 if lv is not None and LEVELS.index(lv) <= rank:
                     level_since = o.recorded_at
                     break
-        covering = sum(1 for c in coverage if c.from_m <= start and c.to_m >= end)
+        covering = int(np.count_nonzero((cov_from <= start) & (cov_to >= end)))
         priority = (LEVELS.index(level) + 1) if level is not None else len(LEVELS) + 1
         first = hist[0]
         defects.append(
