@@ -37,6 +37,9 @@ class RunLog:
         Static wheel load from a load-weigh system, N (mean of the half-car's wheels): what the
         vehicle carries on this run. Not used by the inversion itself; see
         :meth:`static_wheel_load_n`.
+    lat_deg, lon_deg : ndarray, shape (n,), optional
+        GNSS position (WGS84 latitude and longitude, degrees) at each sample, NaN at samples
+        without a fix (fixes come at 1-10 Hz). Both or neither.
     """
 
     time_s: NDArray[np.float64]
@@ -45,6 +48,8 @@ class RunLog:
     speed_mps: NDArray[np.float64] | None = None
     chainage_m: NDArray[np.float64] | None = None
     wheel_load_n: NDArray[np.float64] | None = None
+    lat_deg: NDArray[np.float64] | None = None
+    lon_deg: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         n = np.shape(self.time_s)[0] if np.ndim(self.time_s) == 1 else -1
@@ -67,6 +72,7 @@ class RunLog:
                     column=name, row=i + 2,
                 )  # fmt: skip
             object.__setattr__(self, name, a)
+        self._check_fixes(n)
         if self.speed_mps is None and self.chainage_m is None:
             raise LogFormatError(
                 "a run log needs a speed column (m/s) or a chainage column (m)", column="speed_mps"
@@ -79,6 +85,42 @@ class RunLog:
                 f"does not follow sample {i} ({self.time_s[i]} s)",
                 column="time_s", row=i + 3,
             )  # fmt: skip
+
+    def _check_fixes(self, n: int) -> None:
+        if (self.lat_deg is None) != (self.lon_deg is None):
+            raise LogFormatError(
+                "a run log's positions need both latitude and longitude", column="lat_deg"
+            )
+        if self.lat_deg is None or self.lon_deg is None:
+            return
+        lat = np.ascontiguousarray(self.lat_deg, dtype=np.float64)
+        lon = np.ascontiguousarray(self.lon_deg, dtype=np.float64)
+        for name, a, limit in (("lat_deg", lat, 90.0), ("lon_deg", lon, 180.0)):
+            if a.shape != (n,):
+                raise LogFormatError(
+                    f"column {name} has shape {a.shape}, expected ({n},) like time_s", column=name
+                )
+            bad = np.isinf(a) | (np.abs(a) > limit)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise LogFormatError(
+                    f"column {name} sample {i} is {a[i]}: degrees within ±{limit:g} expected "
+                    "(NaN where there is no fix)",
+                    column=name, row=i + 2,
+                )  # fmt: skip
+        if not np.array_equal(np.isnan(lat), np.isnan(lon)):
+            i = int(np.flatnonzero(np.isnan(lat) != np.isnan(lon))[0])
+            raise LogFormatError(
+                f"sample {i} has a latitude or a longitude but not both: a fix needs both",
+                column="lat_deg", row=i + 2,
+            )  # fmt: skip
+        object.__setattr__(self, "lat_deg", lat)
+        object.__setattr__(self, "lon_deg", lon)
+
+    @property
+    def has_fixes(self) -> bool:
+        """Whether the log carries at least one GNSS position fix."""
+        return self.lat_deg is not None and bool(np.isfinite(self.lat_deg).any())
 
     @property
     def n(self) -> int:

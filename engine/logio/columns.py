@@ -198,6 +198,18 @@ def _map_columns(names: list[str], options: CsvOptions, header_line: int) -> _Ma
     for role in ("time", "accel", "pitch_rate"):
         if index[role] is None and getattr(options, f"{role}_column") is None:
             missing((role,))
+    lat, lon = index["lat"], index["lon"]
+    if (lat is None) != (lon is None):
+        have, lack = ("lat", "lon") if lon is None else ("lon", "lat")
+        problems.append(
+            LogFormatError(
+                f"column {names[index[have] or 0]!r} is the {_ROLES[have].label} but no column is "
+                f"the {_ROLES[lack].label}: positions need both (expected names such as "
+                f"{_ROLES[lack].examples}, or set {lack}_column)",
+                column=names[index[have] or 0],
+                row=header_line,
+            )
+        )
     if (
         index["speed"] is None
         and index["chainage"] is None

@@ -48,6 +48,11 @@ class CsvOptions:
     wheel_load_unit : {'N', 'kN', 't'}, optional
         Unit of the static wheel load (``'t'``: tonne-force, 9.81 kN). Default: from the name
         (``_n``, ``_kn``, ``_t``), else kN.
+    lat_column, lon_column : str, optional
+        Header name of the GNSS latitude and longitude columns (WGS84). Optional roles: a log
+        without them is placed by its start chainage. Their cells may be empty between fixes.
+    lat_unit, lon_unit : {'deg'}, optional
+        Unit of the latitude and longitude: decimal degrees (the only one read).
     gravity : {'auto', 'included', 'removed'}
         Whether the acceleration includes gravity (reads about +1 g at rest). ``'included'``
         subtracts 9.81 m/s²; ``'auto'`` decides from the mean acceleration.
@@ -65,12 +70,16 @@ class CsvOptions:
     speed_column: str | None = None
     chainage_column: str | None = None
     wheel_load_column: str | None = None
+    lat_column: str | None = None
+    lon_column: str | None = None
     time_unit: str | None = None
     accel_unit: str | None = None
     pitch_rate_unit: str | None = None
     speed_unit: str | None = None
     chainage_unit: str | None = None
     wheel_load_unit: str | None = None
+    lat_unit: str | None = None
+    lon_unit: str | None = None
     gravity: str = "auto"
 
     def __post_init__(self) -> None:

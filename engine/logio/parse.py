@@ -23,6 +23,7 @@ from .options import CsvOptions
 from .roles import (
     _ROLES,
     OPTION_UNITS,
+    SPARSE_ROLES,
     _label,
 )
 from .source import (
@@ -298,6 +299,42 @@ def _wheel_load(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float
     return f
 
 
+def _fixes(
+    table: _Table, jlat: int, jlon: int, names: list[str]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Latitude and longitude, degrees: NaN where a row has no fix (both cells empty)."""
+    lat = np.asarray(table.columns[jlat], dtype=np.float64)
+    lon = np.asarray(table.columns[jlon], dtype=np.float64)
+    half = np.isnan(lat) != np.isnan(lon)
+    i = _first(half)
+    if i is not None:
+        ln = table.line(i)
+        empty, full = (names[jlat], names[jlon]) if np.isnan(lat[i]) else (names[jlon], names[jlat])
+        raise LogFormatError(
+            f"line {ln} has a value in column {full!r} but column {empty!r} is empty: a "
+            "position fix needs both latitude and longitude (leave both empty between fixes)",
+            column=empty,
+            row=ln,
+        )
+    for j, a, limit in ((jlat, lat, 90.0), (jlon, lon, 180.0)):
+        i = _first(np.isinf(a) | (np.abs(a) > limit))
+        if i is not None:
+            ln = table.line(i)
+            swap = (
+                " (latitude and longitude look swapped: check lat_column and lon_column)"
+                if j == jlat and abs(a[i]) <= 180.0 and abs(lon[i]) <= 90.0
+                else ""
+            )
+            raise LogFormatError(
+                f"column {names[j]!r} at line {ln} is {a[i]:g}: a "
+                f"{_ROLES['lat' if j == jlat else 'lon'].label} is within ±{limit:g} degrees "
+                f"(WGS84 decimal degrees expected){swap}",
+                column=names[j],
+                row=ln,
+            )
+    return lat, lon
+
+
 def _known(units: dict[str, str | None], role: str) -> str:
     unit = units[role]
     if unit is None:  # resolve_units decides every unit when given the data
@@ -335,7 +372,8 @@ def parse_run_csv(
         raise mapping.problems[0]
     names = header.names
     idx = {r: j for r, j in mapping.index.items() if j is not None}
-    table = _parse_table(src, header, sorted(set(idx.values())))
+    sparse = frozenset(idx[r] for r in SPARSE_ROLES if r in idx)
+    table = _parse_table(src, header, sorted(set(idx.values())), sparse)
     if table.n == 0:
         raise LogFormatError(
             f"the file has a header (line {header.line}) but no data rows", row=header.line
@@ -346,7 +384,8 @@ def parse_run_csv(
             "needed, the run is too short to invert"
         )
     for j in idx.values():
-        _check_finite(table, j, names[j])
+        if j not in sparse:
+            _check_finite(table, j, names[j])
 
     jt, ja, jw = idx["time"], idx["accel"], idx["pitch_rate"]
     units, assumed, unit_notes = resolve_units(
@@ -373,6 +412,10 @@ def parse_run_csv(
         jl = idx["wheel_load"]
         wheel_load = _wheel_load(table, jl, names[jl], _known(units, "wheel_load"))
 
+    lat = lon = None
+    if "lat" in idx and "lon" in idx:
+        lat, lon = _fixes(table, idx["lat"], idx["lon"], names)
+
     log = RunLog(
         time_s=t,
         accel_z_mps2=accel,
@@ -380,11 +423,13 @@ def parse_run_csv(
         speed_mps=speed,
         chainage_m=chainage,
         wheel_load_n=wheel_load,
+        lat_deg=lat,
+        lon_deg=lon,
     )
     # The file's own checks above give unit hints; this is the check every input path shares.
     fields = {"time": "time_s", "accel": "accel_z_mps2", "pitch_rate": "pitch_rate_radps",
               "speed": "speed_mps", "chainage": "chainage_m",
-              "wheel_load": "wheel_load_n"}  # fmt: skip
+              "wheel_load": "wheel_load_n", "lat": "lat_deg", "lon": "lon_deg"}  # fmt: skip
     check_plausible(log, {fields[r]: names[j] for r, j in idx.items()}, table.line)
     return ParsedRun(
         log=log,

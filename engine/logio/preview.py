@@ -24,6 +24,7 @@ from .header import (
 from .options import CsvOptions
 from .roles import (
     _ROLES,
+    SPARSE_ROLES,
 )
 from .source import (
     _GZIP_MAGIC,
@@ -164,7 +165,7 @@ def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None
             if len(f) <= j:
                 continue
             try:
-                vals.append(_to_float(f[j], names[j], ln))
+                vals.append(_to_float(f[j], names[j], ln, role in SPARSE_ROLES))
             except LogFormatError as e:
                 if len(warns) < 20:
                     warns.append(str(e))

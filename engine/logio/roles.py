@@ -14,9 +14,14 @@ G_UNIT_MPS2 = GRAVITY
 standard 9.80665) so that a logger at rest reading exactly 1 g gives exactly zero once gravity
 is removed."""
 
-ROLES = ("time", "accel", "pitch_rate", "speed", "chainage", "wheel_load")
+ROLES = ("time", "accel", "pitch_rate", "speed", "chainage", "wheel_load", "lat", "lon")
 """Every column role, in display order. ``wheel_load`` (a load-weigh system's static wheel load)
-is optional; the others are needed (speed or chainage, at least one)."""
+and ``lat``/``lon`` (GNSS fixes) are optional; the others are needed (speed or chainage, at
+least one)."""
+
+SPARSE_ROLES = ("lat", "lon")
+"""Roles whose column may have empty cells: GNSS fixes come at 1-10 Hz in a log sampled at
+hundreds of Hz, so most rows have no position (an empty cell reads as NaN, "no fix")."""
 
 
 @dataclass(frozen=True)
@@ -149,7 +154,45 @@ _ROLES: dict[str, _Role] = {
         factors={"N": 1.0, "kN": 1e3, "t": 1e3 * GRAVITY},
         examples="wheel_load_kn, static_wheel_load_n, load_weigh_kn",
     ),
+    "lat": _Role(
+        key="lat",
+        label="latitude",
+        canonical="lat_deg",
+        aliases=frozenset(
+            _words(
+                "lat latitude gps_lat gnss_lat lat_wgs84 latitude_wgs84 gps_latitude "
+                "gnss_latitude pos_lat position_lat"
+            )
+        ),  # fmt: skip
+        units=_units({"deg": _words("deg degs degree degrees")}),
+        unsupported=frozenset(_words("rad rads radian radians mdeg udeg e7 deg7 semicircles")),
+        factors={"deg": 1.0},
+        examples="lat, latitude, gps_lat, gnss_lat, lat_deg",
+    ),
+    "lon": _Role(
+        key="lon",
+        label="longitude",
+        canonical="lon_deg",
+        aliases=frozenset(
+            _words(
+                "lon lng long longitude gps_lon gps_lng gnss_lon gnss_lng lon_wgs84 "
+                "longitude_wgs84 gps_longitude gnss_longitude pos_lon position_lon"
+            )
+        ),  # fmt: skip
+        units=_units({"deg": _words("deg degs degree degrees")}),
+        unsupported=frozenset(_words("rad rads radian radians mdeg udeg e7 deg7 semicircles")),
+        factors={"deg": 1.0},
+        examples="lon, lng, longitude, gps_lon, gnss_lon, lon_deg",
+    ),
 }
+
+
+def role_aliases(role: str) -> frozenset[str]:
+    """The header names (lower snake case) a column of ``role`` is recognised by, including
+    its canonical name (``'lat'`` -> ``{'lat', 'latitude', ..., 'lat_deg'}``)."""
+    r = _ROLES[role]
+    return r.aliases | {r.canonical}
+
 
 _OPTION_UNITS: dict[str, tuple[str, ...]] = {
     "time": ("s", "ms", "epoch_s"),
@@ -158,6 +201,8 @@ _OPTION_UNITS: dict[str, tuple[str, ...]] = {
     "speed": ("m/s", "km/h"),
     "chainage": ("m", "km"),
     "wheel_load": ("N", "kN", "t"),
+    "lat": ("deg",),
+    "lon": ("deg",),
 }
 _GRAVITY_MODES = ("auto", "included", "removed")
 OPTION_UNITS = _OPTION_UNITS
@@ -166,11 +211,12 @@ GRAVITY_MODES = _GRAVITY_MODES
 """Values of the ``gravity`` option."""
 UNIT_LABELS = {
     "m/s2": "m/s²", "g": "g (9.81 m/s²)", "epoch_s": "epoch seconds", "t": "t (tonne-force)",
+    "deg": "degrees",
 }  # fmt: skip
 """How a unit is written for people, where that differs from its option value."""
 ROLE_LABELS = {role: r.label for role, r in _ROLES.items()}
 """Role -> its name in words (``'pitch_rate'`` -> ``'pitch rate'``)."""
-OPTIONAL_ROLES = ("wheel_load",)
+OPTIONAL_ROLES = ("wheel_load", "lat", "lon")
 """Roles a log may lack without anything else standing in for them."""
 _UNIT_LABEL = {"m/s2": "m/s²", "epoch_s": "epoch s"}
 

@@ -82,10 +82,12 @@ def _parse_fast(src: _Source, header: _Header) -> NDArray[np.float64] | None:
     return arr
 
 
-def _to_float(text: str, column: str, line: int) -> float:
+def _to_float(text: str, column: str, line: int, sparse: bool = False) -> float:
     t = text.strip()
     if len(t) >= 2 and t[0] == t[-1] == '"':
         t = t[1:-1].strip()
+    if not t and sparse:
+        return float("nan")
     if not t:
         raise LogFormatError(
             f"column {column!r} is empty at line {line}: every sample needs a number",
@@ -115,8 +117,11 @@ def _to_float(text: str, column: str, line: int) -> float:
     ) from None
 
 
-def _parse_careful(src: _Source, header: _Header, needed: list[int]) -> _Table:
-    """Read line by line, converting only the needed columns; raises at the first bad line."""
+def _parse_careful(
+    src: _Source, header: _Header, needed: list[int], sparse: frozenset[int] = frozenset()
+) -> _Table:
+    """Read line by line, converting only the needed columns; raises at the first bad line.
+    Empty cells of the ``sparse`` columns read as NaN."""
     n_cols = len(header.names)
     cols = {j: array("d") for j in needed}
     lines = array("q")
@@ -133,7 +138,7 @@ def _parse_careful(src: _Source, header: _Header, needed: list[int]) -> _Table:
             if not _field_count_ok(len(parts), n_cols, parts):
                 raise _field_count_error(s, len(parts), n_cols, ln, header)
             for j, out in cols.items():
-                out.append(_to_float(parts[j], header.names[j], ln))
+                out.append(_to_float(parts[j], header.names[j], ln, j in sparse))
             lines.append(ln)
     n = len(lines)
     arrays = {j: np.frombuffer(a, dtype=np.float64) if n else np.empty(0) for j, a in cols.items()}
@@ -155,8 +160,10 @@ def _field_count_error(s: str, k: int, n: int, ln: int, header: _Header) -> LogF
     return LogFormatError(msg, row=ln)
 
 
-def _parse_table(src: _Source, header: _Header, needed: list[int]) -> _Table:
+def _parse_table(
+    src: _Source, header: _Header, needed: list[int], sparse: frozenset[int] = frozenset()
+) -> _Table:
     arr = _parse_fast(src, header)
     if arr is None:
-        return _parse_careful(src, header, needed)
+        return _parse_careful(src, header, needed, sparse)
     return _Table({j: arr[:, j] for j in needed}, arr.shape[0], src, header, None)

@@ -56,7 +56,8 @@ def _auto_gravity(mean_mps2: float) -> str | None:
 
 
 DEFAULT_UNITS: dict[str, str] = {
-    "pitch_rate": "rad/s", "speed": "m/s", "chainage": "m", "wheel_load": "kN",
+    "pitch_rate": "rad/s", "speed": "m/s", "chainage": "m", "wheel_load": "kN", "lat": "deg",
+    "lon": "deg",
 }  # fmt: skip
 """Unit assumed for a column whose option and name say nothing (time and acceleration are
 told from their values instead)."""
@@ -131,7 +132,7 @@ def resolve_units(
             assumed.append(_assumed("acceleration", name, unit or "m/s2", role))
         elif unit is None:
             unit = DEFAULT_UNITS[role]
-            if role != "chainage":
+            if role not in ("chainage", "lat", "lon"):  # the only unit they come in
                 assumed.append(_assumed(role.replace("_", "-"), name, unit, role))
         units[role] = unit
     return units, assumed, notes

@@ -176,6 +176,7 @@ def test_csv_preview_reads_raw_logger_names_and_units(
     assert p["mapping"] == {
         "time": "timestamp", "accel": "az_g", "pitch_rate": "gyro_y_dps", "speed": "speed_kmh",
         "chainage": None, "wheel_load": None,
+        "lat": None, "lon": None,
     }  # fmt: skip
     assert p["units"]["time"] == "epoch_s" and p["units"]["accel"] == "g"
     assert p["units"]["pitch_rate"] == "deg/s" and p["units"]["speed"] == "km/h"

@@ -120,7 +120,9 @@ def test_sample_runs_load_with_every_value_exact(name: str, rows: int, speed: fl
     assert log.chainage_m is None
     assert parsed.gravity == "removed"
     assert parsed.units == {
-        "time": "s", "accel": "m/s2", "pitch_rate": "rad/s", "speed": "m/s", "chainage": None, "wheel_load": None,
+        "time": "s", "accel": "m/s2", "pitch_rate": "rad/s", "speed": "m/s", "chainage": None,
+        "wheel_load": None,
+        "lat": None, "lon": None,
     }  # fmt: skip
 
 
@@ -145,9 +147,12 @@ def test_raw_imu_log_gives_the_canonical_run() -> None:
     assert parsed.columns == {
         "time": "timestamp", "accel": "az_g", "pitch_rate": "gyro_y_dps",
         "speed": "speed_kmh", "chainage": None, "wheel_load": None,
+        "lat": None, "lon": None,
     }  # fmt: skip
     assert parsed.units == {
-        "time": "epoch_s", "accel": "g", "pitch_rate": "deg/s", "speed": "km/h", "chainage": None, "wheel_load": None,
+        "time": "epoch_s", "accel": "g", "pitch_rate": "deg/s", "speed": "km/h", "chainage": None,
+        "wheel_load": None,
+        "lat": None, "lon": None,
     }  # fmt: skip
     assert parsed.gravity == "included"
     # epoch seconds near 1.8e9 carry float64 steps of 2.4e-7 s; everything else is exact-ish
@@ -507,6 +512,7 @@ def test_unit_suffixes_and_brackets_are_recognised() -> None:
         assert parsed.units == {
             "time": "ms", "accel": "m/s2", "pitch_rate": "deg/s", "speed": "km/h",
             "chainage": None, "wheel_load": None,
+            "lat": None, "lon": None,
         }, header  # fmt: skip
         log = parsed.log
         np.testing.assert_allclose(log.time_s, s["t"], rtol=0, atol=1e-15)
@@ -702,6 +708,7 @@ def test_preview_of_a_raw_log_shows_mapping_units_and_gravity() -> None:
     assert pv.mapping == {
         "time": "timestamp", "accel": "az_g", "pitch_rate": "gyro_y_dps", "speed": "speed_kmh",
         "chainage": None, "wheel_load": None,
+        "lat": None, "lon": None,
     }  # fmt: skip
     assert pv.units["time"] == "epoch_s" and pv.units["speed"] == "km/h"
     assert pv.gravity == "included"
@@ -727,7 +734,9 @@ def test_preview_reports_problems_as_warnings() -> None:
     assert any("'|'" in w for w in pv.warnings)
     pv = preview_csv(_csv(_lines("time_s,acc,gyro,speed")))
     assert pv.units == {
-        "time": "s", "accel": "m/s2", "pitch_rate": "rad/s", "speed": "m/s", "chainage": None, "wheel_load": None,
+        "time": "s", "accel": "m/s2", "pitch_rate": "rad/s", "speed": "m/s", "chainage": None,
+        "wheel_load": None,
+        "lat": None, "lon": None,
     }  # fmt: skip
     assert sum("assumed" in w for w in pv.warnings) == 3
 
