@@ -44,6 +44,10 @@ SCALE_RANGE = (0.85, 1.15)
 MIN_PIECE_M = 2000.0
 """Shortest stretch of odometer distance one piece of a piecewise fit may cover, m."""
 
+MIN_SCALE_CHANGE = 0.002
+"""Smallest change of odometer scale a knot may add (0.2 %, 2 m per km): smaller ones are
+within what the GNSS bias's wander fakes over a few kilometres."""
+
 MAX_KNOTS = 32
 """Most slope changes one run's fit may have."""
 
@@ -226,17 +230,20 @@ def _add_knots(
             break
         used = w > 0
         r = ch - _design(odo, knots) @ beta
-        ssr = float(np.sum(w[used] * r[used] ** 2))
-        n_eff = max(2.0, used.sum() * _n_eff_factor(r[used]))
         mo, mr, bw = _binned(odo[used], r[used], w[used], MIN_PIECE_M / 10.0)
+        bw = bw / bw.mean()
+        ssr = float(np.sum(bw * mr * mr))  # between-bin residual: what a trend can explain
+        n_eff = max(2.0, mo.size * _n_eff_factor(mr))
         sw = np.sqrt(bw)
         q, _ = np.linalg.qr(_design(mo, knots) * sw[:, None])
         h = np.maximum(0.0, mo[:, None] - cands[None, allowed]) * sw[:, None]
         h -= q @ (q.T @ h)
         norm2 = np.einsum("ij,ij->j", h, h)
-        gains = np.where(norm2 > 1e-9, (h.T @ (mr * sw)) ** 2 / np.maximum(norm2, 1e-9), 0.0)
+        proj = h.T @ (mr * sw)
+        gains = np.where(norm2 > 1e-9, proj**2 / np.maximum(norm2, 1e-9), 0.0)
         best = int(np.argmax(gains))
-        if gains[best] <= 0 or gains[best] >= ssr:
+        change = abs(proj[best] / max(norm2[best], 1e-9))  # the slope change it would add
+        if gains[best] <= 0 or gains[best] >= ssr or change < MIN_SCALE_CHANGE:
             break
         # BIC with the effective sample size, twice as strict as the textbook penalty
         if n_eff * np.log(ssr / (ssr - gains[best])) <= 2.0 * np.log(n_eff):
