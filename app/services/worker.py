@@ -15,8 +15,9 @@ import os
 import socket
 import threading
 import uuid
+from collections.abc import Callable
 from datetime import timedelta
-from typing import Any, cast
+from typing import Any, TypeVar, cast
 
 from sqlalchemy import CursorResult, Update, delete, or_, select, update
 from sqlalchemy.orm import Session
@@ -37,9 +38,10 @@ from .calibration import (
 from .context import AppContext
 from .loads import loaded_vehicle
 from .logs import unpack_log
-from .processing import invert, store_result
+from .processing import Processed, invert, store_result
 
 log = logging.getLogger(__name__)
+T = TypeVar("T")
 
 
 def _rowcount(session: Session, statement: Update) -> int:
@@ -272,22 +274,15 @@ class Worker:
                 return
             request = dict(cal.request)
             vp, version, runs, t_from, t_to = calibration_inputs(s, cal)
-        try:
+
+        def fit() -> dict[str, Any]:
             with Heartbeat(
                 self.ctx, cal_id, self.id, max(0.5, settings.lease_s / 4), model=Calibration
             ):
-                result = fit_calibration(vp, runs, request)
-        except EngineError as exc:
-            with self.ctx.db.session() as s:
-                self._fail_calibration(s, cal_id, engine_error_facts(exc))
-            return
-        except Exception as exc:
-            log.exception("calibration %s failed", cal_id)
-            with self.ctx.db.session() as s:
-                self._fail_calibration(
-                    s, cal_id, {"message": f"internal error while calibrating "
-                                f"({type(exc).__name__})", "kind": "InternalError"},
-                )  # fmt: skip
+                return fit_calibration(vp, runs, request)
+
+        result = self._attempt("calibrating", cal_id, self._fail_calibration, fit)
+        if result is None:
             return
         with self.ctx.db.session() as s:
             owned = _rowcount(
@@ -306,6 +301,29 @@ class Worker:
             s.commit()
         if queued:
             self.wake()
+
+    def _attempt(
+        self,
+        doing: str,
+        job_id: int,
+        fail: Callable[[Session, int, dict[str, Any]], None],
+        work: Callable[[], T],
+    ) -> T | None:
+        """Run a claimed job's numerics; when they fail, record why with ``fail`` (an engine
+        error by its facts, anything else as an internal error, logged) and return None."""
+        try:
+            return work()
+        except EngineError as exc:
+            facts = engine_error_facts(exc)
+        except Exception as exc:
+            log.exception("%s %s failed", doing, job_id)
+            facts = {
+                "message": f"internal error while {doing} ({type(exc).__name__})",
+                "kind": "InternalError",
+            }
+        with self.ctx.db.session() as s:
+            fail(s, job_id, facts)
+        return None
 
     def _fail_calibration(self, s: Session, cal_id: int, detail: dict[str, Any]) -> None:
         _rowcount(
@@ -351,28 +369,18 @@ class Worker:
                     s, run_id, {"message": "the run's stored input is missing", "kind": "Lost"}
                 )
             return
-        try:
+        held = [data]  # the stored log is freed once unpacked, before the inversion runs
+        del data
+
+        def work() -> Processed:
             with Heartbeat(self.ctx, run_id, self.id, max(0.5, settings.lease_s / 4)):
-                runlog = unpack_log(data)
-                del data
-                processed = invert(
-                    runlog, start_chainage_m=start, direction=direction, vehicle=vp, track=tp,
-                    budget_s=settings.processing_budget_s,
+                return invert(
+                    unpack_log(held.pop()), start_chainage_m=start, direction=direction,
+                    vehicle=vp, track=tp, budget_s=settings.processing_budget_s,
                 )  # fmt: skip
-                del runlog
-        except EngineError as exc:
-            with self.ctx.db.session() as s:
-                self._fail(s, run_id, engine_error_facts(exc))
-            return
-        except Exception as exc:
-            log.exception("processing run %s failed", run_id)
-            with self.ctx.db.session() as s:
-                self._fail(
-                    s,
-                    run_id,
-                    {"message": f"internal error while processing ({type(exc).__name__})",
-                     "kind": "InternalError"},
-                )  # fmt: skip
+
+        processed = self._attempt("processing", run_id, self._fail, work)
+        if processed is None:
             return
         # The stage is committed on its own, so that clients see "storing" while the store
         # (which may wait for the track's lock) runs.
