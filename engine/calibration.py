@@ -18,6 +18,10 @@ by the same factor, so only ratios are observable. The body mass is held (regist
 a given load figure) and the pitch inertia, the suspension stiffnesses and the sensor position
 are fitted against it; damping and contact stiffness barely change the disagreement in the band
 and are held too.
+
+The objective's machinery (segments, spectra, evaluation) is :mod:`engine.axle_disagreement`;
+this module holds the fit and its public objects (what is fittable, the configuration, the
+result with its uncertainties), whose numpydoc is half of its length.
 """
 
 from __future__ import annotations
@@ -28,22 +32,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.fft as sfft
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
-from scipy.signal import resample_poly
 
-from .errors import EngineError, ParameterError
-from .pipeline import ProcessConfig, check_run
+from . import axle_disagreement as disagreement
+from .axle_disagreement import Evaluation
+from .errors import ParameterError
 from .runlog import RunLog
-from .spectral import (
-    band_window,
-    edge_padding,
-    estimate_white_noise,
-    padded_spectrum,
-    solve_bins,
-    vehicle_response,
-)
 from .vehicle import VehicleParams
 
 
@@ -312,178 +307,6 @@ class CalibrationResult:
         }
 
 
-@dataclass
-class _Segment:
-    """A piece of one run, decimated; noise levels at the decimated step (same density)."""
-
-    a: NDArray[np.float64]
-    g: NDArray[np.float64]
-    f_lo: float
-    f_hi: float
-    sa: float
-    sg: float
-    front_idx: NDArray[np.intp]
-    rear_idx: NDArray[np.intp]
-    rear_w: NDArray[np.float64]
-    run: int
-
-
-@dataclass
-class _Group:
-    """Segments sharing one sample step and FFT length (one frequency grid)."""
-
-    dt: float
-    nfft: int
-    pad: int
-    n: int
-    sel: NDArray[np.bool_]  # bins used (inside any segment's band)
-    omega: NDArray[np.float64]  # rad/s of the used bins
-    A: NDArray[np.complex128]  # (n_seg, n_used)
-    Q: NDArray[np.complex128]
-    wband: NDArray[np.float64]  # (n_seg, n_used)
-    sa: NDArray[np.float64]  # (n_seg,) accelerometer noise at this step
-    sg: NDArray[np.float64]
-    # front samples compared (indices in the segment) and the rear level there (cubic weights)
-    front_idx: list[NDArray[np.intp]]
-    rear_idx: list[NDArray[np.intp]]  # (m, 4) indices
-    rear_w: list[NDArray[np.float64]]  # (m, 4) weights
-    run: list[int]  # run index of each segment
-
-
-def _cubic_weights(
-    x: NDArray[np.float64], xq: NDArray[np.float64]
-) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
-    """Four-point Lagrange interpolation of samples at increasing ``x`` onto ``xq``."""
-    i = np.clip(np.searchsorted(x, xq) - 1, 1, x.size - 3)
-    idx = i[:, None] + np.arange(-1, 3)[None, :]
-    xs = x[idx]
-    w = np.ones_like(xs)
-    for j in range(4):
-        for m in range(4):
-            if m != j:
-                w[:, j] *= (xq - xs[:, m]) / (xs[:, j] - xs[:, m])
-    return idx, w
-
-
-def _prepare(
-    runs: Sequence[CalibrationRun], vehicle: VehicleParams, cfg: CalibrationConfig
-) -> tuple[list[_Group], list[tuple[str, str]], list[tuple[str, float]]]:
-    """Decimate, segment and transform every usable run once."""
-    pcfg = ProcessConfig(lambda_min_m=cfg.lambda_min_m, lambda_max_m=cfg.lambda_max_m)
-    taper = pcfg.taper
-    skipped: list[tuple[str, str]] = []
-    used: list[tuple[str, float]] = []
-    pieces: dict[tuple[float, int], list[_Segment]] = {}
-    for r_i, run in enumerate(runs):
-        label = run.label or f"run {r_i + 1}"
-        try:
-            chk = check_run(
-                run.log, start_chainage_m=run.start_chainage_m, direction=run.direction,
-                vehicle=vehicle, config=pcfg,
-            )  # fmt: skip
-        except EngineError as exc:
-            skipped.append((label, str(exc)))
-            continue
-        log = run.log
-        dt = log.dt
-        fs = 1.0 / dt
-        # decimate to 2.5x the band's upper edge (Nyquist), zero-phase polyphase FIR
-        q = max(1, int(fs / (5.0 * chk.f_hi_hz * (1 + taper))))
-        sa = estimate_white_noise(log.accel_z_mps2, dt)
-        sg = estimate_white_noise(log.pitch_rate_radps, dt)
-        a = log.accel_z_mps2 - log.accel_z_mps2.mean()
-        g = log.pitch_rate_radps - log.pitch_rate_radps.mean()
-        if q > 1:
-            a, g = resample_poly(a, 1, q), resample_poly(g, 1, q)
-        xf = chk.positions.front[::q][: a.size] * chk.positions.sign
-        xr = chk.positions.rear[::q][: a.size] * chk.positions.sign
-        dtd = dt * q
-        nseg = int(round(cfg.segment_s / dtd))
-        total = a.size
-        if total < nseg:  # short run: one segment of its own length
-            nseg = total
-        n_avail = max(1, total // nseg)
-        n_take = n_avail
-        if cfg.max_seconds_per_run is not None:
-            n_take = max(1, min(n_avail, int(cfg.max_seconds_per_run / (nseg * dtd))))
-        starts = np.linspace(0, total - nseg, n_take).round().astype(int) if n_take > 1 else [0]
-        trim = int(math.ceil(1.0 / (chk.f_lo_hz / (1 + taper)) / dtd))  # one longest period
-        lag = int(math.ceil(vehicle.wheelbase / max(chk.speed.min(), 1e-3) / dtd)) + 2
-        n_used = 0
-        for s0 in starts:
-            sl = slice(int(s0), int(s0) + nseg)
-            f_pos, r_pos = xf[sl], xr[sl]
-            lo, hi = trim, nseg - trim
-            if hi - lo < 4 * lag:
-                continue
-            # front samples whose chainage the rear axle also reaches inside the kept part
-            k = np.arange(lo, hi)
-            keep = (f_pos[k] >= r_pos[lo + 2]) & (f_pos[k] <= r_pos[hi - 3])
-            k = k[keep]
-            if k.size < 16:
-                continue
-            idx, w = _cubic_weights(r_pos, f_pos[k])
-            pieces.setdefault((dtd, nseg), []).append(
-                _Segment(a[sl], g[sl], chk.f_lo_hz, chk.f_hi_hz, sa / math.sqrt(q),
-                         sg / math.sqrt(q), k, idx, w, r_i)
-            )  # fmt: skip
-            n_used += 1
-        if n_used == 0:
-            skipped.append((label, "too short to compare the two axles after edge trimming"))
-            continue
-        used.append((label, n_used * nseg * dtd))
-    groups = []
-    for (dtd, nseg), segs in pieces.items():
-        pad = edge_padding(nseg, dtd, min(sg.f_lo for sg in segs), taper)
-        nfft = sfft.next_fast_len(nseg + 2 * pad, real=True)
-        f = sfft.rfftfreq(nfft, dtd)
-        wb = np.array([band_window(f, sg.f_lo, sg.f_hi, taper) for sg in segs])
-        sel = wb.max(axis=0) > 0
-        groups.append(
-            _Group(
-                dt=dtd, nfft=nfft, pad=pad, n=nseg, sel=sel, omega=2 * np.pi * f[sel],
-                A=np.array([padded_spectrum(sg.a, pad, nfft)[sel] for sg in segs]),
-                Q=np.array([padded_spectrum(sg.g, pad, nfft)[sel] for sg in segs]),
-                wband=wb[:, sel],
-                sa=np.array([sg.sa for sg in segs]), sg=np.array([sg.sg for sg in segs]),
-                front_idx=[sg.front_idx for sg in segs],
-                rear_idx=[sg.rear_idx for sg in segs],
-                rear_w=[sg.rear_w for sg in segs],
-                run=[sg.run for sg in segs],
-            )
-        )  # fmt: skip
-    return groups, skipped, used
-
-
-@dataclass
-class _Eval:
-    """Residuals of one evaluation: per segment the difference and the level energy."""
-
-    diff: list[NDArray[np.float64]]
-    energy: NDArray[np.float64]
-    run: NDArray[np.intp]
-
-
-def _evaluate(groups: list[_Group], vehicle: VehicleParams) -> _Eval:
-    diffs: list[NDArray[np.float64]] = []
-    energy: list[float] = []
-    runs: list[int] = []
-    for g in groups:
-        H = vehicle_response(vehicle, g.omega)
-        full = np.zeros((g.A.shape[0], 2, g.sel.size), dtype=complex)
-        for i in range(g.A.shape[0]):
-            Y = solve_bins(H, g.A[i], g.Q[i], g.sa[i], g.sg[i], 1.0 / g.nfft)
-            full[i, :, g.sel] = Y * g.wband[i][:, None]
-        y = sfft.irfft(full, g.nfft, axis=-1)[..., g.pad : g.pad + g.n]
-        for i in range(y.shape[0]):
-            yf = y[i, 0, g.front_idx[i]]
-            yr = np.sum(y[i, 1][g.rear_idx[i]] * g.rear_w[i], axis=1)
-            diffs.append(yf - yr)
-            energy.append(0.5 * float(np.sum(yf**2) + np.sum(yr**2)))
-            runs.append(g.run[i])
-    return _Eval(diffs, np.array(energy), np.array(runs))
-
-
 def _vehicle_at(
     base: VehicleParams, fit: tuple[str, ...], theta: NDArray[np.float64]
 ) -> VehicleParams:
@@ -527,16 +350,16 @@ def calibrate(
     base = vehicle if cfg.load_kg is None else vehicle.replace(ms=cfg.load_kg)
     if not runs:
         raise ParameterError("calibration needs at least one run")
-    groups, skipped, used = _prepare(runs, base, cfg)
+    groups, skipped, used = disagreement.prepare(runs, base, cfg)
     if not groups:
         reasons = "; ".join(f"{a}: {b}" for a, b in skipped)
         raise ParameterError(f"no run can be used for calibration ({reasons})")
     fit = cfg.fit
     k = len(fit)
     n_eval = 0
-    cache: dict[bytes, _Eval] = {}
+    cache: dict[bytes, Evaluation] = {}
 
-    def evaluate(theta: NDArray[np.float64]) -> _Eval:
+    def evaluate(theta: NDArray[np.float64]) -> Evaluation:
         nonlocal n_eval
         key = np.asarray(theta, float).tobytes()
         if key not in cache:
@@ -546,9 +369,9 @@ def calibrate(
                 veh = None
             if veh is None:
                 ev0 = cache[np.zeros(k).tobytes()]
-                cache[key] = _Eval([d * 0 + 1e3 for d in ev0.diff], ev0.energy, ev0.run)
+                cache[key] = Evaluation([d * 0 + 1e3 for d in ev0.diff], ev0.energy, ev0.run)
             else:
-                cache[key] = _evaluate(groups, veh)
+                cache[key] = disagreement.evaluate(groups, veh)
             n_eval += 1
             if progress is not None:
                 progress(n_eval)
@@ -605,9 +428,16 @@ def calibrate(
     significant = any(f.significant for f in fitted) and improvement >= cfg.min_improvement
     per_run = []
     for r_i, (label, secs) in enumerate(used):
-        per_run.append(RunFit(label, secs, _run_objective(ev0, r_i), _run_objective(ev1, r_i)))
-    mm0 = _rms_mm(ev0)
-    mm1 = _rms_mm(ev1)
+        per_run.append(
+            RunFit(
+                label,
+                secs,
+                disagreement.run_objective(ev0, r_i),
+                disagreement.run_objective(ev1, r_i),
+            )
+        )
+    mm0 = disagreement.rms_mm(ev0)
+    mm1 = disagreement.rms_mm(ev1)
     if significant:
         changed = ", ".join(
             f"{f.name} {f.change:+.1%} ± {f.sd:.1%}"
@@ -648,19 +478,7 @@ def calibrate(
     )
 
 
-def _run_objective(ev: _Eval, run_index: int) -> float:
-    sel = np.flatnonzero(ev.run == run_index)
-    d = sum(float(np.sum(ev.diff[i] ** 2)) for i in sel)
-    e = float(ev.energy[sel].sum())
-    return math.sqrt(d / e) if e > 0 else float("nan")
-
-
-def _rms_mm(ev: _Eval) -> float:
-    d = np.concatenate(ev.diff)
-    return float(np.sqrt(np.mean(d**2)) * 1e3)
-
-
-def _uncertainty(jac: NDArray[np.float64], ev: _Eval) -> NDArray[np.float64]:
+def _uncertainty(jac: NDArray[np.float64], ev: Evaluation) -> NDArray[np.float64]:
     """Standard uncertainty of the fitted ``theta`` from the segment-to-segment scatter.
 
     Each segment's own Gauss-Newton optimum ``theta_k = theta - H_k⁻¹ g_k`` (its rows of the
@@ -695,7 +513,7 @@ def _uncertainty(jac: NDArray[np.float64], ev: _Eval) -> NDArray[np.float64]:
 
 
 def _scans(
-    evaluate: Callable[[NDArray[np.float64]], _Eval],
+    evaluate: Callable[[NDArray[np.float64]], Evaluation],
     theta: NDArray[np.float64],
     sd: NDArray[np.float64],
     fit: tuple[str, ...],

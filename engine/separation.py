@@ -14,6 +14,10 @@ dynamics, sensor noise), estimated from the fit itself when there are more passe
 distinct unknowns. Soft spots are dips of the compliance (as the level dip they cause under a
 reference load) fitted with the beam-on-discrete-supports model (:func:`engine.stiffness
 .fit_zone`, same band-pass as the profile). Details and assumptions: docs/method.md.
+
+One module, a little over 500 lines: the pass model, the per-point fit, the windowing of the
+result and the soft-spot extraction share the result object and its grid conventions; split,
+each part would import the others' private helpers.
 """
 
 from __future__ import annotations

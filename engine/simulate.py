@@ -8,6 +8,9 @@ rank-2 (Woodbury) update: one banded solve per step, whatever the track length.
 Coordinates are total (gravity acts on the vehicle), so the contact force is
 ``kt_i * (y_i - u_ui)`` (compression positive) and the rail level under wheel ``i`` is
 ``y_i = N_i(x_i) w + r(x_i)`` (m, positive up).
+
+One module of about 500 lines: the time stepper and the contact update it calls every step are
+one algorithm; the result object and the input checks are what make up the rest.
 """
 
 from __future__ import annotations
