@@ -69,8 +69,8 @@ def parse_csv(
         raise Invalid.from_engine(exc, field) from None
 
 
-def log_from_columns(columns: dict[str, list[float] | None]) -> RunLog:
-    """A RunLog from canonical SI columns (JSON arrays).
+def log_from_columns(columns: dict[str, Any]) -> RunLog:
+    """A RunLog from canonical SI columns (JSON arrays or float arrays; None when absent).
 
     Raises
     ------

@@ -68,6 +68,17 @@ def _json_columns(base: bytes, edit: Callable[[dict[str, list[float]]], None]) -
     return {"track": "T", "start_chainage_m": 12, "columns": cols}
 
 
+def _json_text_of(body: dict[str, Any]) -> bytes:
+    return json.dumps(body).encode()
+
+
+def _json_replace(old: str, new: str) -> Callable[[bytes], bytes]:
+    """The JSON text of a ``columns`` upload of the good log, its first ``old`` made ``new``."""
+    return lambda base: (
+        json.dumps(_json_columns(base, lambda _c: None)).replace(old, new, 1).encode()
+    )
+
+
 def _set(name: str, i: int, value: float) -> Callable[[dict[str, list[float]]], None]:
     def edit(cols: dict[str, list[float]]) -> None:
         cols[name][i] = value
@@ -484,6 +495,26 @@ CATALOGUE: dict[str, Bad] = {
         json_body(lambda b: _json_columns(b, _shift_time(99, 100.0))),
         facts={"column": "time_s", "row": 101, "kind": "LogFormatError", "field": "columns"},
         words=("gap", "without gaps"),
+    ),
+    # -- JSON columns read without a Python object per number (issue 16) -----------------
+    "JSON column item that is not a JSON number": Bad(
+        json_body(_json_replace('"accel_z_mps2": [', '"accel_z_mps2": [.5, ')),
+        facts={"field": "columns.accel_z_mps2", "column": "accel_z_mps2", "row": 2},
+        words=("'.5'", "not a JSON number"),
+    ),
+    "JSON column array ending in a comma": Bad(
+        json_body(_json_replace("]", ",]")),
+        facts={"column": "time_s", "row": 5357}, words=("empty",),
+    ),
+    "JSON column given twice": Bad(
+        json_body(_json_replace('"time_s": [', '"time_s": [1, 2], "time_s": [')),
+        facts={"field": "columns.time_s"}, words=("twice",),
+    ),
+    "JSON columns of nulls beyond the body limit": Bad(
+        json_body(lambda _b: _json_text_of({"track": "T", "start_chainage_m": 12, "columns": {
+            "time_s": [None] * 2000, "accel_z_mps2": [0.0], "pitch_rate_radps": [0.0]}})),
+        status=413, facts={"field": "columns", "limit_bytes": 5000}, words=("plain JSON numbers",),
+        settings={"max_body_kb": 5},
     ),
     "JSON columns with the gap of the CSV case": Bad(
         json_body(lambda b: _json_columns(b, _shift_time(99, 0.003))),

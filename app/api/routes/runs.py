@@ -22,6 +22,7 @@ from app.core.errors import ApiError
 from app.schemas.common import Timestamp
 from app.schemas.runs import (
     ProfilePublic,
+    RunColumns,
     RunCreated,
     RunCreateJson,
     RunPublic,
@@ -34,6 +35,7 @@ from app.schemas.runs import (
 from app.services import exports, runs
 from app.services.context import AppContext
 from app.services.integrate import remove_run_from_track
+from app.services.json_log import has_columns, split_json_columns
 from app.services.logs import hash_columns, log_from_columns, parse_csv, sha256_hex
 from app.services.submit import Submission, submit
 
@@ -122,9 +124,14 @@ def _from_multipart(
     )  # fmt: skip
 
 
-def _from_json(body: bytes, key: str | None) -> Submission:
-    if not body.strip():
+def _from_json(
+    body: bytes | bytearray, key: str | None, max_rest_bytes: int, max_bytes: int
+) -> Submission:
+    if not body or body.isspace():  # (not strip(): a copy of the whole body)
         raise ApiError(400, "the request body is empty: send a JSON object or a multipart upload")
+    arrays: dict[str, Any] = {}
+    if has_columns(body):
+        body, arrays = split_json_columns(body, RunColumns.model_fields, max_rest_bytes)
     try:
         meta = RunCreateJson.model_validate_json(body)
     except ValidationError as exc:
@@ -134,13 +141,13 @@ def _from_json(body: bytes, key: str | None) -> Submission:
     if meta.csv is not None:
         options = meta.csv_options()
         data = meta.csv.encode("utf-8")
-        log = parse_csv(data, options, field="csv")
+        log = parse_csv(data, options, field="csv", max_bytes=max_bytes)
         return _submission(
             meta, source="json", content_hash=sha256_hex(data), filename=meta.filename, key=key,
             log=log, options={"csv": options},
         )  # fmt: skip
     assert meta.columns is not None
-    log = log_from_columns(meta.columns.model_dump())
+    log = log_from_columns(meta.columns.model_dump() | arrays)
     return _submission(
         meta, source="json", content_hash=hash_columns(log), filename=meta.filename, key=key,
         log=log, options={"columns": True},
@@ -238,8 +245,14 @@ async def create_run(
         )  # fmt: skip
         del data
     elif ctype == "application/json":
-        body = await request.body()
-        sub = await run_in_threadpool(_from_json, body, idempotency_key)
+        # Read into one growing buffer (not chunks joined at the end: half the peak memory).
+        body = bytearray()
+        async for chunk in request.stream():
+            body += chunk
+        sub = await run_in_threadpool(
+            _from_json, body, idempotency_key, ctx.settings.max_body_bytes,
+            ctx.settings.max_upload_bytes,
+        )  # fmt: skip
         del body
     else:
         raise ApiError(
