@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from app.db.models import Calibration, Run, Track, Vehicle
-from app.schemas.runs import RunAlignmentPublic, RunError, RunPublic
+from app.schemas.runs import RunAlignmentPublic, RunError, RunPositioningPublic, RunPublic
 from app.schemas.tracks import TrackPublic
 from app.schemas.vehicles import (
     CalibrationPublic,
@@ -61,6 +61,9 @@ def run_public(run: Run) -> RunPublic:
         stiffness_message=message,
         content_hash=run.content_hash,
         options=run.options or {},
+        positioning=(
+            RunPositioningPublic.model_validate(run.positioning) if run.positioning else None
+        ),
     )
 
 

@@ -5,7 +5,16 @@ from __future__ import annotations
 from fastapi import APIRouter, Depends
 
 from app.api.deps import check_access
-from app.api.routes import runs, simulate, stiffness, track_intel, tracks, vehicles, views
+from app.api.routes import (
+    centerlines,
+    runs,
+    simulate,
+    stiffness,
+    track_intel,
+    tracks,
+    vehicles,
+    views,
+)
 from app.schemas.common import ERROR_RESPONSES
 
 UPLOAD_PATHS = frozenset({"/api/v1/runs"})
@@ -20,6 +29,8 @@ api_router.include_router(tracks.router)
 api_router.include_router(track_intel.router)
 # Geometry vs stiffness: separated stiffness and reference surveys of a track (issue 10).
 api_router.include_router(stiffness.router)
+# Positions from GNSS: a track's centerline (issue 11).
+api_router.include_router(centerlines.router)
 api_router.include_router(vehicles.router)
 api_router.include_router(simulate.router)
 # Server-side chart data for the dashboard (decimated profiles, chainage maps, CSV preview).

@@ -220,6 +220,9 @@ class Run(Base):
     static_wheel_load_n: Mapped[float | None] = mapped_column(Float)
     mean_wheel_force_n: Mapped[float | None] = mapped_column(Float)
     single_pass_valid: Mapped[bool | None] = mapped_column(Boolean)
+    # GNSS placement (issue 11): engine.positioning.Placement.to_dict(); None when the run was
+    # placed by its start chainage.
+    positioning: Mapped[dict[str, Any] | None] = mapped_column(JSON)
 
     content_hash: Mapped[str] = mapped_column(String(64))
     idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
@@ -466,3 +469,21 @@ class TrackStiffnessSpot(Base):
     loss_lo_pct: Mapped[float | None] = mapped_column(Float)
     loss_hi_pct: Mapped[float | None] = mapped_column(Float)
     confidence: Mapped[float | None] = mapped_column(Float)
+
+
+class TrackCenterline(Base):
+    """A track's centerline (issue 11): WGS84 vertices and the chainage of each, for placing
+    runs by their GNSS fixes and drawing the line in plan."""
+
+    __tablename__ = "track_centerlines"
+
+    track_id: Mapped[int] = mapped_column(
+        ForeignKey("tracks.id", ondelete="CASCADE"), primary_key=True
+    )
+    n_vertices: Mapped[int] = mapped_column(Integer)
+    length_m: Mapped[float] = mapped_column(Float)
+    start_chainage_m: Mapped[float] = mapped_column(Float)
+    end_chainage_m: Mapped[float] = mapped_column(Float)
+    source: Mapped[str] = mapped_column(String(20))  # geojson | csv
+    data: Mapped[dict[str, Any]] = mapped_column(JSON, deferred=True)  # Centerline.to_dict()
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)

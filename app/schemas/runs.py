@@ -214,6 +214,23 @@ class RunAlignmentPublic(BaseModel):
     reason: str | None = Field(description="Why the run is a reference or is unaligned")
 
 
+class RunPositioningPublic(BaseModel):
+    """How a run was placed by its GNSS fixes on the track's centerline (issue 11)."""
+
+    method: Literal["gnss"] = "gnss"
+    start_chainage_m: float = Field(description="Fitted chainage of the first sample, m")
+    direction: Direction
+    scale: float = Field(description="Odometer scale factor found (true / logged distance)")
+    residual_rms_m: float = Field(description="RMS of the fit's residuals over the fixes used, m")
+    n_fixes: int = Field(description="Fixes in the log")
+    n_used: int = Field(description="Fixes the fit used")
+    n_rejected: int = Field(description="Fixes off the line or outliers of the fit")
+    offset_median_m: float = Field(description="Median lateral offset of the fixes used, m")
+    offset_p95_m: float = Field(description="95th percentile of the lateral offset, m")
+    pieces: int = Field(description="Pieces of the piecewise-linear odometer fit")
+    knots_m: list[float] = Field(description="Odometer distances where the scale changes, m")
+
+
 class RunPublic(BaseModel):
     """A stored run: metadata, processing state, quality indicators."""
 
@@ -274,6 +291,11 @@ class RunPublic(BaseModel):
     )
     content_hash: str
     options: dict[str, Any]
+    positioning: RunPositioningPublic | None = Field(
+        default=None,
+        description="Placement by GNSS fixes on the track's centerline (null: placed by the "
+        "start chainage given)",
+    )
 
 
 class RunCreated(RunPublic):

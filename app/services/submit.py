@@ -7,6 +7,7 @@ one transaction: the track (if new), the run, its display signals, and either it
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import re
@@ -31,6 +32,7 @@ from engine.track import TrackParams
 from engine.vehicle import PRESETS, VehicleParams
 
 from .calibration import maybe_auto_calibrate
+from .centerlines import load_centerline, place_by_gnss
 from .context import AppContext
 from .errors import Conflict, Invalid
 from .loads import declared_wheel_load, loaded_vehicle
@@ -190,9 +192,16 @@ def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
     # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
     # queued run does not fail later for a reason the client could have been told now.
     if sub.log.chainage_m is None and sub.start_chainage_m is None:
+        gnss = (
+            "the log has no GNSS fixes (latitude/longitude columns) to place it by"
+            if sub.log.lat_deg is None or not sub.log.has_fixes
+            else "the track has no centerline to place its GNSS fixes on (PUT "
+            "/api/v1/tracks/{track}/centerline)"
+        )
         raise Invalid(
-            "start_chainage_m is required when the log has no chainage column: give the "
-            "chainage of the body centre at the first sample, m",
+            "start_chainage_m is required when the log has no chainage column and cannot be "
+            f"placed by GNSS ({gnss}): give the chainage of the body centre at the first "
+            "sample, m",
             field="start_chainage_m",
         )
     try:
@@ -236,6 +245,8 @@ def submit(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
 
 def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
     settings = ctx.settings
+    identity = sub.identity  # what the client sent; placement by GNSS changes the log below
+    positioning: dict[str, Any] | None = None
     with ctx.db.session() as s:
         vehicle = resolve_vehicle(s, sub.vehicle, sub.vehicle_id)
         track = resolve_track(s, sub.track, sub.track_id)
@@ -254,6 +265,16 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         vehicle_version = vehicle.version
         track_fields = track.params_dict() if track is not None else None
         track_name = track.name if track is not None else sub.track
+        line = load_centerline(s, track.id) if track is not None else None
+    if sub.start_chainage_m is None and line is not None and sub.log.lat_deg is not None:
+        # Positions from GNSS: the fixes and the odometer give start, direction and scale.
+        placed = place_by_gnss(sub.log, line)
+        assert placed.log.chainage_m is not None
+        sub = dataclasses.replace(
+            sub, log=placed.log, start_chainage_m=float(placed.log.chainage_m[0]),
+            direction=placed.placement.direction,
+        )  # fmt: skip
+        positioning = placed.placement.to_dict()
     if track is None:
         _check_new_track_name(sub.track)
     tp = TrackParams.from_dict(track_fields) if track_fields else TrackParams()
@@ -310,7 +331,8 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             status="processing",
             stage="queued",
             options=sub.options,
-            content_hash=sub.identity,
+            content_hash=identity,
+            positioning=positioning,
             idempotency_key=sub.idempotency_key,
             attempts=0,
             payload_kg=sub.payload_kg,
