@@ -131,6 +131,13 @@ def get_centerline(session: SessionDep, track: str) -> JSONResponse:
     return JSONResponse(as_geojson(row), media_type="application/geo+json")
 
 
+@router.get("/{track}/centerline/summary", response_model=CenterlinePublic)
+def get_centerline_summary(session: SessionDep, track: str) -> CenterlinePublic:
+    """The centerline's figures without its vertices (404 when the track has none): cheap
+    enough for a form to ask whether runs on this track can be placed by GNSS."""
+    return _public(centerline_row(session, get_track(session, track)))
+
+
 @router.get("/{track}/centerline/plan")
 def get_centerline_plan(session: SessionDep, track: str) -> dict[str, Any]:
     """The line in local metres (``x_m`` east, ``y_m`` north of its centre) with the chainage of

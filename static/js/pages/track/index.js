@@ -13,6 +13,7 @@ import { stiffnessCard } from "../../stiffness.js";
 import { loadTrackData, ranked, resolveTrack } from "./state.js";
 import { mapCard } from "./map.js";
 import { registerCards } from "./defects.js";
+import { planCard } from "./plan.js";
 
 export async function render(main, [ref]) {
   let stopped = false;
@@ -66,8 +67,10 @@ export async function render(main, [ref]) {
     " · ",
     h("a", { href: "#/upload" }, "Upload another run"),
   ]);
+  // The centerline's plan view and upload (issue 11), also before the first run.
+  const plan = planCard(enc);
   if (runs.length === 0) {
-    main.appendChild(h("p", { class: "muted" }, "No runs on this track yet."));
+    main.append(plan.section, h("p", { class: "muted" }, "No runs on this track yet."));
     return null;
   }
   main.appendChild(exportLinks(enc, track.id));
@@ -89,6 +92,8 @@ export async function render(main, [ref]) {
 
   // ---- register (ranked by priority) ---------------------------------------------------------
   const registerView = registerCards(main, { enc, getZones: () => zones, isStopped });
+  main.appendChild(plan.section);
+  plan.showDefects(() => zones, (zone) => registerView.showZone(zone));
 
   // ---- alerts and limits ---------------------------------------------------------------------
   // Alerts and limits serve the maintenance of aligned tracks (a track whose runs were never

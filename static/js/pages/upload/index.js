@@ -7,6 +7,7 @@ import { apiSchema } from "../../api.js";
 import { createState, vocabularyOf } from "./state.js";
 import { buildForm, updateNewTrack } from "./view.js";
 import { bind, loadChoices } from "./actions.js";
+import { bindGnss } from "./gnss.js";
 
 export { runErrorMessage } from "./state.js";
 
@@ -21,6 +22,7 @@ export async function render(main) {
   }
   const ui = buildForm(main, state);
   bind(ui, state);
+  bindGnss(ui, state); // start chainage optional for GNSS logs on tracks with a centerline
   await loadChoices(ui, state);
   if (!ui.trackInput.value && state.tracks.length === 1) ui.trackInput.value = state.tracks[0].name;
   updateNewTrack(ui, state);

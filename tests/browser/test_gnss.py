@@ -1,0 +1,97 @@
+"""Positions from GNSS in the dashboard (issue 11): the centerline uploaded on the track page,
+a log with lat/lon columns uploaded without a start chainage, the plan view with the defect
+marked and linked to the register."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+from browser.harness import LiveServer
+from playwright.sync_api import expect
+
+from engine.synthetic import make_run
+from engine.track import SoftZone
+from support.gnss import (
+    LINE_START_CHAINAGE_M,
+    RUN_OFFSET_M,
+    centerline_geojson,
+    csv_with_fixes,
+    gnss_fixes,
+    with_fixes,
+)
+
+pytestmark = pytest.mark.browser
+
+TRACK = "GNSS bend"
+
+
+@pytest.fixture(scope="module")
+def gnss_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The centerline GeoJSON and a 240 m run with a soft zone, 10 Hz fixes, no chainage."""
+    d = tmp_path_factory.mktemp("gnss-files")
+    line = d / "bend.geojson"
+    line.write_text(json.dumps(centerline_geojson()))
+    syn = make_run(
+        length=240.0, zones=(SoftZone(120, 126, 0.5),), speed=30.0, sim_rate_hz=500.0,
+        start_chainage_m=20.0,
+    )  # fmt: skip
+    true = LINE_START_CHAINAGE_M + RUN_OFFSET_M + syn.sim.x_body[: syn.log.n]
+    lat, lon = gnss_fixes(true, syn.log.time_s, white_m=1.0, bias_m=0.3, seed=3)
+    run = d / "gnss_run.csv"
+    run.write_bytes(csv_with_fixes(with_fixes(syn.log, lat, lon)))
+    return line, run
+
+
+def test_centerline_upload_gnss_run_and_plan_view(
+    page: Any, live_server: LiveServer, gnss_files: tuple[Path, Path]
+) -> None:
+    line, run = gnss_files
+    with live_server.api() as api:
+        assert api.post("/api/v1/tracks", json={"name": TRACK}).status_code == 201
+    # the track page offers the centerline upload while the track has none
+    page.goto(f"{live_server.url}/#/tracks/{TRACK}")
+    page.wait_for_selector("#centerline-upload")
+    assert "has no centerline" in page.locator("#plan-info").inner_text()
+    page.set_input_files("#centerline-file", str(line))
+    page.click("#centerline-upload")
+    page.wait_for_selector("#plan-plot .main-svg")
+    assert "Centerline stored: 281 vertices" in page.locator("#plan-card .message").inner_text()
+
+    # the upload page recognises lat/lon and lets the start chainage be empty
+    page.goto(f"{live_server.url}/#/upload")
+    page.set_input_files("#file-input", str(run))
+    page.wait_for_selector("#preview-table")
+    headers = " | ".join(page.locator("#preview-table thead th").all_inner_texts())
+    assert "Latitude" in headers and "Longitude" in headers, headers
+    page.fill("#track-input", TRACK)
+    page.dispatch_event("#track-input", "input")
+    note = page.locator("#gnss-note")
+    note.wait_for(state="visible")
+    assert "placed by its fixes" in note.inner_text()
+    assert page.input_value("#start-chainage") == ""
+    page.click("#upload-button")
+    page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
+    run_id = int(page.url.rsplit("/", 1)[1])
+    with live_server.api() as api:
+        got = api.get(f"/api/v1/runs/{run_id}").json()
+    assert got["positioning"]["method"] == "gnss", got
+    assert abs(got["start_chainage_m"] - (LINE_START_CHAINAGE_M + RUN_OFFSET_M + 20.0)) < 1.5
+
+    # the plan view marks the defect; clicking it opens the defect in the register
+    page.goto(f"{live_server.url}/#/tracks/{TRACK}")
+    page.wait_for_selector("#zone-table")
+    page.wait_for_selector("#plan-plot .scatterlayer .trace:nth-of-type(2) .point")
+    points = page.locator("#plan-plot .scatterlayer .trace:nth-of-type(2) .point")
+    assert points.count() == 1
+    page.locator("#plan-card").scroll_into_view_if_needed()
+    box = points.first.bounding_box()
+    assert box is not None
+    page.locator("#zone-info").evaluate("el => { el.textContent = ''; }")
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    expect(page.locator("#zone-info")).not_to_have_text("", timeout=15_000)
+    page.watch.assert_clean()
