@@ -59,8 +59,15 @@ class _Table:
         return self._header.line + 1 + row
 
 
-def _parse_fast(src: _Source, header: _Header) -> NDArray[np.float64] | None:
-    """All columns via numpy's C tokenizer, or None when the file needs the careful path."""
+def _sparse_cell(text: str) -> float:
+    return float(text) if text.strip() else float("nan")
+
+
+def _parse_fast(
+    src: _Source, header: _Header, sparse: frozenset[int] = frozenset()
+) -> NDArray[np.float64] | None:
+    """All columns via numpy's C tokenizer, or None when the file needs the careful path.
+    Empty cells of the ``sparse`` columns read as NaN (a converter for those columns only)."""
     with src.lines() as f:
         for _ in range(header.line):
             f.readline()
@@ -74,6 +81,7 @@ def _parse_fast(src: _Source, header: _Header) -> NDArray[np.float64] | None:
                     comments="#",
                     quotechar='"',
                     ndmin=2,
+                    converters=dict.fromkeys(sparse, _sparse_cell) if sparse else None,
                 )
         except (ValueError, UnicodeDecodeError):
             return None
@@ -163,7 +171,7 @@ def _field_count_error(s: str, k: int, n: int, ln: int, header: _Header) -> LogF
 def _parse_table(
     src: _Source, header: _Header, needed: list[int], sparse: frozenset[int] = frozenset()
 ) -> _Table:
-    arr = _parse_fast(src, header)
+    arr = _parse_fast(src, header, sparse)
     if arr is None:
         return _parse_careful(src, header, needed, sparse)
     return _Table({j: arr[:, j] for j in needed}, arr.shape[0], src, header, None)

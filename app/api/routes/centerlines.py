@@ -3,17 +3,16 @@ plan view ``GET /api/v1/tracks/{track}/centerline/plan``. ``{track}`` is the id 
 
 from __future__ import annotations
 
-from datetime import datetime
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field
 
 from app.api.deps import CtxDep, SessionDep
 from app.core.errors import ApiError
 from app.db.models import TrackCenterline
+from app.schemas.centerlines import CenterlinePublic
 from app.services.centerlines import (
     CONTENT_TYPES,
     as_geojson,
@@ -28,18 +27,6 @@ from app.services.context import AppContext
 from .lookup import get_track
 
 router = APIRouter(prefix="/tracks", tags=["centerlines"])
-
-
-class CenterlinePublic(BaseModel):
-    """A stored centerline's figures (the line itself: ``GET .../centerline``)."""
-
-    track_id: int
-    n_vertices: int
-    length_m: float = Field(description="Length along the line, m")
-    start_chainage_m: float = Field(description="Chainage of the first vertex, m")
-    end_chainage_m: float = Field(description="Chainage of the last vertex, m")
-    source: str = Field(description="geojson or csv")
-    updated_at: datetime | None
 
 
 def _public(row: TrackCenterline) -> CenterlinePublic:
