@@ -16,11 +16,17 @@ from fastapi import FastAPI
 from fastapi.concurrency import run_in_threadpool
 from fastapi.middleware.cors import CORSMiddleware
 from fastapi.openapi.utils import get_openapi
-from pydantic.json_schema import models_json_schema
 
 from app import __version__
-from app.api.access import AccessMiddleware, KeyRegister, keys_required
+from app.api.access import AccessMiddleware, KeyRegister
 from app.api.main import UPLOAD_PATHS, api_router
+from app.api.openapi import (
+    add_body_models,
+    bounded_integers,
+    errors_as_json,
+    operation_id,
+    security_as_configured,
+)
 from app.api.routes import health
 from app.core.config import Settings, get_settings
 from app.core.errors import install_error_handlers
@@ -28,6 +34,7 @@ from app.core.middleware import BodySizeLimitMiddleware, SecurityHeadersMiddlewa
 from app.db.migrate import upgrade
 from app.db.session import Database
 from app.schemas.runs import RunCreateJson
+from app.schemas.stiffness import SurveyCreateJson
 from app.services.context import AppContext
 from app.services.worker import Worker
 from app.web import install_web
@@ -88,6 +95,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         docs_url=None,
         redoc_url=None,
+        generate_unique_id_function=operation_id,
     )
     app.state.ctx = ctx
     app.state.worker = None
@@ -120,33 +128,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 title=app.title, version=app.version, description=app.description,
                 routes=app.routes,
             )  # fmt: skip
-            # The JSON upload body is documented by hand on POST /api/v1/runs (which also
-            # takes multipart), so its schemas are added to the components here.
-            _, defs = models_json_schema(
-                [(RunCreateJson, "validation")], ref_template="#/components/schemas/{model}"
-            )
-            schema.setdefault("components", {}).setdefault("schemas", {}).update(defs["$defs"])
-            _security_as_configured(schema, settings)
+            # The JSON upload bodies are documented by hand (the routes also take multipart),
+            # so their schemas are added to the components here.
+            add_body_models(schema, [RunCreateJson, SurveyCreateJson])
+            security_as_configured(schema, settings)
+            errors_as_json(schema)
+            bounded_integers(schema)
             app.openapi_schema = schema
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]
     return app
-
-
-def _security_as_configured(schema: dict[str, Any], settings: Settings) -> None:
-    """State on each operation the key this configuration asks for (none, or a key in
-    X-API-Key or as a bearer token), instead of FastAPI's "a key, always"."""
-    for item in schema.get("paths", {}).values():
-        for method, op in item.items():
-            if not isinstance(op, dict) or "security" not in op:
-                continue
-            if keys_required(settings, method.upper()):
-                op["security"] = [{"APIKeyHeader": []}, {"HTTPBearer": []}]
-            else:
-                del op["security"]
-    if not (settings.require_api_key or settings.require_api_key_for_reads):
-        schema.get("components", {}).pop("securitySchemes", None)
 
 
 app = create_app()

@@ -57,8 +57,11 @@ def check_access(
 CallerDep = Annotated[Caller, Depends(check_access)]
 
 
-FromM = Annotated[float | None, Query(allow_inf_nan=False, description="From, m")]
-ToM = Annotated[float | None, Query(allow_inf_nan=False, description="To, m")]
+FromM = Annotated[float | None, Query(allow_inf_nan=False, description="From, m (chainage)")]
+ToM = Annotated[
+    float | None,
+    Query(allow_inf_nan=False, description="To, m (chainage); not below from_m (else 422)"),
+]
 
 
 def chainage_window(from_m: FromM = None, to_m: ToM = None) -> Window:
@@ -68,8 +71,11 @@ def chainage_window(from_m: FromM = None, to_m: ToM = None) -> Window:
 
 
 def closed_chainage_window(
-    from_m: Annotated[float, Query(allow_inf_nan=False, description="From, m")],
-    to_m: Annotated[float, Query(allow_inf_nan=False, description="To, m")],
+    from_m: Annotated[float, Query(allow_inf_nan=False, description="From, m (chainage)")],
+    to_m: Annotated[
+        float,
+        Query(allow_inf_nan=False, description="To, m (chainage); not below from_m (else 422)"),
+    ],
 ) -> Window:
     """``?from_m=&to_m=``, both required (same rule as :func:`chainage_window`)."""
     return Window(from_m, to_m)

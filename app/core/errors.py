@@ -8,6 +8,7 @@ validation ``errors`` (each ``{"loc", "msg", "type"}``).
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Sequence
 from typing import Any
 
@@ -155,13 +156,29 @@ def validation_detail(errors: Sequence[Any]) -> dict[str, Any]:
 HTTP_METHODS = ("DELETE", "GET", "HEAD", "OPTIONS", "PATCH", "POST", "PUT")
 
 
+def _documented_methods(request: Request) -> set[str] | None:
+    """The methods the OpenAPI document lists for the request's path (its first template
+    that matches, in route order), or None for a path it does not describe."""
+    path = request.url.path
+    for template, item in request.app.openapi().get("paths", {}).items():
+        pattern = re.sub(r"\\\{[^}]*\\\}", "[^/]+", re.escape(template))
+        if re.fullmatch(pattern, path):
+            methods = {m.upper() for m in item if m.upper() in HTTP_METHODS}
+            return methods | ({"HEAD"} if "GET" in methods else set())
+    return None
+
+
 def allowed_methods(request: Request) -> list[str]:
-    """Every method some route of the app serves on the request's path (sorted)."""
+    """Every method the path's resource serves (sorted): those some route answers on the
+    path, less those the OpenAPI document gives to another resource (``PATCH
+    /vehicles/presets`` would reach ``/vehicles/{vehicle}``, not the presets)."""
     routes = request.app.router.routes
-    return [
+    served = [
         m for m in HTTP_METHODS
         if any(r.matches({**request.scope, "method": m})[0] == Match.FULL for r in routes)
     ]  # fmt: skip
+    documented = _documented_methods(request)
+    return served if documented is None else [m for m in served if m in documented]
 
 
 def install_error_handlers(app: FastAPI) -> None:

@@ -5,9 +5,17 @@ from __future__ import annotations
 import re
 import unicodedata
 from datetime import UTC, datetime
-from typing import Annotated, Any
+from typing import Annotated, Any, get_args
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+)
 
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
@@ -38,7 +46,18 @@ def _clean_name(value: str) -> str:
     return value
 
 
-Name = Annotated[str, Field(min_length=1, max_length=200), AfterValidator(_clean_name)]
+NAME_PATTERN = r"^[^\x00-\x1f\x7f]*[^\s\x00-\x1f\x7f][^\x00-\x1f\x7f]*$"
+"""The rules of :data:`Name` a schema can state: something besides spaces, no control
+characters (invisible characters and spaces other than ' ' are refused too)."""
+
+URL_NAME_PATTERN = r"^(?![0-9]+$)(?!\.\.?$)" + NAME_PATTERN[1:]
+""":data:`NAME_PATTERN`, and not digits only, nor ``.`` or ``..`` (see :data:`UrlName`)."""
+
+Name = Annotated[
+    str,
+    Field(min_length=1, max_length=200, json_schema_extra={"pattern": NAME_PATTERN}),
+    AfterValidator(_clean_name),
+]
 """A user-given name: 1-200 characters, NFC-normalised, trimmed, no control or invisible
 characters and no spaces but ' ' (any other text, markup included, is kept as typed and must
 be shown as text)."""
@@ -120,21 +139,50 @@ def _url_name(value: str) -> str:
     return value
 
 
-UrlName = Annotated[Name, AfterValidator(_url_name)]
+UrlName = Annotated[
+    Name, AfterValidator(_url_name), Field(json_schema_extra={"pattern": URL_NAME_PATTERN})
+]
 """The name of a resource addressed by id or name in URLs (tracks, vehicles): a :data:`Name`
 that is not digits only, nor ``.`` or ``..``."""
 
 
+def _accepts_bool(annotation: Any) -> bool:
+    if annotation is bool:
+        return True
+    return any(_accepts_bool(a) for a in get_args(annotation))
+
+
 class StrictModel(BaseModel):
-    """A request body: unknown keys are an error rather than silently ignored."""
+    """A request body: unknown keys are an error rather than silently ignored, and ``true``
+    or ``false`` is not a number (pydantic reads them as 1 and 0)."""
 
     model_config = ConfigDict(extra="forbid")
 
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_as_number(cls, value: Any, info: ValidationInfo) -> Any:
+        if isinstance(value, bool) and info.field_name is not None:
+            field = cls.model_fields.get(info.field_name)
+            if field is not None and not _accepts_bool(field.annotation):
+                raise ValueError("must not be true or false here")
+        return value
+
 
 class ErrorDetail(BaseModel):
-    """What went wrong, with the facts that locate it."""
+    """What went wrong, with the facts that locate it (more facts may follow)."""
+
+    model_config = ConfigDict(extra="allow")
 
     message: str = Field(description="Human-readable description of the problem")
+    kind: str | None = Field(
+        default=None,
+        description="The class of the problem, e.g. LogFormatError, ParameterError, "
+        "InputTooLarge, BudgetExceeded, MissingScope, OutOfRange, DatabaseBusy, InternalError",
+    )
+    limit_bytes: int | None = Field(default=None, description="The size limit exceeded, B")
+    limit_s: float | None = Field(default=None, description="The time budget exceeded, s")
+    scope: str | None = Field(default=None, description="The API key scope that is missing")
+    allowed: list[str] | None = Field(default=None, description="Methods allowed (405)")
     field: str | None = Field(default=None, description="Request field concerned")
     column: str | None = Field(default=None, description="Column of the uploaded file")
     row: int | None = Field(default=None, description="1-based line of the file (header = 1)")
@@ -155,12 +203,13 @@ ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
     for code, text in (
         (400, "Malformed request"),
         (401, "API key missing or not valid"),
-        (403, "Writes are disabled (read-only mode)"),
+        (403, "Writes are disabled (read-only mode) or the API key lacks the scope needed"),
         (404, "Not found"),
         (409, "Conflict with stored data"),
         (413, "Upload larger than the limit"),
         (415, "Unsupported content type"),
         (422, "The input is not valid: the detail names the field, column, row or unit"),
+        (503, "The database is busy: retry after the Retry-After header's seconds"),
     )
 }
 """Error answers documented on every API route."""

@@ -32,7 +32,8 @@ def _csv_option(f: dataclasses.Field[Any]) -> Any:
     if f.name == "gravity":
         modes = ", ".join(GRAVITY_MODES)
         what = "whether the acceleration includes gravity"
-        modes_extra: JsonDict = {"x-values": list(GRAVITY_MODES)}
+        # (the reader also takes other letter cases: the enum states the documented spellings)
+        modes_extra: JsonDict = {"x-values": list(GRAVITY_MODES), "enum": list(GRAVITY_MODES)}
         return (
             str,
             Field(default="auto", max_length=20, description=f"{modes}: {what}",
@@ -54,10 +55,19 @@ def _csv_option(f: dataclasses.Field[Any]) -> Any:
     units = OPTION_UNITS[role]
     extra["x-units"] = list(units)
     extra["x-unit-labels"] = {u: UNIT_LABELS.get(u, u) for u in units}
+
+    def unit_schema(schema: JsonDict) -> None:
+        schema.update(extra)
+        # the documented spellings (the reader also takes common others, e.g. m/s^2, kmh)
+        alts = schema.get("anyOf")
+        for alt in alts if isinstance(alts, list) else []:
+            if isinstance(alt, dict) and alt.get("type") == "string":
+                alt["enum"] = list(units)
+
     return (
         str | None,
         Field(
-            default=None, max_length=20, json_schema_extra=extra,
+            default=None, max_length=20, json_schema_extra=unit_schema,
             description=f"Unit of the {label} column: {' or '.join(units)} (common spellings "
             "such as m/s^2, dps or kmh too); unset: from the column name/values",
         ),

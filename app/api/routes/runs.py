@@ -6,7 +6,7 @@ import asyncio
 import dataclasses
 import hashlib
 import time
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import orjson
 from fastapi import APIRouter, Header, Query, Request, Response
@@ -15,7 +15,7 @@ from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 from starlette.datastructures import UploadFile
 
-from app.api.answers import CSV_RESPONSE, csv_answer
+from app.api.answers import Format, add_csv_twin, csv_answer
 from app.api.convert import run_public
 from app.api.deps import CallerDep, CtxDep, SessionDep, WindowDep
 from app.core.errors import ApiError
@@ -312,7 +312,6 @@ def delete_run(session: SessionDep, run_id: int) -> Response:
     "/{run_id}/profile",
     response_model=ProfilePublic,
     response_model_exclude_none=True,
-    responses=CSV_RESPONSE,
 )
 def read_run_profile(
     ctx: CtxDep,
@@ -326,14 +325,14 @@ def read_run_profile(
             "baseline_mm, front_force_n, rear_force_n (wheel force per axle, N), or all",
         ),
     ] = None,
-    format: Annotated[Literal["json", "csv"], Query()] = "json",
+    format: Format = "json",
 ) -> Response:
     """The fused loaded profile on chainage: ``{"chainage_m": [...], "level_mm": [...]}``.
 
     Levels in mm, positive up (null where there is no data); chainage in m, aligned (the run's
     ``chainage_offset_m`` added). ``?from_m=&to_m=`` selects a window (inclusive) with one
     indexed query; ``?include=all`` adds each axle's level, the baseline the soft spots are
-    measured from and each axle's wheel force (static + dynamic, N); ``?format=csv``
+    measured from and each axle's wheel force (static + dynamic, N); the ``.csv`` twin
     answers ``chainage_m,level_mm[,...]`` as CSV.
     """
     names = [n.strip() for n in (include or "").split(",") if n.strip()]
@@ -349,12 +348,11 @@ def read_run_profile(
 @router.get(
     "/{run_id}/soft-spots",
     response_model=list[SoftSpotPublic],
-    responses=CSV_RESPONSE,
 )
 def read_run_soft_spots(
     session: SessionDep,
     run_id: int,
-    format: Annotated[Literal["json", "csv"], Query()] = "json",
+    format: Format = "json",
 ) -> Any:
     """Soft spots along chainage: extent and peak (m), depth (mm), stiffness loss (%)."""
     spots = runs.soft_spots(session, runs.done_run(session, run_id, "soft spots"))
@@ -378,3 +376,7 @@ def read_run_signals(session: SessionDep, run_id: int) -> SignalsPublic:
         pitch_rate_radps=d["pitch_rate_radps"],
         speed_mps=d["speed_mps"],
     )
+
+
+add_csv_twin(router, "/{run_id}/profile", read_run_profile)
+add_csv_twin(router, "/{run_id}/soft-spots", read_run_soft_spots)

@@ -3,14 +3,15 @@ reference surveys (``/tracks/{track}/surveys``). ``{track}`` is the track's id o
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Any
 
 import orjson
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 from starlette.datastructures import UploadFile
 
+from app.api.answers import Format, add_csv_twin
 from app.api.deps import CtxDep, SessionDep, WindowDep
 from app.core.errors import ApiError, validation_detail
 from app.db.models import Survey
@@ -46,14 +47,12 @@ def _fmt(v: Any) -> str:
     return f"{v:.6g}"
 
 
-@router.get("/{track}/stiffness", response_model=StiffnessPublic, responses={
-    200: {"content": {"text/csv": {"schema": {"type": "string"}}}}
-})  # fmt: skip
+@router.get("/{track}/stiffness", response_model=StiffnessPublic)
 def read_track_stiffness(
     session: SessionDep,
     track: str,
     window: WindowDep,
-    format: Annotated[Literal["json", "csv"], Query()] = "json",
+    format: Format = "json",
 ) -> Response:
     """Support stiffness and unloaded geometry separated across the track's passes.
 
@@ -62,7 +61,7 @@ def read_track_stiffness(
     point and the ratio of their wheel forces; the soft spots found and which runs and
     surveys (with their mean wheel force) contributed. Where the passes do not span enough
     wheel load the point is not separable: its stiffness and geometry are null and
-    ``message`` says why. ``?from_m=&to_m=`` selects a window; ``?format=csv`` answers
+    ``message`` says why. ``?from_m=&to_m=`` selects a window; the ``.csv`` twin answers
     ``chainage_m,k_rel,...,separable`` (with the message as a ``#`` comment line).
     """
     trk = get_track(session, track)
@@ -246,3 +245,6 @@ def delete_track_survey(session: SessionDep, track: str, survey_id: int) -> Resp
     delete_survey(session, get_survey(session, trk.id, survey_id))
     session.commit()
     return Response(status_code=204)
+
+
+add_csv_twin(router, "/{track}/stiffness", read_track_stiffness)

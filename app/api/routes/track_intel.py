@@ -14,7 +14,7 @@ from fastapi import APIRouter, Query, Response
 from fastapi.responses import HTMLResponse
 from sqlalchemy.orm import Session
 
-from app.api.answers import CSV_RESPONSE, csv_answer
+from app.api.answers import Format, add_csv_twin, csv_answer
 from app.api.deps import CtxDep, SessionDep, WindowDep
 from app.db.models import Track
 from app.schemas.common import Timestamp
@@ -44,7 +44,6 @@ router = APIRouter(prefix="/tracks", tags=["track intelligence"])
 @router.get(
     "/{track}/profile",
     response_model=TrackProfileAggregatePublic,
-    responses=CSV_RESPONSE,
 )
 def read_aggregated_profile(
     ctx: CtxDep,
@@ -55,12 +54,12 @@ def read_aggregated_profile(
         int | None,
         Query(ge=100, le=1_000_000, description="Thin to at most this many points (JSON)"),
     ] = None,
-    format: Annotated[Literal["json", "csv"], Query()] = "json",
+    format: Format = "json",
 ) -> Response:
     """The track's aggregated profile: per 0.25 m of aligned chainage, the median level of the
     aligned runs covering it (mm), their robust spread (mm) and how many they are.
 
-    ``?from_m=&to_m=`` selects a window (inclusive; one indexed range scan); ``?format=csv``
+    ``?from_m=&to_m=`` selects a window (inclusive; one indexed range scan); the ``.csv`` twin
     answers ``chainage_m,level_mm,spread_mm,n_runs``; ``?max_points=`` thins a JSON answer
     keeping each bucket's lowest and highest point.
     """
@@ -98,12 +97,12 @@ IncludeHistory = Annotated[
 ]
 
 
-@router.get("/{track}/defects", response_model=list[DefectPublic], responses=CSV_RESPONSE)
+@router.get("/{track}/defects", response_model=list[DefectPublic])
 def read_defects(
     session: SessionDep,
     track: str,
     include: IncludeHistory = None,
-    format: Annotated[Literal["json", "csv"], Query()] = "json",
+    format: Format = "json",
 ) -> Any:
     """The soft-spot register: the soft spots of the track's aligned runs merged into tracked
     defects, with extent, first and last seen, runs seen (of the runs covering it), latest
@@ -116,7 +115,7 @@ def read_defects(
     )
 
 
-@router.get("/{track}/alerts", response_model=list[DefectPublic], responses=CSV_RESPONSE)
+@router.get("/{track}/alerts", response_model=list[DefectPublic])
 def read_alerts(
     session: SessionDep,
     track: str,
@@ -125,7 +124,7 @@ def read_alerts(
         Query(description="ISO 8601 date or time (UTC when no offset is given)"),
     ],
     include: IncludeHistory = None,
-    format: Annotated[Literal["json", "csv"], Query()] = "json",
+    format: Format = "json",
 ) -> Any:
     """Defects whose current limit level was reached at or after ``since`` (by the recording
     time of the first run at that level): what a maintenance planner pulls every morning.
@@ -196,3 +195,8 @@ def read_report(
             "Content-Disposition": f'{disposition}; filename="track-{trk.id}-report.html"',
         },
     )
+
+
+add_csv_twin(router, "/{track}/profile", read_aggregated_profile)
+add_csv_twin(router, "/{track}/defects", read_defects)
+add_csv_twin(router, "/{track}/alerts", read_alerts)
