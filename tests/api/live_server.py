@@ -1,8 +1,9 @@
 """The service as a real process: ``uvicorn app.main:app`` on 127.0.0.1, for the tests that kill
 it, load it from many threads, or run several instances on one database.
 
-Every server is bound to the loopback interface on a port of the range given to these tests
-(8041-8049), runs against the test's database (``DATABASE_URL``), and is stopped (or killed)
+Every server is bound to the loopback interface on a free port the system chooses (a
+launch that loses its port to another process is retried on another), runs against the
+test's database (``DATABASE_URL``), and is stopped (or killed)
 by the test. The worker's log (``app`` loggers at INFO) goes to a file per process, so a test
 can count which process claimed which run.
 """
@@ -26,9 +27,6 @@ import httpx
 
 from app.core.config import REPO_ROOT, Settings
 
-PORTS = range(8041, 8050)
-"""Ports these tests may use (loopback only)."""
-
 LOG_CONFIG = {
     "version": 1,
     "disable_existing_loggers": False,
@@ -49,21 +47,24 @@ CLAIM_LINE = re.compile(r"claimed run (\d+) \(attempt (\d+)\)")
 _reserved: set[int] = set()
 """Ports given to servers of this test process that may not be listening yet."""
 
+BIND_RETRIES = 5
+"""Launches tried when the port was taken between choosing it and binding it."""
+
 
 def free_port() -> int:
-    """A port of :data:`PORTS` nobody listens on now (nor was given to a starting server)."""
-    for port in PORTS:
-        if port in _reserved:
-            continue
+    """A free loopback port chosen by the system (an ephemeral one), not given out before.
+
+    Nobody can hold a port for the server between this choice and its bind, so another
+    process may take it meanwhile: :meth:`LiveServer.wait_healthy` then launches again on
+    another port (the server's log says "address already in use").
+    """
+    while True:
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                continue
+            s.bind(("127.0.0.1", 0))
+            port = int(s.getsockname()[1])
+        if port not in _reserved:
             _reserved.add(port)
             return port
-    raise RuntimeError(f"no free port in {PORTS.start}-{PORTS.stop - 1}")
 
 
 class LiveServer:
@@ -85,6 +86,7 @@ class LiveServer:
         self.env = {k: str(v) for k, v in env.items()}
         self.port: int | None = None
         self.proc: subprocess.Popen[bytes] | None = None
+        self._log_start = 0
         self.log_path = Path(settings.data_dir) / f"{name}.log"
         self._log_config = Path(settings.data_dir) / "log-config.json"
 
@@ -114,6 +116,7 @@ class LiveServer:
             **self.env,
         }
         self.port = free_port()
+        self._log_start = self.log_path.stat().st_size if self.log_path.exists() else 0
         log = open(self.log_path, "ab")  # noqa: SIM115 - the child process writes to it
         self.proc = subprocess.Popen(
             [
@@ -132,11 +135,18 @@ class LiveServer:
         """Wait until ``/healthz`` answers 200 (the app started and migrated)."""
         assert self.proc is not None, "launch() first"
         deadline = time.monotonic() + timeout
+        retries = BIND_RETRIES
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
+                if retries and "address already in use" in self._log_since_launch().lower():
+                    retries -= 1
+                    _reserved.discard(self.port or 0)
+                    self.launch()  # the port was taken meanwhile: another one
+                    continue
                 raise RuntimeError(f"{self.name} exited at start:\n{self.log_text()}")
             try:
-                if httpx.get(self.url + "/healthz", timeout=2).status_code == 200:
+                healthy = httpx.get(self.url + "/healthz", timeout=2).status_code == 200
+                if healthy and self.proc.poll() is None:
                     return self
             except httpx.HTTPError:
                 pass
@@ -160,6 +170,11 @@ class LiveServer:
             except subprocess.TimeoutExpired:
                 self.kill()
         _reserved.discard(self.port or 0)
+
+    def _log_since_launch(self) -> str:
+        with open(self.log_path, "rb") as f:
+            f.seek(self._log_start)
+            return f.read().decode(errors="replace")
 
     def log_text(self) -> str:
         """Everything the process wrote (log lines, tracebacks)."""
