@@ -18,10 +18,24 @@ from engine.logio import (
     CsvOptions,
 )
 from engine.plausibility import WHEEL_LOAD_MAX_N, WHEEL_LOAD_MIN_N
+from engine.track import TRACK_RANGES
 
 from .common import Name, StrictModel, Timestamp
 
 Direction = Literal["increasing", "decreasing"]
+
+
+def _new_track_field(name: str) -> Any:
+    """An optional property of a track the upload creates: the engine's unit and range."""
+    lo, hi, unit, what = TRACK_RANGES[name]
+    return Field(default=None, ge=lo, le=hi, allow_inf_nan=False,
+                 description=f"New track only: {what}, {unit} ({lo:g} to {hi:g}); ignored "
+                 "when the track exists")  # fmt: skip
+
+
+NEW_TRACK_FIELDS = ("track_description", "track_rail", "track_k_nominal", "track_spacing")
+"""Upload fields describing a track the upload creates (stored with the run, in one
+transaction: a rejected upload leaves no track behind)."""
 RunStatus = Literal["processing", "done", "failed"]
 RunStage = Literal["queued", "inverting", "storing"]
 
@@ -116,6 +130,14 @@ class RunMetadata(StrictModel):
     recorded_at: Timestamp | None = Field(
         default=None, description="When the run was recorded (ISO 8601; UTC if no offset)"
     )
+    track_description: str | None = Field(
+        default=None, max_length=2000, description="New track only: its description"
+    )
+    track_rail: str | None = Field(
+        default=None, min_length=1, max_length=50, description="New track only: rail (UIC60)"
+    )
+    track_k_nominal: float | None = _new_track_field("k_nominal")
+    track_spacing: float | None = _new_track_field("spacing")
     payload_kg: float | None = Field(
         default=None, ge=0, le=200_000, allow_inf_nan=False,
         description="Payload carried on top of the vehicle's registered body mass, kg "
@@ -138,6 +160,15 @@ class RunMetadata(StrictModel):
         if self.payload_kg is not None and self.static_wheel_load_n is not None:
             raise ValueError("give either payload_kg or static_wheel_load_n, not both")
         return self
+
+    def new_track(self) -> dict[str, Any]:
+        """The properties given for a track this upload creates (unset ones left out), as
+        ``Track`` columns (description, rail, k_nominal, spacing)."""
+        return {
+            name.removeprefix("track_"): getattr(self, name)
+            for name in NEW_TRACK_FIELDS
+            if getattr(self, name) is not None
+        }
 
 
 class RunUploadForm(CsvOptionsFields, RunMetadata):

@@ -66,6 +66,8 @@ class Submission:
     extra_signals: dict[str, Any] = field(default_factory=dict)
     payload_kg: float | None = None
     static_wheel_load_n: float | None = None
+    new_track: dict[str, Any] = field(default_factory=dict)
+    """Description, rail, k_nominal (N/m), spacing (m) of the track if this run creates it."""
 
     @property
     def identity(self) -> str:
@@ -187,6 +189,18 @@ def _check_new_track_name(name: str | None) -> None:
         raise Invalid(f"track name {name!r} {problem}", field="track")
 
 
+def _track_params(columns: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in columns.items() if k in TrackParams.__dataclass_fields__}
+
+
+def _new_track_columns(given: dict[str, Any]) -> dict[str, Any]:
+    """The columns of a track a submission creates: the given properties over the defaults
+    (UIC60 on 80 kN/mm supports), checked by the engine (a ParameterError names the field)."""
+    columns = {"rail": "UIC60", **TrackParamsFields().model_dump(), **given}
+    TrackParams.from_dict(_track_params(columns))
+    return columns
+
+
 def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
     # Everything that can be known about a log without inverting it (the engine's O(n)
     # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
@@ -277,7 +291,8 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         positioning = placed.placement.to_dict()
     if track is None:
         _check_new_track_name(sub.track)
-    tp = TrackParams.from_dict(track_fields) if track_fields else TrackParams()
+    new_track = _new_track_columns(sub.new_track) if track is None else {}
+    tp = TrackParams.from_dict(track_fields or _track_params(new_track))
 
     _preflight(sub, vp)
     summary = summarize(sub.log)
@@ -310,7 +325,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
                 s.flush()
         track_row = s.scalar(select(Track).where(Track.name == track_name))
         if track_row is None:
-            track_row = Track(name=track_name, rail="UIC60", **TrackParamsFields().model_dump())
+            track_row = Track(name=track_name, **new_track)
             s.add(track_row)
             s.flush()
         run = Run(

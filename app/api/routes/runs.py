@@ -109,6 +109,7 @@ def _submission(
         options=options,
         payload_kg=meta.payload_kg,
         static_wheel_load_n=meta.static_wheel_load_n,
+        new_track=meta.new_track(),
     )
 
 

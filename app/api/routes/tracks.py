@@ -1,10 +1,10 @@
-"""Tracks: ``GET/POST /api/v1/tracks``, ``GET /api/v1/tracks/{track}`` (id or name)."""
+"""Tracks: ``GET/POST /api/v1/tracks``, ``GET/DELETE /api/v1/tracks/{track}`` (id or name)."""
 
 from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Query, Response
 from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 
@@ -13,6 +13,7 @@ from app.api.deps import SessionDep
 from app.db.models import Run, Track
 from app.schemas.tracks import TrackCreate, TrackPublic, TracksPublic
 from app.services.errors import Conflict
+from app.services.tracks import delete_track as delete_track_and_runs
 from engine.track import TrackParams
 
 from .lookup import get_track
@@ -64,3 +65,12 @@ def read_track(session: SessionDep, track: str) -> TrackPublic:
     """One track, by id or name."""
     row = get_track(session, track)
     return track_public(row, _run_counts(session, [row.id]).get(row.id, 0))
+
+
+@router.delete("/{track}", status_code=204, response_class=Response)
+def delete_track(session: SessionDep, track: str) -> Response:
+    """Delete a track (by id or name) with all its runs and everything derived from them:
+    profiles, soft spots, aggregate, register, stiffness, limits and surveys."""
+    delete_track_and_runs(session, get_track(session, track))
+    session.commit()
+    return Response(status_code=204)

@@ -1,0 +1,27 @@
+"""Deleting a track with everything derived from it, in the caller's transaction."""
+
+from __future__ import annotations
+
+from sqlalchemy import delete, func, select
+from sqlalchemy.orm import Session
+
+from app.db.models import Run, Track
+
+from .integrate import lock_track
+
+
+def delete_track(session: Session, track: Track) -> int:
+    """Delete ``track``, its runs (profiles, soft spots, signals, logs) and its derived data
+    (aggregate, register inputs, stiffness, limits, surveys). Returns how many runs went.
+
+    The track is locked first (:func:`app.services.integrate.lock_track`), so a worker
+    storing a run of this track finishes before the delete reads it, or finds its run gone
+    afterwards and drops its result (the worker's store checks the run still exists). The
+    rows that hang off runs and tracks go by the database's ``ON DELETE CASCADE``.
+    """
+    lock_track(session, track.id)
+    n_runs = session.scalar(select(func.count()).where(Run.track_id == track.id)) or 0
+    session.execute(delete(Run).where(Run.track_id == track.id))
+    session.execute(delete(Track).where(Track.id == track.id))
+    session.expunge(track)
+    return int(n_runs)

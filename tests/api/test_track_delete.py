@@ -1,0 +1,67 @@
+"""A track is created with its first run in one transaction, and deleted with all its runs."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from starlette.testclient import TestClient
+
+from api.api_support import row_counts, upload, wait_done
+
+
+def test_rejected_upload_leaves_no_track(client: TestClient, settings: Any) -> None:
+    """A new track named by an upload the service rejects is not created."""
+    before = row_counts(settings)
+    r = upload(client, b"time_s,accel_z_mps2\n0,1\n", track="UX line", start_chainage_m=0)
+    assert r.status_code == 422, r.text
+    assert client.get("/api/v1/tracks/UX line").status_code == 404
+    assert row_counts(settings) == before
+
+
+def test_upload_creates_the_track_with_the_given_properties(
+    client: TestClient, synthetic_run: dict[str, Any]
+) -> None:
+    """track_description/rail/k_nominal/spacing describe a track the upload creates."""
+    r = upload(
+        client, synthetic_run["csv"], track="New line", start_chainage_m=12,
+        track_description="km 3-7", track_rail="S49", track_k_nominal=6e7, track_spacing=0.65,
+    )  # fmt: skip
+    assert r.status_code in (201, 202), r.text
+    t = client.get("/api/v1/tracks/New line").json()
+    assert (t["description"], t["rail"], t["k_nominal"], t["spacing"]) == (
+        "km 3-7", "S49", 6e7, 0.65,
+    )  # fmt: skip
+    bad = upload(client, synthetic_run["csv"], track="Other", start_chainage_m=12,
+                 track_k_nominal=-1)  # fmt: skip
+    assert bad.status_code == 422 and client.get("/api/v1/tracks/Other").status_code == 404
+
+
+def test_delete_track_removes_its_runs_and_derived_data(
+    client: TestClient, settings: Any, synthetic_run: dict[str, Any]
+) -> None:
+    """DELETE /tracks/{name} removes the track, its runs and every row derived from them;
+    another track's data stays."""
+    empty = row_counts(settings)
+    keep = upload(client, synthetic_run["csv"], track="Keep", start_chainage_m=12)
+    wait_done(client, keep.json()["id"])
+    kept = row_counts(settings)
+    for start in (12, 13):
+        r = upload(client, synthetic_run["csv"], track="Gone/1", start_chainage_m=start)
+        assert wait_done(client, r.json()["id"])["status"] == "done"
+    gone_id = client.get("/api/v1/tracks", params={"limit": 10}).json()["data"][0]["id"]
+    assert client.get(f"/api/v1/tracks/{gone_id}").json()["name"] == "Gone/1"
+    r = client.delete(f"/api/v1/tracks/{gone_id}")
+    assert r.status_code == 204, r.text
+    assert client.get(f"/api/v1/tracks/{gone_id}").status_code == 404
+    assert client.delete(f"/api/v1/tracks/{gone_id}").status_code == 404
+    # Only the other track's rows (and the preset vehicle the uploads registered) remain.
+    after = row_counts(settings)
+    assert {t: n for t, n in after.items() if n != kept[t]} == {}, (empty, kept, after)
+    assert client.get("/api/v1/runs", params={"track": "Keep"}).json()["count"] == 1
+
+
+def test_delete_track_needs_an_admin_key_when_keys_are_on(start_app: Any) -> None:
+    """With keys required for writes, DELETE without a key is 401 and changes nothing."""
+    c = start_app(require_api_key=True)
+    r = c.delete("/api/v1/tracks/1")
+    assert r.status_code == 401
