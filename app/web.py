@@ -6,12 +6,17 @@ Swagger UI from ``swagger-ui-bundle``, so the service works without internet.
 
 from __future__ import annotations
 
+import gzip
+import hashlib
 import importlib.resources
+import threading
+from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
-from fastapi import FastAPI
+from fastapi import FastAPI, Request
 from fastapi.openapi.docs import get_swagger_ui_html
-from fastapi.responses import FileResponse, HTMLResponse
+from fastapi.responses import HTMLResponse, Response
 from fastapi.staticfiles import StaticFiles
 
 from app.core.config import Settings
@@ -25,6 +30,60 @@ def plotly_js_path() -> Path:
     return Path(str(importlib.resources.files("plotly") / "package_data" / "plotly.min.js"))
 
 
+IMMUTABLE_CACHE = "public, max-age=31536000, immutable"
+PLOTLY_SRC_META = '<meta name="plotly-src" content="/static/vendor/plotly.min.js">'
+"""The line of ``static/index.html`` that tells the dashboard where plotly.js is; the page
+served at ``/`` names the versioned (immutable) URL there instead."""
+
+
+@dataclass
+class PlotlyBundle:
+    """plotly.js as served: its version, strong ETag and gzip-compressed bytes (made once, on
+    the first request, ~0.3 s: 4.8 MB become ~1.4 MB)."""
+
+    path: Path
+
+    def __post_init__(self) -> None:
+        self._lock = threading.Lock()
+
+    @cached_property
+    def version(self) -> str:
+        import plotly.offline
+
+        return str(plotly.offline.get_plotlyjs_version())
+
+    @property
+    def url(self) -> str:
+        """The versioned URL: a new plotly package gives a new URL, so it may be cached
+        forever (``immutable``)."""
+        return f"/static/vendor/plotly-{self.version}.min.js"
+
+    @cached_property
+    def raw(self) -> bytes:
+        return self.path.read_bytes()
+
+    @cached_property
+    def etag(self) -> str:
+        return '"' + hashlib.sha256(self.raw).hexdigest()[:32] + '"'
+
+    @property
+    def gzipped(self) -> bytes:
+        with self._lock:  # compress once even when the first requests come together
+            if "_gz" not in self.__dict__:
+                self.__dict__["_gz"] = gzip.compress(self.raw, compresslevel=6, mtime=0)
+            return bytes(self.__dict__["_gz"])
+
+    def response(self, request: Request, cache_control: str) -> Response:
+        """The bundle (gzip when the client accepts it), or 304 for a matching ETag."""
+        headers = {"ETag": self.etag, "Cache-Control": cache_control, "Vary": "Accept-Encoding"}
+        if self.etag in request.headers.get("if-none-match", ""):
+            return Response(status_code=304, headers=headers)
+        if "gzip" in request.headers.get("accept-encoding", "").lower():
+            headers["Content-Encoding"] = "gzip"
+            return Response(self.gzipped, media_type="text/javascript", headers=headers)
+        return Response(self.raw, media_type="text/javascript", headers=headers)
+
+
 def swagger_ui_dir() -> Path:
     """Swagger UI's files shipped by the ``swagger-ui-bundle`` package."""
     import swagger_ui_bundle
@@ -33,21 +92,31 @@ def swagger_ui_dir() -> Path:
 
 
 def install_web(app: FastAPI, settings: Settings) -> None:
-    """Routes for ``/``, ``/static``, ``/static/vendor/plotly.min.js`` and ``/docs``."""
+    """Routes for ``/``, ``/static``, plotly.js (``/static/vendor/plotly[-VERSION].min.js``)
+    and ``/docs``."""
     static_dir = settings.static_dir
-    plotly_js = plotly_js_path()
+    bundle = PlotlyBundle(plotly_js_path())
 
     @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
-    def dashboard() -> FileResponse:
+    def dashboard() -> HTMLResponse:
         index = static_dir / "index.html"
         if not index.is_file():
             raise ApiError(404, "the dashboard is not installed (static/index.html is missing)")
-        return FileResponse(index, media_type="text/html", headers={"Cache-Control": "no-cache"})
+        html = index.read_text(encoding="utf-8").replace(
+            PLOTLY_SRC_META, f'<meta name="plotly-src" content="{bundle.url}">'
+        )
+        return HTMLResponse(html, headers={"Cache-Control": "no-cache"})
 
-    # Registered before the /static mount so that it wins over a file of the same path.
+    # Registered before the /static mount so that they win over a file of the same path.
+    # Pages with charts load plotly.js when they need it (static/js/plots.js), by the
+    # versioned URL the page names: cached for good, compressed, revalidated by ETag.
+    @app.get(bundle.url, include_in_schema=False)
+    def plotly_versioned(request: Request) -> Response:
+        return bundle.response(request, IMMUTABLE_CACHE)
+
     @app.get("/static/vendor/plotly.min.js", include_in_schema=False)
-    def plotly() -> FileResponse:
-        return FileResponse(plotly_js, media_type="text/javascript", headers=STATIC_CACHE)
+    def plotly(request: Request) -> Response:
+        return bundle.response(request, STATIC_CACHE["Cache-Control"])
 
     @app.get("/docs", include_in_schema=False)
     def docs() -> HTMLResponse:

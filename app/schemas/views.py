@@ -30,6 +30,11 @@ class CsvPreviewPublic(BaseModel):
         default_factory=list,
         description="Problems that would stop the upload and assumptions worth checking",
     )
+    recorded_at: datetime | None = Field(
+        default=None,
+        description="When the first sample was recorded (UTC), from a time column in epoch "
+        "seconds or milliseconds; null when the times count from the start",
+    )
 
 
 class ProfileViewPublic(BaseModel):

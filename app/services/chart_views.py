@@ -406,4 +406,5 @@ def csv_preview(data: bytes, n_rows: int, chosen: Mapping[str, str]) -> CsvPrevi
         units=dict(preview.units),
         gravity=preview.gravity,
         warnings=list(preview.warnings),
+        recorded_at=preview.recorded_at,
     )

@@ -8,13 +8,14 @@ from __future__ import annotations
 import hashlib
 import io
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any
 
 import numpy as np
 
 from app.services.errors import Invalid, TooLarge
 from engine.errors import InputTooLarge, LogFormatError, ParameterError
-from engine.logio import MAX_DECOMPRESSED_BYTES, CsvOptions, read_run_csv
+from engine.logio import MAX_DECOMPRESSED_BYTES, CsvOptions, preview_csv, read_run_csv
 from engine.runlog import COLUMNS as RUNLOG_COLUMNS
 from engine.runlog import RunLog
 
@@ -67,6 +68,15 @@ def parse_csv(
         ) from None
     except LogFormatError as exc:
         raise Invalid.from_engine(exc, field) from None
+
+
+def recorded_at_of(data: bytes, options: dict[str, Any]) -> datetime | None:
+    """When a CSV's first sample was recorded (UTC), if its time column holds epoch seconds
+    or milliseconds; None otherwise. Called after :func:`parse_csv` accepted the file."""
+    try:
+        return preview_csv(data, n_rows=0, options=CsvOptions(**options)).recorded_at
+    except (LogFormatError, ParameterError):
+        return None
 
 
 def log_from_columns(columns: dict[str, Any]) -> RunLog:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import codecs
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any
 
 import numpy as np
@@ -32,7 +33,7 @@ from .source import (
     _gunzip_head,
 )
 from .table import _to_float
-from .units import _auto_gravity, resolve_units
+from .units import _auto_gravity, epoch_start, resolve_units
 
 PREVIEW_BYTES = 1 << 20
 """How much (decompressed) text :func:`preview_csv` looks at, bytes."""
@@ -63,6 +64,9 @@ class CsvPreview:
     warnings : list of str
         Problems that would stop the upload (missing or ambiguous columns, unreadable values
         in the first rows) and assumptions worth checking (units without a suffix).
+    recorded_at : datetime or None
+        When the first sample was recorded (UTC), if the time column holds epoch seconds or
+        milliseconds; None for times counted from the start.
     """
 
     delimiter: str
@@ -72,6 +76,7 @@ class CsvPreview:
     units: dict[str, str | None]
     gravity: str | None
     warnings: list[str]
+    recorded_at: datetime | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict of every attribute."""
@@ -83,6 +88,7 @@ class CsvPreview:
             "units": dict(self.units),
             "gravity": self.gravity,
             "warnings": list(self.warnings),
+            "recorded_at": self.recorded_at.isoformat() if self.recorded_at else None,
         }
 
 
@@ -174,11 +180,12 @@ def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None
 
     first_time = values["time"] if "time" in chosen else np.empty(0)
     accel = values["accel"] if "accel" in chosen else np.empty(0)
+    t0 = float(first_time[0]) if first_time.size else None
     units, assumed, _ = resolve_units(
         {r: names[j] for r, j in chosen.items()},
         opts,
         mapping.name_unit,
-        t0=float(first_time[0]) if first_time.size else None,
+        t0=t0,
         accel_mean=float(np.mean(accel)) if accel.size else None,
     )
     warns.extend(assumed)
@@ -200,4 +207,5 @@ def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None
         units=units,
         gravity=gravity,
         warnings=warns,
+        recorded_at=epoch_start(t0, units["time"]) if t0 is not None else None,
     )

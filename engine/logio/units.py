@@ -4,6 +4,7 @@ preview, gravity, and the plausibility limits that tell a wrong unit."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from datetime import UTC, datetime
 
 # The plausibility limits are the engine's (one check for every input path); re-exported.
 from ..plausibility import (  # noqa: F401
@@ -30,6 +31,37 @@ EPOCH_MS_THRESHOLD = 1e11
 
 GRAVITY_TOLERANCE_MPS2 = 1.5
 """How far the mean acceleration may be from 9.81 (included) or 0 (removed), m/s²."""
+
+
+PLAUSIBLE_EPOCH_S = (631_152_000.0, 4_102_444_800.0)
+"""Epoch seconds taken as a recording time: 1990-01-01 to 2100-01-01 (UTC)."""
+
+
+def epoch_start(t0: float, unit: str | None) -> datetime | None:
+    """The clock time of a log's first sample when its time column holds epoch times.
+
+    Parameters
+    ----------
+    t0 : float
+        The first value of the time column, in the column's own unit.
+    unit : {'s', 'ms', 'epoch_s'} or None
+        The unit the column is read in (:func:`resolve_units`).
+
+    Returns
+    -------
+    datetime or None
+        UTC; None for relative times (seconds from the start) or implausible dates.
+    """
+    if unit == "epoch_s":
+        seconds = t0
+    elif unit == "ms" and abs(t0) > EPOCH_MS_THRESHOLD:
+        seconds = t0 * 1e-3
+    else:
+        return None
+    lo, hi = PLAUSIBLE_EPOCH_S
+    if not lo <= seconds <= hi:
+        return None
+    return datetime.fromtimestamp(seconds, UTC)
 
 
 def _auto_time_unit(t0: float) -> str:

@@ -3,6 +3,7 @@
 // may return a cleanup function.
 
 import { h, clear, announce } from "./dom.js";
+import { loadPlotly } from "./plots.js";
 import * as home from "./pages/home.js";
 import * as upload from "./pages/upload/index.js";
 import * as run from "./pages/run.js";
@@ -13,9 +14,9 @@ import * as vehicle from "./pages/vehicle.js";
 const routes = [
   { pattern: /^\/?$/, page: home, nav: "home", title: "Runs & tracks" },
   { pattern: /^\/upload\/?$/, page: upload, nav: "upload", title: "Upload a run" },
-  { pattern: /^\/runs\/([^/]+)\/?$/, page: run, nav: "home", title: "Run" },
-  { pattern: /^\/tracks\/([^/]+)\/?$/, page: track, nav: "home", title: "Track" },
-  { pattern: /^\/simulate\/?$/, page: simulate, nav: "simulate", title: "Simulate" },
+  { pattern: /^\/runs\/([^/]+)\/?$/, page: run, charts: true, nav: "home", title: "Run" },
+  { pattern: /^\/tracks\/([^/]+)\/?$/, page: track, charts: true, nav: "home", title: "Track" },
+  { pattern: /^\/simulate\/?$/, page: simulate, charts: true, nav: "simulate", title: "Simulate" },
   { pattern: /^\/vehicles\/?$/, page: vehicle, nav: "vehicles", title: "Vehicles" },
   { pattern: /^\/vehicles\/([^/]+)\/?$/, page: vehicle, nav: "vehicles", title: "Vehicle" },
 ];
@@ -51,6 +52,8 @@ async function render() {
     main.appendChild(h("p", {}, h("a", { href: "#/" }, "Back to runs and tracks")));
     return;
   }
+  // Pages with charts start fetching plotly.js now, alongside their own data.
+  if (route.charts) loadPlotly().catch(() => {});
   const params = path.match(route.pattern).slice(1).map((p) => decodeURIComponent(p));
   document.title = `${route.title} — TrackProfile`;
   try {

@@ -17,17 +17,61 @@ export const COLORS = {
   truthLine: "#0072B2",
 };
 
-/** Plotly, or an explanation of why it is not there. */
+/** Where plotly.js is: the page names its versioned (cacheable) URL. */
+function plotlySrc() {
+  const meta = document.querySelector('meta[name="plotly-src"]');
+  return (meta && meta.content) || "/static/vendor/plotly.min.js";
+}
+
+let plotlyPromise = null;
+
+/**
+ * Load plotly.js (4.8 MB, 1.4 MB compressed) once, when a page first needs a chart: pages
+ * without charts never load it, and the others show their content while it arrives.
+ * Resolves to window.Plotly.
+ */
+export function loadPlotly() {
+  if (window.Plotly) return Promise.resolve(window.Plotly);
+  if (!plotlyPromise) {
+    // While it loads, empty chart areas say so (style.css: .plotly-loading .plot:empty).
+    document.documentElement.classList.add("plotly-loading");
+    plotlyPromise = new Promise((resolve, reject) => {
+      const script = document.createElement("script");
+      script.src = plotlySrc();
+      script.async = true;
+      script.onload = () => (window.Plotly ? resolve(window.Plotly) : reject(new Error("plotly.js loaded but defined nothing")));
+      script.onerror = () => {
+        plotlyPromise = null;
+        script.remove();
+        reject(new Error(`plotly.js did not load from ${script.src}`));
+      };
+      document.head.appendChild(script);
+    });
+    const done = () => document.documentElement.classList.remove("plotly-loading");
+    plotlyPromise.then(done, done);
+  }
+  return plotlyPromise;
+}
+
+/** Plotly, once loaded (loadPlotly), or an explanation of why it is not there. */
 export function plotly() {
-  if (!window.Plotly) throw new Error("plotly.js did not load from /static/vendor/plotly.min.js");
+  if (!window.Plotly) throw new Error("plotly.js is not loaded yet (await loadPlotly() first)");
   return window.Plotly;
 }
 
+// Track data never leaves the deployment: no share/cloud/edit link or button on any chart
+// (Plotly's "Edit in Chart Studio" and "Send data to cloud" upload the chart's data).
 export const CONFIG = {
   responsive: true,
   displaylogo: false,
   scrollZoom: false,
-  modeBarButtonsToRemove: ["lasso2d", "select2d"],
+  showLink: false,
+  linkText: "",
+  showSendToCloud: false,
+  showEditInChartStudio: false,
+  plotlyServerURL: "",
+  sendData: false,
+  modeBarButtonsToRemove: ["lasso2d", "select2d", "sendDataToCloud", "editInChartStudio"],
   toImageButtonOptions: { format: "png", scale: 2 },
 };
 

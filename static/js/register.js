@@ -4,7 +4,7 @@
 
 import { h, clear, append, announce, fmt, fmtDay, field, messageBox } from "./dom.js";
 import { ApiError, apiFetch } from "./api.js";
-import { COLORS, CONFIG, baseLayout, plotly } from "./plots.js";
+import { baseLayout, COLORS, CONFIG, loadPlotly } from "./plots.js";
 
 export const LEVEL_LABELS = { immediate: "Immediate action", intervention: "Intervention", alert: "Alert" };
 const SHORT_LEVEL = { immediate: "Immediate", intervention: "Intervention", alert: "Alert" };
@@ -103,7 +103,7 @@ export async function aggregateCard(enc, defects) {
       height: 340, shapes: defectShapes(defects()), hovermode: "closest",
       margin: { l: 64, r: 16, t: 16, b: 52 }, legend: { orientation: "h", x: 0, y: 1.12 },
     });
-    await plotly().react(div, aggregateTraces(agg), layout, CONFIG);
+    await (await loadPlotly()).react(div, aggregateTraces(agg), layout, CONFIG);
     note.textContent = `${agg.n.toLocaleString()} grid points${agg.decimated ? `, drawn as ${agg.chainage_m.length.toLocaleString()} (each stretch's lowest and highest point)` : ""}; up to ${Math.max(...agg.n_runs)} runs per point.`;
   };
   return { section, render };

@@ -6,7 +6,7 @@
 
 import { h, fmt, messageBox } from "./dom.js";
 import { apiFetch } from "./api.js";
-import { CONFIG, COLORS, baseLayout, plotly } from "./plots.js";
+import { baseLayout, COLORS, CONFIG, loadPlotly } from "./plots.js";
 
 // Loss classes against the track's limits: colour and symbol say the same (no colour only).
 const LEVELS = [
@@ -123,7 +123,7 @@ export function stiffnessCard(enc) {
       yaxis: { title: { text: "Stiffness (% of nominal)" }, domain: [0.4, 1], gridcolor: "#e3e6ea", automargin: true },
       yaxis2: { title: { text: "Geometry (mm)" }, domain: [0, 0.3], gridcolor: "#e3e6ea", automargin: true },
     });
-    await plotly().react(div, stiffnessTraces(st, limits), layout, CONFIG);
+    await (await loadPlotly()).react(div, stiffnessTraces(st, limits), layout, CONFIG);
     const sep = Math.round(100 * st.separable_fraction);
     note.textContent = `${st.n.toLocaleString()} grid points, ${sep} % of them separable; ${st.soft_spots.length} soft spot${st.soft_spots.length === 1 ? "" : "s"}.`;
   };

@@ -65,3 +65,28 @@ def test_delete_track_needs_an_admin_key_when_keys_are_on(start_app: Any) -> Non
     c = start_app(require_api_key=True)
     r = c.delete("/api/v1/tracks/1")
     assert r.status_code == 401
+
+
+def test_recorded_at_comes_from_the_files_epoch_timestamps(
+    client: TestClient, synthetic_run: dict[str, Any]
+) -> None:
+    """A log timed in epoch seconds is stored as recorded at its first sample (the preview
+    says so too); a recorded_at given with the upload wins; relative times give none."""
+    from datetime import UTC, datetime
+
+    from api.api_support import RAW_EPOCH0, to_raw_imu
+
+    raw = to_raw_imu(synthetic_run["csv"])
+    first = datetime.fromtimestamp(RAW_EPOCH0, UTC)
+    pv = client.post("/api/v1/views/csv-preview", files={"file": ("a.csv", raw, "text/csv")})
+    assert pv.status_code == 200, pv.text
+    assert datetime.fromisoformat(pv.json()["recorded_at"]) == first
+    r = upload(client, raw, track="Clock", start_chainage_m=12)
+    assert r.status_code in (201, 202), r.text
+    assert datetime.fromisoformat(r.json()["recorded_at"]) == first
+    given = upload(client, raw, track="Clock", start_chainage_m=13,
+                   recorded_at="2025-11-20T08:00:00Z")  # fmt: skip
+    assert given.json()["recorded_at"].startswith("2025-11-20T08:00:00")
+    rel = client.post("/api/v1/views/csv-preview",
+                      files={"file": ("b.csv", synthetic_run["csv"], "text/csv")})  # fmt: skip
+    assert rel.json()["recorded_at"] is None

@@ -6,6 +6,7 @@ import asyncio
 import dataclasses
 import hashlib
 import time
+from datetime import datetime
 from typing import Annotated, Any
 
 import orjson
@@ -36,7 +37,13 @@ from app.services import exports, runs
 from app.services.context import AppContext
 from app.services.integrate import remove_run_from_track
 from app.services.json_log import has_columns, split_json_columns
-from app.services.logs import hash_columns, log_from_columns, parse_csv, sha256_hex
+from app.services.logs import (
+    hash_columns,
+    log_from_columns,
+    parse_csv,
+    recorded_at_of,
+    sha256_hex,
+)
 from app.services.submit import Submission, submit
 
 from .lookup import get_track
@@ -90,7 +97,7 @@ def _validate(model: type[RunUploadForm], data: Any) -> RunUploadForm:
 
 def _submission(
     meta: RunUploadForm, *, source: str, content_hash: str, filename: str | None,
-    key: str | None, log: Any, options: dict[str, Any],
+    key: str | None, log: Any, options: dict[str, Any], file_recorded_at: datetime | None = None,
 ) -> Submission:  # fmt: skip
     return Submission(
         log=log,
@@ -103,7 +110,8 @@ def _submission(
         name=meta.name,
         start_chainage_m=meta.start_chainage_m,
         direction=meta.direction,
-        recorded_at=meta.recorded_at,
+        # Given, else the file's own clock (epoch time column), else the upload time.
+        recorded_at=meta.recorded_at or file_recorded_at,
         filename=filename,
         idempotency_key=key,
         options=options,
@@ -121,7 +129,7 @@ def _from_multipart(
     log = parse_csv(data, options, max_bytes=max_bytes)
     return _submission(
         meta, source="upload", content_hash=sha256_hex(data), filename=filename, key=key,
-        log=log, options={"csv": options},
+        log=log, options={"csv": options}, file_recorded_at=recorded_at_of(data, options),
     )  # fmt: skip
 
 
@@ -145,7 +153,7 @@ def _from_json(
         log = parse_csv(data, options, field="csv", max_bytes=max_bytes)
         return _submission(
             meta, source="json", content_hash=sha256_hex(data), filename=meta.filename, key=key,
-            log=log, options={"csv": options},
+            log=log, options={"csv": options}, file_recorded_at=recorded_at_of(data, options),
         )  # fmt: skip
     assert meta.columns is not None
     log = log_from_columns(meta.columns.model_dump() | arrays)

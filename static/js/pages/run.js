@@ -3,9 +3,7 @@
 
 import { h, clear, append, announce, fmt, fmtDate, downloadBlob, messageBox } from "../dom.js";
 import { ApiError, apiFetch, apiGetOptional } from "../api.js";
-import {
-  COLORS, CONFIG, baseLayout, plotly, softSpotShapes, softSpotLabels, zoomControls, zoomTo,
-} from "../plots.js";
+import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, zoomControls, zoomTo } from "../plots.js";
 import { runErrorMessage } from "./upload/index.js";
 
 const META_FIELDS = [
@@ -142,7 +140,7 @@ export async function render(main, [id]) {
   );
   main.appendChild(profileSection);
 
-  const P = plotly();
+  const P = await loadPlotly();
   const series = {
     fused: { key: "level_mm", name: "Fused level", line: { color: COLORS.fused, width: 1.6 }, hover: "fused" },
     front: { key: "front_level_mm", name: "Front axle", line: { color: COLORS.front, width: 1.1, dash: "dash" }, hover: "front" },
@@ -330,7 +328,7 @@ async function loadSignals(encId, div, note) {
     yaxis3: hasSpeed ? { title: { text: "Speed (m/s)" }, domain: [0, 0.28], gridcolor: "#e3e6ea", automargin: true } : undefined,
   });
   if (!hasSpeed) delete layout.yaxis3;
-  await plotly().newPlot(div, traces, layout, CONFIG);
+  await (await loadPlotly()).newPlot(div, traces, layout, CONFIG);
 }
 
 function metadataSection(run) {

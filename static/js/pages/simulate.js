@@ -4,7 +4,7 @@
 
 import { h, clear, append, announce, field, fmt, messageBox } from "../dom.js";
 import { ApiError, apiFetch, apiPostJson } from "../api.js";
-import { COLORS, CONFIG, baseLayout, plotly, softSpotShapes, softSpotLabels, zoomControls } from "../plots.js";
+import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, zoomControls } from "../plots.js";
 
 const NOISE_PRESETS = {
   none: { accel_noise: 0, gyro_noise: 0, accel_bias: 0, gyro_bias: 0 },
@@ -188,7 +188,7 @@ export async function render(main) {
   async function showResults(r) {
     clear(results);
     results.hidden = false;
-    const P = plotly();
+    const P = await loadPlotly();
     const profileDiv = h("div", { class: "plot plot-profile", id: "sim-profile-plot", role: "img", "aria-label": "Recovered profile and true profile against chainage" });
     const signalsDiv = h("div", { class: "plot plot-signals", id: "sim-signals-plot", role: "img", "aria-label": "Synthetic signals against time" });
     const profileSection = h("section", { class: "card", "aria-labelledby": "sim-profile-h" },

@@ -4,7 +4,7 @@
 
 import { h, clear, announce, fmt, fmtDate, fmtDay, messageBox } from "../dom.js";
 import { apiFetch, apiPostJson } from "../api.js";
-import { baseLayout, CONFIG, plotly, COLORS } from "../plots.js";
+import { baseLayout, COLORS, CONFIG, loadPlotly } from "../plots.js";
 
 const PARAM_LABELS = {
   ms: ["Body mass m_s", "kg"], Is: ["Pitch inertia I_s", "kg m²"],
@@ -160,12 +160,14 @@ export async function render(main, params) {
       line: { color: [COLORS.fused, COLORS.front, COLORS.rear, COLORS.pitch, COLORS.speed][i % 5] },
     }));
     try {
-      plotly().react(fitPlot, traces, baseLayout({
+      loadPlotly().then((P) => P.react(fitPlot, traces, baseLayout({
         title: { text: `Calibration ${cal.id}: front/rear disagreement along each fitted parameter`, font: { size: 14 } },
         xaxis: { title: { text: "Change from the registered value (% or m)" }, zeroline: true },
         yaxis: { title: { text: "Disagreement (% of level)" } },
         hovermode: "closest",
-      }), CONFIG);
+      }), CONFIG)).catch((err) => {
+        fitPlot.textContent = err.message;
+      });
     } catch (err) {
       fitPlot.textContent = err.message;
     }

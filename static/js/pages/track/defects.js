@@ -3,7 +3,7 @@
 
 import { h, clear, announce, fmt } from "../../dom.js";
 import { apiFetch, apiGetOptional } from "../../api.js";
-import { CONFIG, baseLayout, plotly, viridis } from "../../plots.js";
+import { baseLayout, CONFIG, loadPlotly, viridis } from "../../plots.js";
 import { REGISTER_COLUMNS, aggregateTraces, defectShapes } from "../../register.js";
 
 function escapeExtra(text) {
@@ -141,7 +141,7 @@ export function registerCards(main, { enc, getZones, isStopped }) {
         legend: { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
         margin: { l: 64, r: 12, t: 24, b: 52 },
       });
-      await plotly().react(zonePlotDiv, traces, layout, CONFIG);
+      await (await loadPlotly()).react(zonePlotDiv, traces, layout, CONFIG);
       const covers = wr.length === 1 ? "1 run covers it" : `${wr.length} runs cover it`;
       zoneInfo.textContent = `Zone ${fmt(zone.start_m, 1)}–${fmt(zone.end_m, 1)} m (shaded): ${covers}, ${zone.runs_seen} detected a soft spot there.`
         + (wr.length > 1 ? " Lines run from dark (oldest) to light (newest)." : "");

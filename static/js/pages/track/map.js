@@ -4,7 +4,7 @@
 
 import { h, fmt, fmtDate } from "../../dom.js";
 import { apiFetch } from "../../api.js";
-import { CONFIG, baseLayout, plotly, viridis, zoomControls } from "../../plots.js";
+import { baseLayout, CONFIG, loadPlotly, viridis, zoomControls } from "../../plots.js";
 import { CLASSES, runLabels, severityClass } from "./state.js";
 
 function legendBox() {
@@ -95,7 +95,7 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
   main.appendChild(mapSection);
 
   const labels = runs.map((r) => r.label || `${fmtDate(r.recorded_at)} · run ${r.id}`);
-  const P = plotly();
+  const P = await loadPlotly();
   const layout = mapLayout(labels, map);
   await P.newPlot(mapDiv, mapTraces(map, heatToggle.checked), layout, { ...CONFIG, scrollZoom: false });
   mapSection.insertBefore(zoomControls(mapDiv, { label: "Chainage map view" }), legend);
