@@ -84,6 +84,18 @@ class PlotlyBundle:
         return Response(self.raw, media_type="text/javascript", headers=headers)
 
 
+DOCS_BACK_LINK = (
+    "<style>.swagger-ui .info small pre, .swagger-ui .info .version-stamp pre "
+    "{ background: #374151 !important; color: #fff !important; } "
+    ".swagger-ui .info .url, .swagger-ui .info .base-url { color: #1f2937 !important; } "
+    ".swagger-ui .opblock .opblock-summary-method { color: #111 !important; text-shadow: none; } "
+    ".swagger-ui .json-schema-2020-12-expand-deep-button { color: #374151 !important; }"
+    "</style>"
+    '<body><nav aria-label="Back" style="padding:8px 20px;font:16px system-ui,sans-serif">'
+    '<a id="docs-back" href="/">&larr; Back to the TrackProfile dashboard</a></nav>'
+)
+
+
 def swagger_ui_dir() -> Path:
     """Swagger UI's files shipped by the ``swagger-ui-bundle`` package."""
     import swagger_ui_bundle
@@ -96,6 +108,8 @@ def install_web(app: FastAPI, settings: Settings) -> None:
     and ``/docs``."""
     static_dir = settings.static_dir
     bundle = PlotlyBundle(plotly_js_path())
+    # Compressed in the background at start-up, so that the first chart does not wait for it.
+    threading.Thread(target=lambda: bundle.gzipped, name="plotly-gzip", daemon=True).start()
 
     @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     def dashboard() -> HTMLResponse:
@@ -120,13 +134,25 @@ def install_web(app: FastAPI, settings: Settings) -> None:
 
     @app.get("/docs", include_in_schema=False)
     def docs() -> HTMLResponse:
-        return get_swagger_ui_html(
+        page = get_swagger_ui_html(
             openapi_url=app.openapi_url or "/openapi.json",
             title=f"{app.title} - API docs",
             swagger_js_url="/docs/assets/swagger-ui-bundle.js",
             swagger_css_url="/docs/assets/swagger-ui.css",
             swagger_favicon_url="/docs/assets/favicon-32x32.png",
+            # Deep links put a link inside each operation's toggle button (nested
+            # interactive controls, which screen readers cannot announce).
+            swagger_ui_parameters={"deepLinking": False},
         )
+        # A way back to the dashboard (the docs page is Swagger UI's own, without our nav),
+        # the page's language, and contrast fixes of Swagger UI's grey-on-grey badges.
+        html = (
+            bytes(page.body)
+            .decode()
+            .replace("<html>", '<html lang="en">', 1)
+            .replace("<body>", DOCS_BACK_LINK, 1)
+        )
+        return HTMLResponse(html, headers={"Cache-Control": "no-cache"})
 
     app.mount(
         "/docs/assets", StaticFiles(directory=swagger_ui_dir(), check_dir=False), name="docs-assets"

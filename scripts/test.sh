@@ -22,6 +22,14 @@ if [ ! -x /usr/bin/chromium ]; then
   fi
 fi
 
+# axe-core (npm) for the accessibility checks of the browser tests (tests/browser/harness.py).
+if command -v npm >/dev/null 2>&1; then
+  echo "== axe-core (npm) for the browser tests' accessibility checks"
+  npm install --no-save --no-audit --no-fund --no-package-lock --prefix .cache/npm axe-core@4.14.1 >/dev/null
+else
+  echo "warning: npm is missing: the browser tests install axe-core themselves or fail" >&2
+fi
+
 echo "== ruff check"
 python -m ruff check .
 echo "== mypy (engine, app)"

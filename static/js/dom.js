@@ -61,6 +61,11 @@ export function fmt(value, digits = 2) {
   return Number(value).toFixed(digits);
 }
 
+/** A count with its noun: "1 run", "2 runs", "1 soft spot" ("1,200 runs" for large n). */
+export function plural(n, word, words = `${word}s`) {
+  return `${Number(n).toLocaleString("en")} ${n === 1 ? word : words}`;
+}
+
 /** Format an ISO date/time for display in the user's locale ("—" when missing). */
 export function fmtDate(value) {
   if (!value) return "—";

@@ -59,8 +59,11 @@ export function plotly() {
   return window.Plotly;
 }
 
-// Track data never leaves the deployment: no share/cloud/edit link or button on any chart
-// (Plotly's "Edit in Chart Studio" and "Send data to cloud" upload the chart's data).
+// Track data never leaves the deployment: no share/cloud/edit link or button on any chart.
+// plotly.js 4 shows a "Share chart..." button by default (showSendToCloud: true) that uploads
+// the chart's data to plotlyServerURL (default: Plotly's cloud); older versions had
+// "Edit in Chart Studio" and a link (showLink). All off, the server URL emptied, the buttons
+// removed by every name they have had.
 export const CONFIG = {
   responsive: true,
   displaylogo: false,
@@ -71,8 +74,16 @@ export const CONFIG = {
   showEditInChartStudio: false,
   plotlyServerURL: "",
   sendData: false,
-  modeBarButtonsToRemove: ["lasso2d", "select2d", "sendDataToCloud", "editInChartStudio"],
+  modeBarButtonsToRemove: ["lasso2d", "select2d", "sendChartToCloud", "sendDataToCloud", "editInChartStudio"],
   toImageButtonOptions: { format: "png", scale: 2 },
+};
+
+// The terms of the charts and tables, explained where they appear (tooltips, help text).
+export const TERMS = {
+  loadedProfile: "Loaded profile: the rail level under the passing wheels (mm, positive up), recovered from the body's acceleration and pitch rate. Where the support is soft, the rail dips under load.",
+  baseline: "Baseline: the slowly varying level around each point (a moving median over tens of metres). Depths are measured from it, not from 0 mm, so a long gentle slope is not a defect.",
+  depth: "Depth: how far the profile dips below its baseline at the soft spot's deepest point, mm (not the level itself: a dip to −0.27 mm on a baseline at +0.04 mm is 0.31 mm deep).",
+  loss: "Stiffness loss: how much stiffer the supports should be here, as a percentage of the track's nominal support stiffness (80 kN/mm unless the track says otherwise). 50 % means half the nominal stiffness.",
 };
 
 /** A base layout: chainage on x, readable fonts, legend on top. */
@@ -119,7 +130,8 @@ export function softSpotLabels(spots, { prefix = "S", color = COLORS.spotLine } 
     yref: "paper",
     yanchor: "bottom",
     showarrow: false,
-    text: `${prefix}${i + 1}: ${Number(s.depth_mm).toFixed(2)} mm, −${Number(s.stiffness_loss_pct).toFixed(0)} %`,
+    // One convention everywhere: a loss is a positive percentage of the nominal stiffness.
+    text: `${prefix}${i + 1}: ${Number(s.depth_mm).toFixed(2)} mm deep, ${Number(s.stiffness_loss_pct).toFixed(0)} % loss`,
     font: { size: 11, color: "#1b1f24" },
     bgcolor: "rgba(255,255,255,0.85)",
     bordercolor: color,

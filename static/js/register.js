@@ -4,7 +4,7 @@
 
 import { h, clear, append, announce, fmt, fmtDay, field, messageBox } from "./dom.js";
 import { ApiError, apiFetch } from "./api.js";
-import { baseLayout, COLORS, CONFIG, loadPlotly } from "./plots.js";
+import { baseLayout, COLORS, CONFIG, loadPlotly, TERMS } from "./plots.js";
 
 export const LEVEL_LABELS = { immediate: "Immediate action", intervention: "Intervention", alert: "Alert" };
 const SHORT_LEVEL = { immediate: "Immediate", intervention: "Intervention", alert: "Alert" };
@@ -24,6 +24,11 @@ function signed(v, digits) {
   return `${v > 0 ? "+" : "−"}${text}`;
 }
 
+/** A trend needs two runs: a defect seen once has none (shown "—", not "0.000"). */
+function trendOf(d, key) {
+  return d.runs_seen >= 2 ? d[key] : null;
+}
+
 /** Columns of the register table (the first is the rank, drawn as the row header). */
 export const REGISTER_COLUMNS = [
   { key: "rank", label: "Rank", num: true, get: (d) => d.rank },
@@ -33,10 +38,10 @@ export const REGISTER_COLUMNS = [
   { key: "level", label: "Level", title: "Limit level reached by the latest run (none: below the alert limits)", get: (d) => (d.level ? 3 - ["alert", "intervention", "immediate"].indexOf(d.level) : 9), show: (d) => (d.level ? SHORT_LEVEL[d.level] : "none"), cls: (d) => `level level-${d.level || "none"}` },
   { key: "status", label: "Status", get: (d) => d.status, show: (d) => d.status, cls: (d) => `defect-status defect-${d.status}` },
   { key: "runs_seen", label: "Seen", num: true, get: (d) => d.runs_seen, show: (d) => `${d.runs_seen} of ${d.runs_covering}` },
-  { key: "depth_mm", label: "Depth (mm)", num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
-  { key: "stiffness_loss_pct", label: "Loss (%)", num: true, get: (d) => d.stiffness_loss_pct, show: (d) => fmt(d.stiffness_loss_pct, 0) },
-  { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month", num: true, get: (d) => d.trend_mm_per_month, show: (d) => signed(d.trend_mm_per_month, 3) },
-  { key: "trend_loss_pct_per_month", label: "Trend (%/mo)", title: "Stiffness-loss trend, percentage points per month", num: true, get: (d) => d.trend_loss_pct_per_month, show: (d) => signed(d.trend_loss_pct_per_month, 1) },
+  { key: "depth_mm", label: "Depth (mm)", title: TERMS.depth, num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
+  { key: "stiffness_loss_pct", label: "Loss (%)", title: TERMS.loss, num: true, get: (d) => d.stiffness_loss_pct, show: (d) => fmt(d.stiffness_loss_pct, 0) },
+  { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month (— until two runs saw the defect)", num: true, get: (d) => trendOf(d, "trend_mm_per_month"), show: (d) => signed(trendOf(d, "trend_mm_per_month"), 3) },
+  { key: "trend_loss_pct_per_month", label: "Trend (%/mo)", title: "Stiffness-loss trend, percentage points per month (— until two runs saw the defect)", num: true, get: (d) => trendOf(d, "trend_loss_pct_per_month"), show: (d) => signed(trendOf(d, "trend_loss_pct_per_month"), 1) },
   { key: "first_seen", label: "First seen", get: (d) => d.first_seen || "", show: (d) => fmtDay(d.first_seen) },
   { key: "last_seen", label: "Last seen", get: (d) => d.last_seen || "", show: (d) => fmtDay(d.last_seen) },
 ];
@@ -79,7 +84,7 @@ export function aggregateTraces(agg) {
 
 /** The card with the aggregated profile of the whole track (thinned server-side). */
 export async function aggregateCard(enc, defects) {
-  const div = h("div", { class: "plot plot-aggregate", id: "aggregate-plot", role: "img", "aria-label": "Aggregated profile of the track: median level of the aligned runs with their spread, defects shaded by level" });
+  const div = h("div", { class: "plot plot-aggregate", id: "aggregate-plot", role: "figure", "aria-label": "Aggregated profile of the track: median level of the aligned runs with their spread, defects shaded by level" });
   const note = h("p", { class: "hint", id: "aggregate-note" });
   const section = h("section", { class: "card", "aria-labelledby": "aggregate-h" },
     h("h2", { id: "aggregate-h" }, "Aggregated profile"),

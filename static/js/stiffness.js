@@ -83,7 +83,7 @@ function spotsTable(spots, limits) {
 
 /** The stiffness card of a track (``enc``: its encoded id); ``render()`` (re)loads it. */
 export function stiffnessCard(enc) {
-  const div = h("div", { class: "plot plot-stiffness", id: "stiffness-map", role: "img", "aria-label": "Stiffness map: support stiffness in percent of nominal along chainage, coloured by the track's loss limits, with the unloaded rail geometry below" });
+  const div = h("div", { class: "plot plot-stiffness", id: "stiffness-map", role: "figure", "aria-label": "Stiffness map: support stiffness in percent of nominal along chainage, coloured by the track's loss limits, with the unloaded rail geometry below" });
   const status = messageBox("info");
   status.el.id = "stiffness-message";
   const note = h("p", { class: "hint", id: "stiffness-note" });

@@ -139,3 +139,41 @@ def wait_for_plot(page: Any, selector: str, min_traces: int = 1) -> None:
         }""",
         arg=[selector, min_traces],
     )
+
+
+AXE_VERSION = "4.14.1"
+AXE_PREFIX = REPO / ".cache" / "npm"
+AXE_JS = AXE_PREFIX / "node_modules" / "axe-core" / "axe.min.js"
+
+
+def axe_source() -> str:
+    """axe-core's browser script, installed from npm by scripts/test.sh (and here, the first
+    time, when a test runs without it)."""
+    if not AXE_JS.exists():
+        subprocess.run(
+            ["npm", "install", "--no-save", "--no-audit", "--no-fund", "--no-package-lock",
+             "--prefix", str(AXE_PREFIX), f"axe-core@{AXE_VERSION}"],
+            check=True, capture_output=True, timeout=300,
+        )  # fmt: skip
+    return AXE_JS.read_text()
+
+
+def axe_violations(
+    page: Any, source: str, impacts: tuple[str, ...] = ("serious", "critical")
+) -> list[str]:
+    """Run axe-core on the page as it is; the violations of the given impacts, one line each
+    (rule, impact, the first offending elements)."""
+    if not page.evaluate("() => typeof window.axe !== 'undefined'"):
+        page.evaluate(source)  # evaluated by the browser itself: not subject to the page's CSP
+    result = page.evaluate(
+        """async () => {
+            const r = await axe.run(document, { resultTypes: ['violations'] });
+            return r.violations.map(v => ({ id: v.id, impact: v.impact,
+                nodes: v.nodes.slice(0, 3).map(n => n.target.join(' ')) }));
+        }"""
+    )
+    return [
+        f"{v['id']} ({v['impact']}): {', '.join(v['nodes'])}"
+        for v in result
+        if v["impact"] in impacts
+    ]

@@ -1,12 +1,21 @@
 // Home: the tracks (each opens its chainage map) and the latest runs (each opens its run view).
 
-import { h, clear, announce, fmt, fmtDate, messageBox } from "../dom.js";
+import { h, clear, announce, fmt, fmtDate, messageBox, plural } from "../dom.js";
 import { apiFetch } from "../api.js";
 
 const PAGE = 50;
 
 export async function render(main) {
   main.appendChild(h("h1", {}, "Runs and tracks"));
+  main.appendChild(h("p", { class: "lead", id: "intro" },
+    "TrackProfile turns what an ordinary train's sensors logged (vertical acceleration and pitch rate) into the ",
+    h("dfn", { title: "The rail level under the passing wheels, in mm: where the track gives way under load, it dips." }, "loaded profile"),
+    " of the track, and finds its soft spots: places where the supports have lost stiffness."));
+  main.appendChild(h("p", { class: "hint", id: "first-step" },
+    "First step: ", h("a", { href: "#/upload" }, "upload a run log"),
+    " (no log at hand? the repository has one: examples/example_run.csv.gz, start chainage 24.13 m) with the ",
+    h("dfn", { title: "The chainage (distance along the line, in m) where the log starts." }, "start chainage"),
+    " where it begins, or ", h("a", { href: "#/simulate" }, "simulate a run"), "."));
   const status = messageBox("info");
   main.appendChild(status.el);
 
@@ -16,14 +25,16 @@ export async function render(main) {
   main.append(h("div", { class: "home-grid" }, tracksSection, runsSection));
 
   let tracks = [];
+  let tracksTotal = 0;
   let runs = [];
   let total = 0;
   try {
     const [trackAnswer, runAnswer] = await Promise.all([
-      apiFetch("tracks?limit=1000"),
+      apiFetch(`tracks?limit=${PAGE}`),
       apiFetch(`runs?limit=${PAGE}`),
     ]);
     tracks = trackAnswer.data;
+    tracksTotal = trackAnswer.count;
     runs = runAnswer.data;
     total = typeof runAnswer.count === "number" ? runAnswer.count : runs.length;
   } catch (err) {
@@ -35,14 +46,30 @@ export async function render(main) {
     tracksSection.appendChild(h("p", {}, "No track yet. ", h("a", { href: "#/upload" }, "Upload a run"), " or ", h("a", { href: "#/simulate" }, "simulate one"), " to start."));
   } else {
     const list = h("ul", { class: "track-list", id: "track-list" });
-    for (const t of tracks) {
-      const count = t.n_runs;
-      list.appendChild(h("li", {},
-        h("a", { href: `#/tracks/${encodeURIComponent(t.id)}`, class: "track-link" }, t.name),
-        count !== undefined ? h("span", { class: "muted" }, ` · ${count} run${count === 1 ? "" : "s"}`) : null,
-        t.description ? h("p", { class: "muted small" }, t.description) : null));
-    }
+    const addTracks = (items) => {
+      for (const t of items) {
+        const count = t.n_runs;
+        list.appendChild(h("li", {},
+          h("a", { href: `#/tracks/${encodeURIComponent(t.id)}`, class: "track-link" }, t.name),
+          count !== undefined ? h("span", { class: "muted" }, ` · ${plural(count, "run")}`) : null,
+          t.description ? h("p", { class: "muted small" }, t.description) : null));
+      }
+    };
+    addTracks(tracks);
     tracksSection.appendChild(list);
+    // Tracks come a page at a time (the list is sorted by name on the server).
+    const moreTracks = h("button", { type: "button", class: "button secondary", id: "more-tracks", hidden: tracks.length >= tracksTotal }, "Show more tracks");
+    moreTracks.addEventListener("click", async () => {
+      try {
+        const next = (await apiFetch(`tracks?limit=${PAGE}&offset=${tracks.length}`)).data;
+        tracks = tracks.concat(next);
+        addTracks(next);
+        moreTracks.hidden = tracks.length >= tracksTotal || next.length === 0;
+      } catch (err) {
+        status.show(`Cannot load more tracks: ${err.message}`, "error");
+      }
+    });
+    tracksSection.appendChild(moreTracks);
   }
 
   const tbody = h("tbody", {});
@@ -93,7 +120,7 @@ export async function render(main) {
     const more = h("button", { type: "button", class: "button secondary", id: "more-runs" }, "Show more runs");
     const counter = h("p", { class: "hint", id: "runs-count" });
     update = () => {
-      counter.textContent = `${runs.length} of ${total} runs shown.`;
+      counter.textContent = `${runs.length} of ${plural(total, "run")} shown.`;
       more.hidden = runs.length >= total;
     };
     more.addEventListener("click", async () => {

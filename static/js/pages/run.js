@@ -1,9 +1,9 @@
 // Run view: fused loaded profile with shaded, labelled soft spots; front/rear axle profiles on
 // demand; raw signals against time; metadata and quality; downloads.
 
-import { h, clear, append, announce, fmt, fmtDate, downloadBlob, messageBox } from "../dom.js";
+import { h, clear, append, announce, fmt, fmtDate, downloadBlob, messageBox, plural } from "../dom.js";
 import { ApiError, apiFetch, apiGetOptional } from "../api.js";
-import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, zoomControls, zoomTo } from "../plots.js";
+import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, TERMS, zoomControls, zoomTo } from "../plots.js";
 import { runErrorMessage } from "./upload/index.js";
 
 const META_FIELDS = [
@@ -112,7 +112,7 @@ export async function render(main, [id]) {
   const summary = h("p", { class: "summary", id: "run-summary" },
     spots.length === 0
       ? "No soft spot detected on this run."
-      : `${spots.length} soft spot${spots.length > 1 ? "s" : ""} detected — shaded in orange on the profile below, deepest ${fmt(Math.max(...spots.map((s) => s.depth_mm)), 2)} mm.`);
+      : `${plural(spots.length, "soft spot")} detected — shaded in orange on the profile below, deepest ${fmt(Math.max(...spots.map((s) => s.depth_mm)), 2)} mm.`);
   main.appendChild(summary);
   // Honesty (issue 10): where one pass cannot tell rail geometry from stiffness its dips are
   // listed by depth only; over smooth rail the single-pass losses stay, labelled as such.
@@ -126,7 +126,7 @@ export async function render(main, [id]) {
   }
 
   // ---- profile plot --------------------------------------------------------------------------
-  const profileDiv = h("div", { class: "plot plot-profile", id: "profile-plot", role: "img", "aria-label": "Loaded profile against chainage with soft spots shaded" });
+  const profileDiv = h("div", { class: "plot plot-profile", id: "profile-plot", role: "figure", "aria-label": "Loaded profile against chainage with soft spots shaded" });
   const axlesToggle = h("input", { type: "checkbox", id: "toggle-axles" });
   const baselineToggle = h("input", { type: "checkbox", id: "toggle-baseline" });
   const resolutionNote = h("p", { class: "hint", id: "profile-resolution" });
@@ -136,6 +136,9 @@ export async function render(main, [id]) {
       h("div", { class: "toggles" },
         h("label", { class: "check" }, axlesToggle, " Front and rear axle profiles"),
         h("label", { class: "check" }, baselineToggle, " Baseline"))),
+    h("details", { class: "help", id: "profile-help" },
+      h("summary", {}, "What the chart shows"),
+      h("ul", {}, [TERMS.loadedProfile, TERMS.baseline, TERMS.depth, TERMS.loss].map((t) => h("li", {}, t)))),
     profileDiv,
   );
   main.appendChild(profileSection);
@@ -162,7 +165,7 @@ export async function render(main, [id]) {
       y: spots.map((s) => interpolate(profile.chainage_m, profile.level_mm, s.peak_m)),
       marker: { symbol: "triangle-down", size: 11, color: COLORS.spotLine, line: { color: "#1b1f24", width: 1 } },
       customdata: spots.map((s, i) => [i + 1, s.depth_mm, s.stiffness_loss_pct, s.start_m, s.end_m]),
-      hovertemplate: "S%{customdata[0]}: depth %{customdata[1]:.2f} mm, stiffness −%{customdata[2]:.0f} %<br>%{customdata[3]:.1f}–%{customdata[4]:.1f} m<extra></extra>",
+      hovertemplate: "S%{customdata[0]}: depth %{customdata[1]:.2f} mm, stiffness loss %{customdata[2]:.0f} %<br>%{customdata[3]:.1f}–%{customdata[4]:.1f} m<extra></extra>",
     });
   }
   const layout = baseLayout({
@@ -257,9 +260,10 @@ export async function render(main, [id]) {
       ? h("div", { class: "table-scroll" }, h("table", { class: "data", id: "spots-table" },
         h("caption", { class: "visually-hidden" }, "Soft spots of this run, by chainage"),
         h("thead", {}, h("tr", {},
-          h("th", { scope: "col" }, "#"), h("th", { scope: "col" }, "Start (m)"), h("th", { scope: "col" }, "End (m)"),
-          h("th", { scope: "col" }, "Peak (m)"), h("th", { scope: "col" }, "Depth (mm)"),
-          h("th", { scope: "col" }, run.stiffness_basis === "single pass" ? "Stiffness loss (%, single pass)" : "Stiffness loss (%)"), h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")))),
+          h("th", { scope: "col" }, "#"), h("th", { scope: "col", class: "num" }, "Start (m)"), h("th", { scope: "col", class: "num" }, "End (m)"),
+          h("th", { scope: "col", class: "num" }, "Peak (m)"),
+          h("th", { scope: "col", class: "num" }, h("abbr", { title: TERMS.depth }, "Depth (mm)")),
+          h("th", { scope: "col", class: "num" }, h("abbr", { title: TERMS.loss }, run.stiffness_basis === "single pass" ? "Stiffness loss (%, single pass)" : "Stiffness loss (%)")), h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")))),
         h("tbody", {}, spotRows)))
       : h("p", { class: "muted" }, "None detected."),
   ));
@@ -268,7 +272,7 @@ export async function render(main, [id]) {
   main.appendChild(metadataSection(run));
 
   // ---- raw signals ---------------------------------------------------------------------------
-  const signalsDiv = h("div", { class: "plot plot-signals", id: "signals-plot", role: "img", "aria-label": "Raw signals against time" });
+  const signalsDiv = h("div", { class: "plot plot-signals", id: "signals-plot", role: "figure", "aria-label": "Raw signals against time" });
   const signalsNote = h("p", { class: "hint" });
   main.appendChild(h("section", { class: "card", "aria-labelledby": "signals-h" },
     h("h2", { id: "signals-h" }, "Raw signals"), signalsNote, signalsDiv));

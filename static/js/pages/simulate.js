@@ -66,6 +66,13 @@ export async function render(main) {
   const vehicleSel = h("select", { id: "sim-vehicle" }, h("option", { value: "table1" }, "table1"));
   const railSel = h("select", { id: "sim-rail" }, h("option", { value: "" }, "Straight rail (the paper's case)"));
   const railSeedInput = h("input", { type: "number", id: "sim-rail-seed", value: "0", min: "0", step: "1" });
+  // The track the simulated run is stored on: an existing one (its nominal properties apply)
+  // or a new name; blank: "simulated" (or one track per rail spectrum and seed).
+  const trackInput = h("input", { type: "text", id: "sim-track", list: "sim-track-list", maxlength: 200, autocomplete: "off", placeholder: "simulated" });
+  const trackList = h("datalist", { id: "sim-track-list" });
+  apiFetch("/api/v1/tracks?limit=100").then((a) => {
+    for (const t of a.data) trackList.appendChild(h("option", { value: t.name }));
+  }).catch(() => {});
   Promise.all([
     apiFetch("/api/v1/vehicles/presets").catch(() => ({})),
     apiFetch("/api/v1/vehicles?limit=1000").catch(() => null),
@@ -92,7 +99,8 @@ export async function render(main) {
         h("legend", {}, "Vehicle and rail"),
         field("Vehicle", vehicleSel, "table1: the paper's coach; heavy: about twice its wheel load."),
         field("Rail geometry", railSel, "A standard spectrum puts real-track irregularity under the wheels."),
-        field("Rail seed", railSeedInput, "Same spectrum and seed, same track: runs of different vehicles over it separate geometry from stiffness.")),
+        field("Rail seed", railSeedInput, "Same spectrum and seed, same track: runs of different vehicles over it separate geometry from stiffness."),
+        h("div", {}, field("Store on track", trackInput, "An existing track or a new name; blank: a track named after the rail (“simulated”)."), trackList)),
       h("fieldset", {},
         h("legend", {}, "Soft zones"),
         h("table", { class: "data compact", id: "sim-zones" },
@@ -141,7 +149,7 @@ export async function render(main) {
     const seed = seedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(seedInput.value)));
     const railSeed = railSeedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(railSeedInput.value)));
     const rail = railSel.value ? { spectrum: railSel.value, seed: railSeed } : null;
-    return { errors, request: { length_m: length, speed_mps: speedKmh / 3.6, zones, ...noise, seed, vehicle: vehicleSel.value, rail } };
+    return { errors, request: { length_m: length, speed_mps: speedKmh / 3.6, zones, ...noise, seed, vehicle: vehicleSel.value, rail, track: trackInput.value.trim() || null } };
   }
 
   form.addEventListener("submit", async (ev) => {
@@ -189,11 +197,11 @@ export async function render(main) {
     clear(results);
     results.hidden = false;
     const P = await loadPlotly();
-    const profileDiv = h("div", { class: "plot plot-profile", id: "sim-profile-plot", role: "img", "aria-label": "Recovered profile and true profile against chainage" });
-    const signalsDiv = h("div", { class: "plot plot-signals", id: "sim-signals-plot", role: "img", "aria-label": "Synthetic signals against time" });
+    const profileDiv = h("div", { class: "plot plot-profile", id: "sim-profile-plot", role: "figure", "aria-label": "Recovered profile and true profile against chainage" });
+    const signalsDiv = h("div", { class: "plot plot-signals", id: "sim-signals-plot", role: "figure", "aria-label": "Synthetic signals against time" });
     const profileSection = h("section", { class: "card", "aria-labelledby": "sim-profile-h" },
       h("h2", { id: "sim-profile-h" }, "Recovered profile and truth"),
-      h("p", { class: "hint" }, `Blue: the profile the engine recovers from the noisy signals. Black dashed: the true loaded level under the wheels (mean of both axles). Both are drawn about their own ${BASELINE_WINDOW_M} m running median, the kind of baseline soft spots are measured from. Blue bands: the true soft zones; orange bands: the soft spots detected.`),
+      h("p", { class: "hint" }, `Blue: the profile the engine recovers from the noisy signals. Black dashed: the true loaded level under the wheels (mean of both axles). Both are drawn about their own ${BASELINE_WINDOW_M} m running median, the kind of baseline soft spots are measured from. Blue strips along the top: the true soft zones; orange bands: the soft spots detected (both in the legend).`),
       profileDiv);
     results.append(profileSection);
 
@@ -209,7 +217,17 @@ export async function render(main) {
         line: { color: COLORS.truth, width: 1.4, dash: "dash" }, hovertemplate: "%{y:.3f} mm<extra>truth</extra>",
       });
     }
-    const trueShapes = softSpotShapes(r.zones || [], { fill: COLORS.truthFill, line: COLORS.truthLine, name: "true-zone" });
+    // The true zones are strips along the top and the detected spots full-height bands, so that
+    // where they overlap both stay readable (same-height translucent bands blend into one).
+    const trueShapes = softSpotShapes(r.zones || [], { fill: "rgba(0, 114, 178, 0.55)", line: COLORS.truthLine, name: "true-zone" })
+      .map((sh) => ({ ...sh, y0: 0.9, y1: 1, layer: "above", line: { color: COLORS.truthLine, width: 1 } }));
+    // Shapes have no legend entries: one legend-only trace per band kind names them.
+    const legendOnly = (name, color, meta) => ({
+      type: "scatter", mode: "markers", x: [null], y: [null], name, meta, hoverinfo: "skip",
+      marker: { symbol: "square", size: 14, color, line: { color: "#1b1f24", width: 1 } },
+    });
+    if ((r.zones || []).length) traces.push(legendOnly("True soft zone", "rgba(0, 114, 178, 0.55)", "legend-true-zone"));
+    if ((r.soft_spots || []).length) traces.push(legendOnly("Detected soft spot", "rgba(230, 159, 0, 0.45)", "legend-detected"));
     const layout = baseLayout({
       shapes: [...trueShapes, ...softSpotShapes(r.soft_spots)],
       annotations: softSpotLabels(r.soft_spots),
@@ -250,7 +268,7 @@ function simulateBody(req) {
   const quiet = req.accel_noise === 0 && req.gyro_noise === 0 && req.accel_bias === 0 && req.gyro_bias === 0;
   return {
     // an irregular rail is a track of its own (spectrum and seed): runs over it can be compared
-    track: req.rail ? `simulated ${req.rail.spectrum} seed ${req.rail.seed}` : "simulated",
+    track: req.track || (req.rail ? `simulated ${req.rail.spectrum} seed ${req.rail.seed}` : "simulated"),
     vehicle: req.vehicle || "table1",
     irregularity: req.rail,
     length_m: req.length_m,

@@ -56,7 +56,7 @@ export async function render(main, params) {
       h("div", { class: "field" }, h("label", { for: "cal-load" }, "Known body mass (kg, optional)"), loadInput)),
     calBtn, calMsg.el);
   const calList = h("div", { id: "calibration-list" });
-  const fitPlot = h("div", { class: "plot", id: "calibration-plot", role: "img", "aria-label": "Objective along each fitted parameter" });
+  const fitPlot = h("div", { class: "plot", id: "calibration-plot", role: "figure", "aria-label": "Objective along each fitted parameter" });
   calSection.append(calForm, calList, fitPlot);
 
   let timer = null;

@@ -1,7 +1,7 @@
 // The track page's defect register: the sortable table of tracked defects (most urgent first)
 // and the profiles of all runs around the chosen defect.
 
-import { h, clear, announce, fmt } from "../../dom.js";
+import { h, clear, announce, fmt, plural } from "../../dom.js";
 import { apiFetch, apiGetOptional } from "../../api.js";
 import { baseLayout, CONFIG, loadPlotly, viridis } from "../../plots.js";
 import { REGISTER_COLUMNS, aggregateTraces, defectShapes } from "../../register.js";
@@ -53,7 +53,8 @@ export function zoneTable(zones, onSelect, columns = REGISTER_COLUMNS) {
     clear(tbody);
     for (const z of sorted) {
       const btn = h("button", {
-        type: "button", class: "button small", "aria-label": `Show the profiles around zone ${fmt(z.start_m, 1)} to ${fmt(z.end_m, 1)} m`,
+        type: "button", class: "button small", // The name starts with the visible text (the rank), as speech input expects.
+        "aria-label": `${z.rank}: show the profiles around zone ${fmt(z.start_m, 1)} to ${fmt(z.end_m, 1)} m`,
         onclick: () => {
           selected = z;
           for (const tr of tbody.querySelectorAll("tr")) tr.classList.remove("selected");
@@ -85,7 +86,7 @@ export function zoneTable(zones, onSelect, columns = REGISTER_COLUMNS) {
  * the current ranked defects. Returns {draw (redraw the table), showZone}.
  */
 export function registerCards(main, { enc, getZones, isStopped }) {
-  const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "img", "aria-label": "Profiles of all runs around the selected zone" });
+  const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "figure", "aria-label": "Profiles of all runs around the selected zone" });
   const zoneInfo = h("p", { class: "hint", id: "zone-info" }, "Choose a zone in the table to see its profile across runs.");
   const onSelect = (zone) => {
     showZone(zone);
@@ -134,18 +135,20 @@ export function registerCards(main, { enc, getZones, isStopped }) {
         });
       });
       traces.push(...aggregateTraces(aggWindow));
+      const narrow = zonePlotDiv.clientWidth > 0 && zonePlotDiv.clientWidth < 560;
       const layout = baseLayout({
-        height: 380,
+        height: narrow ? 380 + 18 * Math.min(traces.length, 12) : 380,
         shapes: defectShapes([zone]),
         xaxis: { title: { text: "Chainage (m)" }, range: [from, to], gridcolor: "#e3e6ea" },
-        legend: { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
-        margin: { l: 64, r: 12, t: 24, b: 52 },
+        // On a phone the legend goes below the plot, which keeps the width.
+        legend: narrow ? { orientation: "h", x: 0, y: -0.25, yanchor: "top", font: { size: 10 } } : { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
+        margin: narrow ? { l: 52, r: 8, t: 24, b: 60 } : { l: 64, r: 12, t: 24, b: 52 },
       });
       await (await loadPlotly()).react(zonePlotDiv, traces, layout, CONFIG);
       const covers = wr.length === 1 ? "1 run covers it" : `${wr.length} runs cover it`;
       zoneInfo.textContent = `Zone ${fmt(zone.start_m, 1)}–${fmt(zone.end_m, 1)} m (shaded): ${covers}, ${zone.runs_seen} detected a soft spot there.`
         + (wr.length > 1 ? " Lines run from dark (oldest) to light (newest)." : "");
-      announce(`Showing zone at ${fmt(zone.peak_m, 1)} m across ${wr.length} runs.`);
+      announce(`Showing zone at ${fmt(zone.peak_m, 1)} m across ${plural(wr.length, "run")}.`);
     } catch (err) {
       zoneInfo.textContent = `Cannot load the zone's profiles: ${err.message}`;
     }

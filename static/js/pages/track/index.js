@@ -4,9 +4,10 @@
 // all runs around a chosen defect, the aggregated profile, alerts since a date, the track's
 // limits and exports. The register is the only zone model: a track whose runs were never
 // aligned gets it too, over its runs as logged.
-// state.js: what the page loads; map.js: the chainage map; defects.js: the register.
+// state.js: what the page loads; map.js: the chainage map; defects.js: the register;
+// remove.js: deleting the track.
 
-import { h, append, announce, fmt, messageBox } from "../../dom.js";
+import { h, append, announce, fmt, messageBox, plural } from "../../dom.js";
 import { ApiError, apiFetch } from "../../api.js";
 import { aggregateCard, alertsCard, alignmentNotice, exportLinks, limitsCard } from "../../register.js";
 import { stiffnessCard } from "../../stiffness.js";
@@ -14,6 +15,7 @@ import { loadTrackData, ranked, resolveTrack } from "./state.js";
 import { mapCard } from "./map.js";
 import { registerCards } from "./defects.js";
 import { planCard } from "./plan.js";
+import { deleteTrackControl } from "./remove.js";
 
 export async function render(main, [ref]) {
   let stopped = false;
@@ -61,7 +63,7 @@ export async function render(main, [ref]) {
   const runs = map.runs || []; // the map shows processed runs only
   const trackInfo = map.track || {};
   append(lead, [
-    `${runs.length} processed run${runs.length === 1 ? "" : "s"}`,
+    `${plural(runs.length, "processed run")}`,
     map.chainage_min_m !== null && map.chainage_min_m !== undefined ? ` covering ${fmt(map.chainage_min_m, 0)}–${fmt(map.chainage_max_m, 0)} m` : "",
     trackInfo.description ? ` · ${trackInfo.description}` : "",
     " · ",
@@ -69,6 +71,7 @@ export async function render(main, [ref]) {
   ]);
   // The centerline's plan view and upload (issue 11), also before the first run.
   const plan = planCard(enc);
+  main.insertBefore(deleteTrackControl(track, track.n_runs ?? runs.length), status.el);
   if (runs.length === 0) {
     main.append(plan.section, h("p", { class: "muted" }, "No runs on this track yet."));
     return null;
@@ -115,7 +118,7 @@ export async function render(main, [ref]) {
 
   if (zones.length) registerView.showZone(zones[0]);
   if (aggregate) aggregate.render();
-  announce(`Track ${name}: ${runs.length} runs, ${zones.length} zones.`);
+  announce(`Track ${name}: ${plural(runs.length, "run")}, ${plural(zones.length, "zone")}.`);
   return () => {
     stopped = true;
     mapView.stop();

@@ -2,7 +2,7 @@
 // y run, colour + size + symbol = severity) over an optional level background. Zooming asks
 // the server for that window only.
 
-import { h, fmt, fmtDate } from "../../dom.js";
+import { h, fmt, fmtDate, plural } from "../../dom.js";
 import { apiFetch } from "../../api.js";
 import { baseLayout, CONFIG, loadPlotly, viridis, zoomControls } from "../../plots.js";
 import { CLASSES, runLabels, severityClass } from "./state.js";
@@ -21,8 +21,8 @@ function heatmapTrace(heat, labels, visible) {
   };
 }
 
-export function mapTraces(map, heat) {
-  const labels = runLabels(map);
+export function mapTraces(map, heat, narrow = false) {
+  const labels = narrow ? rowLabels(map.runs || [], true) : runLabels(map);
   const traces = [];
   if (map.heatmap) traces.push(heatmapTrace(map.heatmap, labels, heat));
   const s = map.spots || { run_index: [], start_m: [], end_m: [], peak_m: [], depth_mm: [], stiffness_loss_pct: [] };
@@ -49,28 +49,45 @@ export function mapTraces(map, heat) {
         size: s.depth_mm.map((d) => (n > 1500 ? 5 + 8 * Math.min(d / depthMax, 1) : 8 + 14 * Math.min(d / depthMax, 1))),
         symbol: s.depth_mm.map((d) => CLASSES[severityClass(d)].symbol),
         line: { color: "#1b1f24", width: 1 },
-        colorbar: { title: { text: "Depth (mm)" }, thickness: 14, len: 0.9 },
+        colorbar: narrow
+          ? { title: { text: "Depth (mm)", side: "top" }, orientation: "h", thickness: 10, len: 1, x: 0.5, xanchor: "center", y: -0.18, yanchor: "top" }
+          : { title: { text: "Depth (mm)" }, thickness: 14, len: 0.9 },
       },
       customdata: s.peak_m.map((_, i) => [s.start_m[i], s.end_m[i], s.depth_mm[i], s.stiffness_loss_pct[i]]),
-      hovertemplate: "%{y}<br>%{customdata[0]:.1f}–%{customdata[1]:.1f} m, depth %{customdata[2]:.2f} mm, stiffness −%{customdata[3]:.0f} %<extra></extra>",
+      hovertemplate: "%{y}<br>%{customdata[0]:.1f}–%{customdata[1]:.1f} m, depth %{customdata[2]:.2f} mm, stiffness loss %{customdata[3]:.0f} %<extra></extra>",
     });
   }
   return traces;
 }
 
-export function mapLayout(labels, map) {
+/** Whether a plot is phone-narrow (< 560 px): shorter run labels, smaller margins and ticks,
+ * the colour bar below the plot instead of beside it. */
+export function isNarrow(div) {
+  return div.clientWidth > 0 && div.clientWidth < 560;
+}
+
+export function mapLayout(labels, map, narrow = false) {
   const rowHeight = labels.length > 30 ? 14 : 34;
   return baseLayout({
-    height: Math.min(900, Math.max(320, 140 + rowHeight * labels.length)),
+    height: Math.min(900, Math.max(320, 140 + rowHeight * labels.length)) + (narrow ? 60 : 0),
     hovermode: "closest",
     showlegend: false,
-    margin: { l: 190, r: 24, t: 16, b: 52 },
+    // Narrow: the margin grows with the (short) labels only (automargin), not a fixed 190 px.
+    margin: narrow ? { l: 8, r: 8, t: 12, b: 100 } : { l: 190, r: 24, t: 16, b: 52 },
     xaxis: {
-      title: { text: "Chainage (m)" }, gridcolor: "#e3e6ea", zeroline: false,
+      title: { text: "Chainage (m)", standoff: 6 }, gridcolor: "#e3e6ea", zeroline: false, automargin: true,
+      nticks: narrow ? 4 : undefined, tickfont: { size: narrow ? 10 : 12 },
       range: map.chainage_min_m !== null && map.chainage_min_m !== undefined ? [map.chainage_min_m, map.chainage_max_m] : undefined,
     },
-    yaxis: { type: "category", categoryorder: "array", categoryarray: labels.slice().reverse(), automargin: true, gridcolor: "#eef0f3", fixedrange: true },
+    yaxis: { type: "category", categoryorder: "array", categoryarray: labels.slice().reverse(), automargin: true, gridcolor: "#eef0f3", fixedrange: true, tickfont: { size: narrow ? 10 : 12 } },
   });
+}
+
+/** Run labels for the map's rows: the run's own label, else its date and id (short on a
+ * phone). */
+function rowLabels(runs, narrow) {
+  const short = (iso) => (iso ? new Date(iso).toLocaleDateString(undefined, { month: "short", day: "numeric" }) : "");
+  return runs.map((r) => (narrow ? `${short(r.recorded_at)} #${r.id}`.trim() : r.label || `${fmtDate(r.recorded_at)} · run ${r.id}`));
 }
 
 /**
@@ -79,7 +96,7 @@ export function mapLayout(labels, map) {
  */
 export async function mapCard(main, { enc, map, t0, isStopped }) {
   const runs = map.runs || [];
-  const mapDiv = h("div", { class: "plot plot-map", id: "chainage-map", role: "img", "aria-label": "Chainage map of soft spots: chainage across, runs down, severity as colour, size and symbol" });
+  const mapDiv = h("div", { class: "plot plot-map", id: "chainage-map", role: "figure", "aria-label": "Chainage map of soft spots: chainage across, runs down, severity as colour, size and symbol" });
   const heatToggle = h("input", { type: "checkbox", id: "toggle-heatmap", checked: true });
   const mapNote = h("p", { class: "hint", id: "map-note" });
   const legend = legendBox();
@@ -94,19 +111,20 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
   );
   main.appendChild(mapSection);
 
-  const labels = runs.map((r) => r.label || `${fmtDate(r.recorded_at)} · run ${r.id}`);
+  const narrow = isNarrow(mapDiv);
+  const labels = rowLabels(runs, narrow);
   const P = await loadPlotly();
-  const layout = mapLayout(labels, map);
-  await P.newPlot(mapDiv, mapTraces(map, heatToggle.checked), layout, { ...CONFIG, scrollZoom: false });
+  const layout = mapLayout(labels, map, narrow);
+  await P.newPlot(mapDiv, mapTraces(map, heatToggle.checked, narrow), layout, { ...CONFIG, scrollZoom: false });
   mapSection.insertBefore(zoomControls(mapDiv, { label: "Chainage map view" }), legend);
   const elapsed = performance.now() - t0;
   const describe = (m, prefix) => {
     mapNote.textContent = prefix
       + (m.heatmap ? `Background: lowest level per ${fmt(m.heatmap.bin_m, m.heatmap.bin_m < 10 ? 2 : 0)} m cell.` : `No background: ${m.heatmap_note || "no profile stored in this window"}.`)
       + (map.runs_omitted ? ` ${map.runs_omitted} older runs not shown.` : "")
-      + (map.runs_pending ? ` ${map.runs_pending} runs still processing or failed are not shown.` : "");
+      + (map.runs_pending ? ` ${plural(map.runs_pending, "run")} still processing or failed ${map.runs_pending === 1 ? "is" : "are"} not shown.` : "");
   };
-  describe(map, `${(map.spots ? map.spots.peak_m.length : 0).toLocaleString()} soft spots from ${runs.length} runs, loaded in ${(elapsed / 1000).toFixed(2)} s. `);
+  describe(map, `${plural(map.spots ? map.spots.peak_m.length : 0, "soft spot")} from ${plural(runs.length, "run")}, loaded in ${(elapsed / 1000).toFixed(2)} s. `);
 
   // Zooming asks the server for that window only: its soft spots and, up to 10 km wide, the
   // binned levels; the plot then holds what it shows rather than the whole line.
@@ -115,9 +133,9 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
   let current = map;
   const redraw = (m, range) => {
     current = m;
-    const lay = { ...mapLayout(labels, map), xaxis: { ...layout.xaxis } };
+    const lay = { ...mapLayout(labels, map, narrow), xaxis: { ...layout.xaxis } };
     if (range) lay.xaxis = { ...lay.xaxis, range, autorange: false };
-    return P.react(mapDiv, mapTraces(m, heatToggle.checked), lay, { ...CONFIG, scrollZoom: false });
+    return P.react(mapDiv, mapTraces(m, heatToggle.checked, narrow), lay, { ...CONFIG, scrollZoom: false });
   };
 
   async function loadWindow(range) {
@@ -132,7 +150,7 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
       const part = await apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200&zones=false&heatmap=${heatToggle.checked}&from_m=${encodeURIComponent(a)}&to_m=${encodeURIComponent(b)}`);
       if (isStopped() || seq !== requestSeq) return;
       await redraw(part, [a, b]);
-      describe(part, `${fmt(a, 0)}–${fmt(b, 0)} m: ${part.spots.peak_m.length.toLocaleString()} soft spots. `);
+      describe(part, `${fmt(a, 0)}–${fmt(b, 0)} m: ${plural(part.spots.peak_m.length, "soft spot")}. `);
     } catch (err) {
       mapNote.textContent = `Cannot load this window: ${err.message}`;
     }

@@ -17,13 +17,12 @@ export function severityClass(depth) {
 }
 
 /**
- * The track a route names (#/tracks/{id} or #/tracks/{name}). API calls use the id:
- * a name may hold "/" or other characters that do not survive a URL path.
+ * The track a route names (#/tracks/{id} or #/tracks/{name}), asked of the API, which
+ * resolves an id or a name (null when there is none). Later calls use the id: a name may
+ * hold "/" or other characters that do not survive a URL path.
  */
 export async function resolveTrack(ref) {
-  const tracks = (await apiFetch("tracks?limit=1000")).data;
-  const byId = /^\d+$/.test(ref) ? tracks.find((t) => String(t.id) === ref) : null;
-  return byId || tracks.find((t) => t.name === ref) || null;
+  return apiGetOptional(`tracks/${encodeURIComponent(ref)}`);
 }
 
 /**

@@ -5,11 +5,24 @@
 import { h, announce } from "../../dom.js";
 import { ApiError, apiFetch, apiPostJson, uploadWithProgress } from "../../api.js";
 import { readHead, parseHead } from "../../csvpreview.js";
-import { formatBytes, runErrorMessage } from "./state.js";
 import {
-  errorFactsOfRun, errorList, errorText, highlightFields, showChoices, showPreview,
-  showPreviewMessage, updateNewTrack,
+  clearFieldErrors, inFormWords, numberProblem, showFieldError, showServerErrors,
+} from "../../formerrors.js";
+import {
+  canPlaceWithoutStart, fileRecordedAt, formatBytes, localInputValue, runErrorMessage,
+} from "./state.js";
+import {
+  errorFactsOfRun, errorList, errorText, highlightFields, markFailed, previewProblems,
+  resetProgress, showChoices, showPlacement, showPreview, showPreviewMessage, updateNewTrack,
 } from "./view.js";
+
+/** The preview and what follows from it (start chainage required, recording time). */
+function showReading(ui, state) {
+  if (state.preview) showPreview(ui, state);
+  const iso = fileRecordedAt(state);
+  const recordedAt = iso ? { local: localInputValue(iso), text: new Date(iso).toLocaleString() } : null;
+  showPlacement(ui, state, { recordedAt, canPlace: state.preview ? canPlaceWithoutStart(state) : false });
+}
 
 export async function loadChoices(ui, state) {
   try {
@@ -34,14 +47,16 @@ async function createVehicle(ui, state) {
     return;
   }
   const params = {};
+  clearFieldErrors(ui.vehicleDetails);
   for (const [key, input] of Object.entries(vehicleInputs)) {
-    const v = Number(input.value);
-    if (input.value === "" || !Number.isFinite(v)) {
-      vehicleMsg.show(`${key} must be a number.`, "error");
+    const problem = numberProblem(input, { required: true });
+    if (problem) {
+      showFieldError(input, problem);
+      vehicleMsg.show("Check the marked vehicle parameter.", "error");
       input.focus();
       return;
     }
-    params[key] = v;
+    params[key] = Number(input.value);
   }
   try {
     await apiPostJson("vehicles", { name, params });
@@ -50,6 +65,7 @@ async function createVehicle(ui, state) {
     vehicleMsg.show(`Vehicle ${name} created and selected.`, "success");
   } catch (err) {
     vehicleMsg.show(errorText(err), "error", errorList(err));
+    showServerErrors(ui.vehicleDetails, err, Object.fromEntries(Object.keys(vehicleInputs).map((k) => [`params.${k}`, k])));
   }
 }
 
@@ -93,13 +109,13 @@ async function chooseFile(ui, state, f) {
     }
     const parsed = parseHead(head.text, head.complete);
     state.preview = { parsed, head, serverAuto: null, serverNow: null };
-    showPreview(ui, state);
+    showReading(ui, state);
     // The engine's own reading of the head has the last word when the service answers.
     const server = await serverPreview(head.text, {});
     if (server && !state.stopped && state.file === f) {
       state.preview.serverAuto = server;
       state.preview.serverNow = server;
-      showPreview(ui, state);
+      showReading(ui, state);
       if (Object.keys(chosenOptions(ui, state)).length) refreshServerPreview(ui, state);
     }
   } catch (err) {
@@ -115,26 +131,9 @@ function refreshServerPreview(ui, state) {
     const server = await serverPreview(state.preview.head.text, chosenOptions(ui, state));
     if (server && !state.stopped && state.file === f) {
       state.preview.serverNow = server;
-      showPreview(ui, state);
+      showReading(ui, state);
     }
   }, 250);
-}
-
-async function ensureTrack(ui, state, name) {
-  if (state.tracks.some((t) => t.name === name)) return;
-  const { trackRail, trackDesc, trackK, trackSpacing } = ui;
-  const body = { name, rail: trackRail.value.trim() || "UIC60" };
-  if (trackDesc.value.trim()) body.description = trackDesc.value.trim();
-  const k = Number(trackK.value);
-  const s = Number(trackSpacing.value);
-  if (trackK.value !== "" && Number.isFinite(k)) body.k_nominal = k * 1e6; // kN/mm -> N/m
-  if (trackSpacing.value !== "" && Number.isFinite(s)) body.spacing = s;
-  try {
-    await apiPostJson("tracks", body);
-  } catch (err) {
-    // A track created meanwhile (409) is fine: the upload names it.
-    if (!(err instanceof ApiError && err.status === 409)) throw err;
-  }
 }
 
 // What the worker is doing (the run's `stage`), as the progress label says it.
@@ -161,29 +160,55 @@ function poll(ui, state, id, started) {
   });
 }
 
-/** The upload's form data, or null after telling the user what is missing. */
+/** The upload's form data, or null after showing, next to each field, what is wrong. */
 function formData(ui, state) {
   const { status, fileInput, trackInput, startInput } = ui;
-  if (!state.file) {
-    status.show("Choose a run log file first.", "error");
-    fileInput.focus();
-    return null;
-  }
+  clearFieldErrors(ui.form);
+  const bad = [];
+  const problem = (control, text) => {
+    showFieldError(control, text);
+    bad.push(control);
+  };
+  if (!state.file) problem(fileInput, "is missing: choose or drop a run log file");
   const track = trackInput.value.trim();
-  if (!track) {
-    status.show("Name the track the run was recorded on.", "error");
-    trackInput.setAttribute("aria-invalid", "true");
-    trackInput.focus();
+  if (!track) problem(trackInput, "is required: name the track the run was recorded on");
+  const newTrack = track && !state.tracks.some((t) => t.name === track);
+  const startProblem = numberProblem(startInput, { required: !canPlaceWithoutStart(state) });
+  if (startProblem) {
+    problem(startInput, startProblem === "is required"
+      ? "is required: the chainage where the log starts (this file has no chainage column)"
+      : startProblem);
+  }
+  const numbers = [ui.payloadInput, ui.wheelLoadInput];
+  if (newTrack) numbers.push(ui.trackK, ui.trackSpacing);
+  for (const input of numbers) {
+    const p = numberProblem(input);
+    if (p) problem(input, p);
+  }
+  if (ui.payloadInput.value.trim() !== "" && ui.wheelLoadInput.value.trim() !== "") {
+    problem(ui.wheelLoadInput, "and the payload cannot both be given: give one of them");
+  }
+  const problems = previewProblems(state);
+  if (!bad.length && problems.length && !ui.ignoreProblems.checked) {
+    status.show(`The preview found ${problems.length === 1 ? "a problem" : `${problems.length} problems`} in this file (listed under the preview). Fix the column choices, or tick “Upload anyway”.`, "error");
+    ui.ignoreProblems.focus();
     return null;
   }
-  if (startInput.value !== "" && !Number.isFinite(Number(startInput.value))) {
-    status.show("The start chainage must be a number of metres.", "error");
-    startInput.focus();
+  if (bad.length) {
+    status.show(bad.length === 1 ? "Check the marked field." : `Check the ${bad.length} marked fields.`, "error");
+    bad[0].focus();
     return null;
   }
   const fd = new FormData();
   fd.append("file", state.file, state.file.name);
   fd.append("track", track);
+  if (newTrack) {
+    // The new track's details travel with the run: created together or not at all.
+    if (ui.trackDesc.value.trim()) fd.append("track_description", ui.trackDesc.value.trim());
+    if (ui.trackRail.value.trim()) fd.append("track_rail", ui.trackRail.value.trim());
+    if (ui.trackK.value.trim() !== "") fd.append("track_k_nominal", String(Number(ui.trackK.value) * 1e6)); // kN/mm -> N/m
+    if (ui.trackSpacing.value.trim() !== "") fd.append("track_spacing", ui.trackSpacing.value.trim());
+  }
   if (ui.vehicleSel.value) fd.append("vehicle", ui.vehicleSel.value);
   if (startInput.value !== "") fd.append("start_chainage_m", startInput.value);
   fd.append("direction", ui.directionSel.value);
@@ -197,9 +222,9 @@ function formData(ui, state) {
 async function submit(ui, state) {
   const { status, submitBtn, progressBox, uploadBar, processBar, uploadLabel, processLabel } = ui;
   status.hide();
-  highlightFields(ui, state, null);
   const data = formData(ui, state);
   if (!data) return;
+  resetProgress(ui);
   submitBtn.disabled = true;
   progressBox.hidden = false;
   uploadBar.value = 0;
@@ -208,7 +233,6 @@ async function submit(ui, state) {
   processLabel.textContent = "Processing (waiting)";
   status.show("Uploading…", "info");
   try {
-    await ensureTrack(ui, state, data.track);
     const created = await uploadWithProgress("runs", data.fd, (frac) => {
       uploadBar.value = frac;
       uploadLabel.textContent = `Upload ${Math.round(frac * 100)} %`;
@@ -229,15 +253,17 @@ async function submit(ui, state) {
       if (!state.stopped) window.location.hash = `#/runs/${encodeURIComponent(run.id)}`;
     }, 400);
   } catch (err) {
-    processBar.value = 0;
     const failedRun = err.run;
+    markFailed(ui, failedRun ? "processing" : "upload");
     if (failedRun) {
-      processLabel.textContent = "Processing failed";
       const link = h("a", { href: `#/runs/${encodeURIComponent(failedRun.id)}` }, "See the run");
       status.show(`Processing failed: ${err.message} `, "error", [errorFactsOfRun(failedRun.error), link]);
     } else {
-      status.show(errorText(err), "error", errorList(err));
       highlightFields(ui, state, err);
+      const marked = showServerErrors(ui.form, err);
+      // The summary in the form's words too; the details stay next to the fields.
+      status.show(`Not uploaded: ${inFormWords(ui.form, errorText(err))}`, "error", errorList(err, (t) => inFormWords(ui.form, t)));
+      if (marked.length) marked[0].focus();
     }
     announce("The upload failed.");
   } finally {
@@ -248,6 +274,7 @@ async function submit(ui, state) {
 /** Wire the form's events to the actions above. */
 export function bind(ui, state) {
   const { dropZone, fileInput, form } = ui;
+  showReading(ui, state);
   ui.trackInput.addEventListener("input", () => updateNewTrack(ui, state));
   ui.createVehicleBtn.addEventListener("click", () => createVehicle(ui, state));
   for (const ev of ["dragenter", "dragover"]) {

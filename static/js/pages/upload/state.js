@@ -38,10 +38,15 @@ export function vehicleFieldsOf(spec) {
   });
 }
 
-/** The page's vocabulary from the OpenAPI schema: {roles, gravityModes, vehicleFields}. */
+/** The page's vocabulary from the OpenAPI schema: {roles, gravityModes, vehicleFields,
+ * props} (props: the upload's fields with the bounds the service checks). */
 export function vocabularyOf(spec) {
   const { roles, gravity } = rolesOf(spec);
-  return { roles, gravityModes: gravity, vehicleFields: vehicleFieldsOf(spec) };
+  return {
+    roles, gravityModes: gravity, vehicleFields: vehicleFieldsOf(spec),
+    props: spec.components.schemas.RunCreateJson.properties,
+    vehicleProps: spec.components.schemas.VehicleParamsSchema.properties,
+  };
 }
 
 /** A fresh page state. `preview` is {parsed, head, serverAuto, serverNow} once a file is read. */
@@ -88,8 +93,24 @@ export function roleOf(column, reading) {
   return null;
 }
 
-export function nowLocalInput() {
-  const d = new Date();
+/**
+ * Whether the run can be placed on the track without a start chainage. Today: the file has a
+ * chainage column. (Hook for GNSS positioning, issue 11: a log with lat/lon fixes on a track
+ * with a centerline can be placed too; extend this predicate, the form follows it.)
+ */
+export function canPlaceWithoutStart(state) {
+  return Boolean(effectiveReading(state).mapping.chainage);
+}
+
+/** When the file says it was recorded (UTC ISO, from its epoch time column), or null. */
+export function fileRecordedAt(state) {
+  const s = state.preview && state.preview.serverNow;
+  return s && s.answer && s.answer.recorded_at ? s.answer.recorded_at : null;
+}
+
+/** A date as the value of a datetime-local input (the user's local time, minutes). */
+export function localInputValue(date = new Date()) {
+  const d = new Date(date);
   d.setSeconds(0, 0);
   const pad = (n) => String(n).padStart(2, "0");
   return `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())}T${pad(d.getHours())}:${pad(d.getMinutes())}`;

@@ -4,13 +4,16 @@
 import { h, clear, append, announce, field, fmt, messageBox } from "../../dom.js";
 import { ApiError } from "../../api.js";
 import { estimateRate, HEAD_BYTES } from "../../csvpreview.js";
-import { GRAVITY_TEXT, currentRecognition, effectiveReading, nowLocalInput, roleOf } from "./state.js";
+import { applyBounds } from "../../formerrors.js";
+import { GRAVITY_TEXT, currentRecognition, effectiveReading, roleOf } from "./state.js";
 
 /** Build the form into `main`; returns the elements the actions work with. */
 export function buildForm(main, state) {
   const ui = {};
   main.appendChild(h("p", { class: "lead" },
-    "Drop a logger file (CSV, optionally gzip-compressed). Check that the columns were recognised, say on which track the run was recorded, and upload. The loaded profile and its soft spots are ready a few seconds later."));
+    "Drop a logger file (CSV, optionally gzip-compressed). Check that the columns were recognised, say on which track the run was recorded and where on it the log starts, and upload. The loaded profile and its soft spots are ready a few seconds later."));
+  main.appendChild(h("p", { class: "hint", id: "example-hint" },
+    "No log at hand? The repository ships one: examples/example_run.csv.gz (start chainage 24.13 m, increasing; its truth is in examples/example_run.truth.json)."));
 
   const form = h("form", { class: "upload-form", novalidate: true, "aria-describedby": "upload-status" });
   ui.form = form;
@@ -67,10 +70,14 @@ export function buildForm(main, state) {
   ui.trackInput = h("input", { type: "text", name: "track", id: "track-input", list: "track-list", required: true, autocomplete: "off", maxlength: 200 });
   ui.trackList = h("datalist", { id: "track-list" });
   ui.newTrackBox = h("div", { class: "new-track", hidden: true });
-  ui.trackDesc = h("input", { type: "text", id: "track-description", maxlength: 500 });
-  ui.trackK = h("input", { type: "number", id: "track-k", value: "80", min: "1", step: "any" });
-  ui.trackSpacing = h("input", { type: "number", id: "track-spacing", value: "0.6", min: "0.1", step: "any" });
-  ui.trackRail = h("input", { type: "text", id: "track-rail", value: "UIC60", maxlength: 50 });
+  // Sent with the upload and stored with the run (one transaction: a rejected upload leaves
+  // no track behind).
+  ui.trackDesc = h("input", { type: "text", id: "track-description", name: "track_description", maxlength: 500 });
+  ui.trackK = h("input", { type: "number", id: "track-k", name: "track_k_nominal", value: "80", step: "any" });
+  ui.trackSpacing = h("input", { type: "number", id: "track-spacing", name: "track_spacing", value: "0.6", step: "any" });
+  ui.trackRail = h("input", { type: "text", id: "track-rail", name: "track_rail", value: "UIC60", maxlength: 50 });
+  applyBounds(ui.trackK, state.props.track_k_nominal, 1e6); // kN/mm shown, N/m sent
+  applyBounds(ui.trackSpacing, state.props.track_spacing);
   append(ui.newTrackBox, [
     h("p", { class: "hint" }, "New track: it is created with these details when you upload."),
     h("div", { class: "grid-2" },
@@ -86,34 +93,43 @@ export function buildForm(main, state) {
   ui.vehicleName = h("input", { type: "text", id: "vehicle-name", maxlength: 200 });
   const vehicleForm = h("div", { class: "grid-3" }, field("Name", ui.vehicleName));
   for (const [key, label, unit, def] of state.vehicleFields) {
-    const input = h("input", { type: "number", id: `veh-${key}`, value: String(def), step: "any" });
+    const input = h("input", { type: "number", id: `veh-${key}`, name: key, value: String(def), step: "any" });
+    applyBounds(input, state.vehicleProps[key]);
     ui.vehicleInputs[key] = input;
     vehicleForm.appendChild(field(`${label} (${unit})`, input));
   }
   ui.createVehicleBtn = h("button", { type: "button", class: "button secondary", id: "create-vehicle" }, "Create vehicle");
-  const vehicleDetails = h("details", { class: "new-vehicle" },
+  const vehicleDetails = h("details", { class: "new-vehicle", id: "new-vehicle" },
     h("summary", {}, "Create a vehicle (half-car parameters)"),
     vehicleForm, ui.createVehicleBtn, ui.vehicleMsg.el);
+  ui.vehicleDetails = vehicleDetails;
 
-  ui.startInput = h("input", { type: "number", name: "start_chainage_m", id: "start-chainage", value: "0", step: "any" });
+  // Empty and required: a start chainage guessed as 0 puts every result tens of metres off
+  // without a word. Optional only when the run can be placed otherwise (canPlaceWithoutStart).
+  ui.startInput = h("input", { type: "number", name: "start_chainage_m", id: "start-chainage", step: "any", required: true, placeholder: "e.g. 1234.5" });
   ui.directionSel = h("select", { name: "direction", id: "direction" },
     h("option", { value: "increasing" }, "Increasing chainage"),
     h("option", { value: "decreasing" }, "Decreasing chainage"));
-  ui.recordedInput = h("input", { type: "datetime-local", name: "recorded_at", id: "recorded-at", value: nowLocalInput() });
+  ui.recordedInput = h("input", { type: "datetime-local", name: "recorded_at", id: "recorded-at" });
+  ui.recordedInput.addEventListener("input", () => {
+    ui.recordedInput.dataset.userSet = "1";
+  });
   // What the log cannot know about the wheel force (issue 10): the payload carried, or the
   // static wheel load measured; runs of different loads let the track separate geometry from
   // stiffness. Both blank: the registered vehicle's own load.
-  ui.payloadInput = h("input", { type: "number", name: "payload_kg", id: "payload-kg", min: "0", step: "any", placeholder: "none" });
-  ui.wheelLoadInput = h("input", { type: "number", name: "static_wheel_load_n", id: "static-wheel-load", min: "0", step: "any", placeholder: "from the vehicle" });
+  ui.payloadInput = h("input", { type: "number", name: "payload_kg", id: "payload-kg", step: "any", placeholder: "none" });
+  ui.wheelLoadInput = h("input", { type: "number", name: "static_wheel_load_n", id: "static-wheel-load", step: "any", placeholder: "from the vehicle" });
+  applyBounds(ui.payloadInput, state.props.payload_kg);
+  applyBounds(ui.wheelLoadInput, state.props.static_wheel_load_n);
 
   form.appendChild(h("fieldset", { class: "card" },
     h("legend", {}, "3. Track, vehicle and position"),
     h("div", { class: "grid-2" },
       h("div", {}, field("Track", ui.trackInput, "Pick an existing track or type a new name."), ui.trackList),
       field("Vehicle", ui.vehicleSel),
-      field("Start chainage (m)", ui.startInput, "Chainage of the body centre (the IMU) at the first sample."),
+      field("Start chainage (m)", ui.startInput, "Where on the track the log starts: the chainage (distance along the line, m) of the body centre (the IMU) at the first sample. Required unless the file has a chainage column."),
       field("Direction of travel", ui.directionSel),
-      field("Recorded at (local time)", ui.recordedInput),
+      field("Recorded at (local time)", ui.recordedInput, "Taken from the file's timestamps when it has them; otherwise give it (else the upload time is stored)."),
       field("Payload (kg)", ui.payloadInput, "Load carried on top of the vehicle's own mass (passengers, freight)."),
       field("Measured static wheel load (N)", ui.wheelLoadInput, "Instead of the payload, if a load-weigh system measured it."),
     ),
@@ -130,10 +146,66 @@ export function buildForm(main, state) {
   ui.progressBox = h("div", { class: "progress-box", hidden: true },
     h("div", { class: "progress-row" }, ui.uploadLabel, ui.uploadBar),
     h("div", { class: "progress-row" }, ui.processLabel, ui.processBar));
+  ui.ignoreProblems = h("input", { type: "checkbox", id: "ignore-problems" });
+  ui.ignoreBox = h("label", { class: "check", hidden: true, id: "ignore-problems-label" }, ui.ignoreProblems, " Upload anyway, despite the problems the preview found");
   ui.status = messageBox("info");
   ui.status.el.id = "upload-status";
-  form.appendChild(h("div", { class: "card actions" }, ui.submitBtn, ui.progressBox, ui.status.el));
+  form.appendChild(h("div", { class: "card actions" }, ui.ignoreBox, ui.submitBtn, ui.progressBox, ui.status.el));
   return ui;
+}
+
+/** The problems the preview found (the service's reading of the file's head). */
+export function previewProblems(state) {
+  const p = state.preview;
+  if (!p || !p.serverNow) return [];
+  const problems = [];
+  if (p.serverNow.error) {
+    const d = p.serverNow.error;
+    problems.push(typeof d === "string" ? d : d.message || JSON.stringify(d));
+  }
+  const server = p.serverNow.answer;
+  if (server && Array.isArray(server.warnings)) problems.push(...server.warnings);
+  return problems;
+}
+
+/** Start chainage required or not, the recording time from the file, the upload guard. */
+export function showPlacement(ui, state, { recordedAt, canPlace }) {
+  ui.startInput.required = !canPlace;
+  const startLabel = ui.form.querySelector('label[for="start-chainage"]');
+  if (startLabel) startLabel.textContent = canPlace ? "Start chainage (m, optional)" : "Start chainage (m)";
+  const hint = document.getElementById("recorded-at-hint");
+  if (recordedAt) {
+    if (!ui.recordedInput.dataset.userSet) ui.recordedInput.value = recordedAt.local;
+    hint.textContent = `From the file's timestamps: ${recordedAt.text}. Change it if it is wrong.`;
+    hint.className = "hint";
+  } else {
+    hint.textContent = "The file has no clock time (its times count from the start): give when it was recorded, otherwise the upload time is stored.";
+    hint.className = "hint warning-text";
+  }
+  const problems = previewProblems(state);
+  ui.ignoreBox.hidden = problems.length === 0;
+  if (!problems.length) ui.ignoreProblems.checked = false;
+}
+
+/** The two progress bars after a failure: the failed step says so, the other is idle. */
+export function markFailed(ui, step) {
+  ui.progressBox.classList.add("failed");
+  if (step === "upload") {
+    ui.uploadLabel.textContent = "Upload failed";
+    ui.uploadBar.classList.add("failed");
+    ui.processLabel.textContent = "Processing not started";
+    ui.processBar.value = 0;
+  } else {
+    ui.processLabel.textContent = "Processing failed";
+    ui.processBar.classList.add("failed");
+    ui.processBar.value = 1;
+  }
+}
+
+export function resetProgress(ui) {
+  ui.progressBox.classList.remove("failed");
+  ui.uploadBar.classList.remove("failed");
+  ui.processBar.classList.remove("failed");
 }
 
 /** Fill the track and vehicle choices (keeps the chosen vehicle). */
@@ -199,12 +271,7 @@ export function showPreview(ui, state) {
   for (const r of rows.slice(0, 10)) tbody.appendChild(h("tr", {}, r.map((cell) => h("td", {}, String(cell)))));
   previewBox.appendChild(h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "Preview of the first rows" },
     h("table", { class: "data preview-table", id: "preview-table" }, h("thead", {}, thead), tbody)));
-  const problems = [];
-  if (state.preview.serverNow && state.preview.serverNow.error) {
-    const d = state.preview.serverNow.error;
-    problems.push(typeof d === "string" ? d : d.message || JSON.stringify(d));
-  }
-  if (server && Array.isArray(server.warnings)) problems.push(...server.warnings);
+  const problems = previewProblems(state);
   if (problems.length) {
     previewBox.appendChild(h("div", { class: "message warning", role: "status", id: "preview-warnings" },
       "Check before uploading:", h("ul", {}, problems.map((p) => h("li", {}, p)))));
@@ -241,9 +308,9 @@ export function errorText(err) {
   return err.message || String(err);
 }
 
-export function errorList(err) {
+export function errorList(err, words = (t) => t) {
   if (!(err instanceof ApiError) || !err.items || err.items.length === 0) return [];
-  return [h("ul", { class: "error-facts" }, err.items.map((i) => h("li", {}, i)))];
+  return [h("ul", { class: "error-facts" }, err.items.map((i) => h("li", {}, words(i))))];
 }
 
 /** Mark the fields an error names (by form name, or the column the file's reader named). */

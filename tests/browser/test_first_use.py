@@ -1,0 +1,332 @@
+# ruff: noqa: E501  (the JavaScript predicates stay one line each, as the browser runs them)
+"""What a first-time user trips over (issue 14): each check fails without its fix.
+
+One example run (examples/example_run.csv.gz, uploaded once) serves the run and track checks;
+pages are checked with axe-core (no serious or critical violation), for share/cloud links on
+charts, and for their first-paint timings (reported; the ceilings here are loose, the
+measured numbers are in docs/benchmarks.md).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from browser.harness import LiveServer, axe_source, axe_violations, wait_for_plot
+
+from support.samples import REPO
+
+pytestmark = pytest.mark.browser
+
+EXAMPLE = REPO / "examples" / "example_run.csv.gz"
+TRUTH = json.loads((REPO / "examples" / "example_run.truth.json").read_text())
+TRACK = "First use line"
+HOME_CEILING_S = 2.0
+CHART_CEILING_S = 6.0
+"""Loose ceilings for loaded CI machines; the targets (0.5 s, 1.5 s) are reported."""
+TIMINGS: dict[str, float] = {}
+
+CLOUD_WORDS = ("cloud", "chart studio", "share", "edit in", "plotly.com", "plot.ly")
+
+
+@pytest.fixture(scope="module")
+def axe() -> Iterator[str]:
+    """axe-core's script; at the end of the module, the timings measured (docs/benchmarks.md)."""
+    yield axe_source()
+    print("\nfirst-paint timings:", json.dumps({k: round(v, 3) for k, v in TIMINGS.items()}))
+
+
+@pytest.fixture(scope="module")
+def example_run(live_server: LiveServer) -> dict[str, Any]:
+    """The example log uploaded by the API (start chainage from its truth, no recorded_at)."""
+    with live_server.api() as api:
+        r = api.post(
+            "/api/v1/runs?wait=true",
+            files={"file": ("example_run.csv.gz", EXAMPLE.read_bytes(), "application/gzip")},
+            data={"track": TRACK, "start_chainage_m": str(TRUTH["start_chainage_m"])},
+        )
+        assert r.status_code in (200, 201), r.text
+        run = r.json()
+        assert run["status"] == "done", run
+        return run
+
+
+def assert_no_cloud_links(page: Any) -> None:
+    """No chart offers to send its data anywhere: no such modebar button or link, and each
+    graph's config has the cloud features off."""
+    page.hover(".js-plotly-plot .main-svg")  # show the modebar
+    titles = page.eval_on_selector_all(
+        ".modebar-btn, .js-plotly-plot a",
+        "els => els.map(e => (e.getAttribute('data-title') || '') + ' ' + (e.textContent || '')"
+        " + ' ' + (e.getAttribute('href') || ''))",
+    )
+    assert titles, "no modebar found"
+    offending = [t for t in titles if any(w in t.lower() for w in CLOUD_WORDS)]
+    assert not offending, offending
+    configs = page.evaluate(
+        """() => [...document.querySelectorAll('.js-plotly-plot')].map(gd => {
+            const c = gd._context; return [c.showSendToCloud, c.plotlyServerURL]; })"""
+    )
+    # plotly.js 4 defaults: a "Share chart..." button, uploading to Plotly's cloud.
+    assert configs and all(c == [False, ""] for c in configs), configs
+
+
+def timed_goto(page: Any, url: str, ready: str) -> float:
+    """Seconds from navigation to `ready` (a JS predicate) holding."""
+    t = time.perf_counter()
+    page.goto(url)
+    page.wait_for_function(ready)
+    return time.perf_counter() - t
+
+
+def test_home_shows_at_once_without_plotly_and_explains_the_first_step(
+    page: Any, live_server: LiveServer, example_run: dict[str, Any], axe: str
+) -> None:
+    """Home: content well before plotly could load (it is not loaded at all), a one-line
+    intro and the first step; plurals; axe clean."""
+    requested: list[str] = []
+    page.on("request", lambda r: requested.append(r.url))
+    page.goto(f"{live_server.url}/#/upload")  # warm: the browser has the modules cached
+    page.wait_for_selector("#upload-button")
+    times = [
+        timed_goto(
+            page,
+            f"{live_server.url}/?t={i}#/",
+            "() => document.querySelector('#track-list li') && document.querySelector('#runs-table tbody tr')",
+        )  # fmt: skip
+        for i in range(3)
+    ]
+    TIMINGS["home content (s)"] = min(times)
+    assert min(times) < HOME_CEILING_S, times
+    assert not [u for u in requested if "plotly" in u], "plotly.js loaded on a page without charts"
+    assert "loaded profile" in page.inner_text("#intro")
+    first = page.inner_text("#first-step")
+    assert "upload a run log" in first and "start chainage" in first and "example_run" in first
+    line = page.locator("#track-list li", has_text=TRACK).inner_text()
+    assert "· 1 run" in line and "1 runs" not in line
+    assert axe_violations(page, axe) == []
+    page.watch.assert_clean()
+
+
+def test_run_page_chart_is_fast_cached_local_explained_and_accessible(
+    page: Any, live_server: LiveServer, example_run: dict[str, Any], axe: str
+) -> None:
+    """Run page: plotly.js comes compressed and cacheable by a versioned URL, the chart shows
+    within the ceiling, no share/cloud link, the terms explained, one sign for the loss,
+    numbers aligned under their headers; axe clean."""
+    answers: list[Any] = []
+    page.on("response", lambda r: answers.append(r) if "plotly" in r.url else None)
+    url = f"{live_server.url}/#/runs/{example_run['id']}"
+    ready = "() => { const gd = document.getElementById('profile-plot'); return gd && gd._fullLayout && gd.querySelector('.main-svg'); }"
+    cold = timed_goto(page, url, ready)
+    warm = min(
+        timed_goto(page, f"{live_server.url}/?t={i}#/runs/{example_run['id']}", ready)
+        for i in range(2)
+    )
+    TIMINGS["run chart, first visit (s)"] = cold
+    TIMINGS["run chart, plotly cached (s)"] = warm
+    assert warm < CHART_CEILING_S
+    first = answers[0]
+    assert re.search(r"/static/vendor/plotly-[\d.]+\.min\.js$", first.url), first.url
+    headers = first.all_headers()
+    assert headers.get("content-encoding") == "gzip"
+    assert "immutable" in headers.get("cache-control", "") and headers.get("etag")
+    assert int(headers.get("content-length", "0")) < 2_000_000
+    assert_no_cloud_links(page)
+    help_text = (
+        page.inner_text("#profile-help")
+        if page.locator("#profile-help[open]").count()
+        else page.eval_on_selector("#profile-help", "e => e.textContent")
+    )
+    assert (
+        "Baseline" in help_text
+        and "measured from" in help_text
+        and "nominal support stiffness" in help_text
+    )
+    labels = page.evaluate(
+        "() => document.getElementById('profile-plot').layout.annotations.map(a => a.text)"
+    )
+    assert labels and all("% loss" in t and "−" not in t for t in labels), labels
+    aligned = page.evaluate(
+        """() => { const t = document.getElementById('spots-table');
+            const th = t.querySelectorAll('thead th'), td = t.querySelectorAll('tbody tr:first-child > *');
+            return [...th].map((h, i) => [getComputedStyle(h).textAlign, getComputedStyle(td[i]).textAlign]); }"""
+    )
+    assert all(a == b for a, b in aligned), aligned
+    assert axe_violations(page, axe) == []
+    page.watch.assert_clean()
+
+
+def test_track_page_fits_a_phone_and_explains_a_single_run(
+    browser: Any, live_server: LiveServer, example_run: dict[str, Any], axe: str
+) -> None:
+    """At 390x844 the chainage map's plot area keeps most of the width and the zone plot's
+    legend goes below it; a defect seen once has no trend ("—"); plurals; axe clean."""
+    context = browser.new_context(viewport={"width": 390, "height": 844})
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    try:
+        url = f"{live_server.url}/#/tracks/{example_run['track_id']}"
+        t = time.perf_counter()
+        page.goto(url)
+        wait_for_plot(page, "#chainage-map", 2)
+        TIMINGS["track chart at 390 px, first visit (s)"] = time.perf_counter() - t
+        wait_for_plot(page, "#zone-plot")
+        width = page.evaluate("() => document.getElementById('chainage-map')._fullLayout._size.w")
+        assert width >= 240, f"chainage map plot area only {width:.0f} px wide at 390 px"
+        zone = page.evaluate(
+            "() => { const l = document.getElementById('zone-plot')._fullLayout; return [l.legend.orientation, l._size.w]; }"
+        )
+        assert zone[0] == "h" and zone[1] >= 240, zone
+        assert page.evaluate("() => document.documentElement.scrollWidth <= window.innerWidth + 1")
+        row = page.locator("#zone-table tbody tr").first
+        trend = row.locator("td.num").nth(-2).inner_text()  # the depth trend column
+        assert trend == "—", trend
+        assert "1 processed run " in page.inner_text("#track-lead") + " "
+        assert re.search(r"\b2 soft spots from 1 run\b", page.inner_text("#map-note"))
+        assert_no_cloud_links(page)
+        assert axe_violations(page, axe) == []
+        assert not errors, errors
+    finally:
+        context.close()
+
+
+def test_upload_form_guides_a_first_time_user(
+    page: Any, live_server: LiveServer, tmp_path: Path, axe: str
+) -> None:
+    """Start chainage empty and required, the recording time from the file's timestamps,
+    errors next to the field in the form's words with the service's bounds, a preview with
+    problems blocks the upload, a rejected upload marks its bar failed and leaves no track."""
+    posts: list[str] = []
+    page.on("request", lambda r: posts.append(r.url) if r.method == "POST" else None)
+    page.goto(f"{live_server.url}/#/upload")
+    page.wait_for_selector("#upload-button")
+    assert (
+        page.input_value("#start-chainage") == ""
+        and page.get_attribute("#start-chainage", "required") is not None
+    )
+    assert "examples/example_run.csv.gz" in page.inner_text("#example-hint")
+    assert axe_violations(page, axe) == []
+    # The example: its recording time comes from its epoch timestamps.
+    page.set_input_files("#file-input", str(EXAMPLE))
+    page.wait_for_function("() => document.getElementById('recorded-at').value !== ''")
+    assert page.input_value("#recorded-at").startswith(
+        page.evaluate(
+            "iso => { const d = new Date(iso); const p = n => String(n).padStart(2, '0'); return `${d.getFullYear()}-${p(d.getMonth() + 1)}-${p(d.getDate())}T${p(d.getHours())}`; }",
+            TRUTH["recorded_at"],
+        )
+    )
+    assert "From the file's timestamps" in page.inner_text("#recorded-at-hint")
+    page.fill("#track-input", "UX line")
+    page.dispatch_event("#track-input", "input")
+    page.fill("#payload-kg", "-5")
+    page.click("#upload-button")
+    start_error = page.locator("#start-chainage-error")
+    start_error.wait_for()
+    assert (
+        start_error.inner_text().startswith("⚠")
+        or "Start chainage (m) is required" in start_error.inner_text()
+    )
+    assert "Start chainage (m) is required" in start_error.inner_text()
+    payload_error = page.inner_text("#payload-kg-error")
+    assert "Payload (kg) must be at least 0" in payload_error, payload_error
+    assert page.get_attribute("#start-chainage", "aria-invalid") == "true"
+    assert not [u for u in posts if u.endswith("/api/v1/runs") or u.endswith("/api/v1/tracks")]
+    # A file the preview already finds wrong: the upload waits for an explicit "anyway".
+    page.set_input_files(
+        "#file-input",
+        files=[{"name": "notes.csv", "mimeType": "text/csv", "buffer": b"hello\nworld\n"}],
+    )
+    page.wait_for_selector("#preview-warnings")
+    page.fill("#start-chainage", "10")
+    page.fill("#payload-kg", "")
+    page.click("#upload-button")
+    page.wait_for_selector("#upload-status.error")
+    assert "Upload anyway" in page.inner_text("#upload-status")
+    assert not [u for u in posts if u.endswith("/api/v1/runs")]
+    page.check("#ignore-problems")
+    page.click("#upload-button")
+    page.wait_for_function("() => document.querySelector('.progress-box.failed')")
+    assert page.inner_text(".progress-box").count("failed") >= 1
+    assert "Upload failed" in page.inner_text(".progress-box")
+    assert "100 %" not in page.inner_text(".progress-box")
+    with live_server.api() as api:
+        assert api.get("/api/v1/tracks/UX line").status_code == 404  # no track left behind
+    assert axe_violations(page, axe) == []
+    page.watch.assert_clean()
+
+
+def test_track_is_deleted_from_its_page_after_confirmation(
+    page: Any, live_server: LiveServer, axe: str, tmp_path: Path
+) -> None:
+    """ "Delete track…" asks in the page; confirming removes the track and its runs."""
+    from engine.logio import write_run_csv
+    from engine.synthetic import make_run
+
+    run = make_run(length=120.0, speed=25.0, start_chainage_m=5.0, seed=2)
+    path = tmp_path / "doomed.csv"
+    write_run_csv(run.log, path, digits=8)
+    with live_server.api() as api:
+        r = api.post("/api/v1/runs?wait=true", files={"file": ("d.csv", path.read_bytes(), "text/csv")},
+                     data={"track": "Doomed line", "start_chainage_m": "5"})  # fmt: skip
+        assert r.status_code in (200, 201), r.text
+        track_id, run_id = r.json()["track_id"], r.json()["id"]
+    page.goto(f"{live_server.url}/#/tracks/{track_id}")
+    page.click("#delete-track")
+    box = page.locator("#delete-track-box")
+    assert "1 run," in box.inner_text()
+    assert axe_violations(page, axe) == []
+    page.click("#delete-track-confirm")
+    page.wait_for_url(re.compile(r".*#/$"))
+    page.wait_for_selector("#track-list, #tracks-h")
+    with live_server.api() as api:
+        assert api.get(f"/api/v1/tracks/{track_id}").status_code == 404
+        assert api.get(f"/api/v1/runs/{run_id}").status_code == 404
+    page.watch.assert_clean()
+
+
+def test_simulate_names_its_bands_stores_on_a_chosen_track_and_has_no_cloud_link(
+    page: Any, live_server: LiveServer, axe: str
+) -> None:
+    """Simulate: the true zones and the detections are told apart and named in the legend,
+    the run goes to the track chosen, no share/cloud link; axe clean."""
+    page.goto(f"{live_server.url}/#/simulate")
+    page.wait_for_selector("#simulate-button")
+    assert axe_violations(page, axe) == []
+    page.fill("#sim-track", "Sim choice line")
+    page.click("#simulate-button")
+    wait_for_plot(page, "#sim-profile-plot")
+    names = page.evaluate("() => document.getElementById('sim-profile-plot').data.map(t => t.name)")
+    assert "True soft zone" in names and "Detected soft spot" in names, names
+    true_band = page.evaluate(
+        "() => document.getElementById('sim-profile-plot').layout.shapes.filter(s => s.name === 'true-zone').map(s => [s.y0, s.y1])"
+    )
+    assert true_band and all(y0 >= 0.8 for y0, _ in true_band), true_band
+    assert_no_cloud_links(page)
+    with live_server.api() as api:
+        assert api.get("/api/v1/tracks/Sim choice line").json()["n_runs"] == 1
+    assert axe_violations(page, axe) == []
+    page.watch.assert_clean()
+
+
+def test_vehicles_and_docs_pages_are_accessible_and_docs_lead_back(
+    page: Any, live_server: LiveServer, axe: str
+) -> None:
+    page.goto(f"{live_server.url}/#/vehicles")
+    page.wait_for_selector("main h1")
+    page.wait_for_load_state("networkidle")
+    assert axe_violations(page, axe) == []
+    t = time.perf_counter()
+    page.goto(f"{live_server.url}/docs")
+    page.wait_for_selector(".swagger-ui .info")
+    TIMINGS["/docs ready (s)"] = time.perf_counter() - t
+    assert axe_violations(page, axe) == []
+    page.click("#docs-back")
+    page.wait_for_selector("#intro")
+    page.watch.assert_clean()
