@@ -2,6 +2,7 @@
 
 import { h, clear, announce, fmt, fmtDate, messageBox, plural } from "../dom.js";
 import { apiFetch } from "../api.js";
+import { loadPlotly } from "../plots.js";
 
 const PAGE = 50;
 
@@ -136,6 +137,14 @@ export async function render(main) {
     });
     update();
     runsSection.append(counter, more);
+  }
+  // The content is shown without plotly.js (performance mark "home-content": the first-paint
+  // timing of the browser tests). Only then, when the browser is idle, plotly.js is fetched
+  // and compiled for the chart the user is likely to open next (a run or a track).
+  performance.mark("home-content");
+  if (tracks.length || runs.length) {
+    const idle = window.requestIdleCallback || ((fn) => setTimeout(fn, 300));
+    idle(() => loadPlotly().catch(() => {}), { timeout: 1500 });
   }
   return null;
 }

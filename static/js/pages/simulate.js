@@ -75,7 +75,7 @@ export async function render(main) {
   }).catch(() => {});
   Promise.all([
     apiFetch("/api/v1/vehicles/presets").catch(() => ({})),
-    apiFetch("/api/v1/vehicles?limit=1000").catch(() => null),
+    apiFetch("/api/v1/vehicles?limit=100").catch(() => null),
     apiFetch("/api/v1/simulate/spectra").catch(() => ({})),
   ]).then(([presets, stored, spectra]) => {
     const names = new Set([...Object.keys(presets), ...(stored ? stored.data.map((v) => v.name) : [])]);
