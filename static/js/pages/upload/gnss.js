@@ -4,7 +4,8 @@
 
 import { h } from "../../dom.js";
 import { apiGetOptional } from "../../api.js";
-import { effectiveReading } from "./state.js";
+import { canPlaceWithoutStart, effectiveReading } from "./state.js";
+import { showStartRequired } from "./view.js";
 
 export function bindGnss(ui, state) {
   const form = ui.startInput.form || document.body;
@@ -32,13 +33,14 @@ export function bindGnss(ui, state) {
     const fixes = Boolean(reading.mapping.lat && reading.mapping.lon);
     const track = ui.trackInput.value.trim();
     const placed = fixes && track !== "" && (await hasCenterline(track));
+    state.gnssPlaced = placed; // canPlaceWithoutStart: the start chainage becomes optional
+    showStartRequired(ui, canPlaceWithoutStart(state));
     if (placed) {
       if (!touched && ui.startInput.value === "0") ui.startInput.value = "";
       ui.startInput.placeholder = "from the GNSS fixes";
       say(`Optional: the log has GNSS fixes (${reading.mapping.lat.column}, ${reading.mapping.lon.column}) and track “${track}” has a centerline, so the run is placed by its fixes when this is left empty.`);
     } else {
-      if (!touched && ui.startInput.value === "") ui.startInput.value = "0";
-      ui.startInput.placeholder = "";
+      ui.startInput.placeholder = "e.g. 1234.5";
       say(fixes ? "The log has GNSS fixes; give the track a centerline (on its track page) to place runs by them." : "");
     }
   }

@@ -60,6 +60,7 @@ export function createState(vocabulary) {
     preview: null,
     tracks: [],
     vehicles: [],
+    gnssPlaced: false,
   };
 }
 
@@ -94,12 +95,12 @@ export function roleOf(column, reading) {
 }
 
 /**
- * Whether the run can be placed on the track without a start chainage. Today: the file has a
- * chainage column. (Hook for GNSS positioning, issue 11: a log with lat/lon fixes on a track
- * with a centerline can be placed too; extend this predicate, the form follows it.)
+ * Whether the run can be placed on the track without a start chainage: the file has a
+ * chainage column, or GNSS fixes on a track with a centerline (state.gnssPlaced, kept by
+ * gnss.js, issue 11). The form's "required" and its check follow this one predicate.
  */
 export function canPlaceWithoutStart(state) {
-  return Boolean(effectiveReading(state).mapping.chainage);
+  return Boolean(effectiveReading(state).mapping.chainage) || Boolean(state.gnssPlaced);
 }
 
 /** When the file says it was recorded (UTC ISO, from its epoch time column), or null. */

@@ -168,11 +168,17 @@ export function previewProblems(state) {
   return problems;
 }
 
-/** Start chainage required or not, the recording time from the file, the upload guard. */
-export function showPlacement(ui, state, { recordedAt, canPlace }) {
+/** The start chainage required, or optional when the run can be placed otherwise. */
+export function showStartRequired(ui, canPlace) {
+  if (ui.startInput.required === !canPlace) return; // no DOM change: observers stay quiet
   ui.startInput.required = !canPlace;
   const startLabel = ui.form.querySelector('label[for="start-chainage"]');
   if (startLabel) startLabel.textContent = canPlace ? "Start chainage (m, optional)" : "Start chainage (m)";
+}
+
+/** Start chainage required or not, the recording time from the file, the upload guard. */
+export function showPlacement(ui, state, { recordedAt, canPlace }) {
+  showStartRequired(ui, canPlace);
   const hint = document.getElementById("recorded-at-hint");
   if (recordedAt) {
     if (!ui.recordedInput.dataset.userSet) ui.recordedInput.value = recordedAt.local;
