@@ -39,6 +39,7 @@ from app.db.migrate import upgrade  # noqa: E402
 from app.db.models import Run, Track, TrackRunLevels, Vehicle  # noqa: E402
 from app.db.session import Database  # noqa: E402
 from app.services.aggregate import chunked  # noqa: E402
+from app.services.packing import pack_f4  # noqa: E402
 from app.services.stiffness import read_stiffness, recompute_all  # noqa: E402
 from engine.chainage import GRID_STEP_M, bandpass_distance  # noqa: E402
 
@@ -101,7 +102,7 @@ def main() -> int:
                 _, _, fv = chunked(0, force)
                 s.execute(insert(TrackRunLevels), [
                     {"run_id": run.id, "chunk": c, "track_id": track.id,
-                     "levels": lv[c].tobytes(), "force_n": fv[c].tobytes()}
+                     "levels": pack_f4(lv[c]), "force_n": pack_f4(fv[c])}
                     for c in lv
                 ])  # fmt: skip
             s.commit()

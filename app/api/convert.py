@@ -64,6 +64,7 @@ def run_public(run: Run) -> RunPublic:
         positioning=(
             RunPositioningPublic.model_validate(run.positioning) if run.positioning else None
         ),
+        detail_expired_at=run.detail_expired_at,
     )
 
 

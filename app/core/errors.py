@@ -22,6 +22,7 @@ from starlette.routing import Match
 from app.services.errors import (
     Conflict,
     DomainError,
+    Gone,
     Invalid,
     NotFound,
     TooLarge,
@@ -66,6 +67,7 @@ DOMAIN_STATUS: dict[type[DomainError], int] = {
     Conflict: 409,
     Invalid: 422,
     TooLarge: 413,
+    Gone: 410,
 }
 """Status code of each domain error of the services (the only place that knows them)."""
 

@@ -1,10 +1,10 @@
 """ORM models: tracks, vehicles, runs, their per-chainage profile, soft spots and API keys.
 
-Units: SI throughout (N/m, m, kg, s), levels in mm. Profiles are stored one row per grid point
-of the run's chainage grid, keyed ``(run_id, chainage_m)`` so that "run R between chainage a and
-b" is one range scan of the primary key. Chainage is stored as the engine computed it from the
-run's own start chainage; ``Run.chainage_offset_m`` (0 until runs are aligned) is added when the
-profile and soft spots are served.
+Units: SI throughout (N/m, m, kg, s), levels in mm. Profiles are stored as compressed blocks of
+1 km of the run's chainage grid, keyed ``(run_id, block)`` so that "run R between chainage a and
+b" is one range scan of the primary key over a few rows. Chainage is stored as the engine
+computed it from the run's own start chainage; ``Run.chainage_offset_m`` (0 until runs are
+aligned) is added when the profile and soft spots are served.
 """
 
 from __future__ import annotations
@@ -223,6 +223,8 @@ class Run(Base):
     # GNSS placement (issue 11): engine.positioning.Placement.to_dict(); None when the run was
     # placed by its start chainage.
     positioning: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    # Retention: when the run's detail (profile, signals, log) was removed; NULL = kept.
+    detail_expired_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
 
     content_hash: Mapped[str] = mapped_column(String(64))
     idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
@@ -265,20 +267,23 @@ class RunInput(Base):
     data: Mapped[bytes] = mapped_column(LargeBinary, deferred=True)
 
 
-class ProfilePoint(Base):
-    """The loaded level of one run at one chainage grid point (mm, positive up; NULL = no data)."""
+class RunProfileBlock(Base):
+    """A run's profile over one fixed chainage block of its 0.25 m grid, compressed.
 
-    __tablename__ = "profile_points"
-    __table_args__ = {"sqlite_with_rowid": False}
+    Block ``b`` holds grid points ``b * BLOCK_POINTS ...`` (chainage = grid index x 0.25 m,
+    as processed); ``first`` is the grid index of the block's first stored point and ``data``
+    the columns of ``app.services.profiles.PROFILE_COLUMNS`` after chainage, packed by
+    ``app.services.packing`` (levels to 0.0001 mm, wheel forces to 1 N, NaN = no data). A
+    chainage window of a run is one range scan of the ``(run_id, block)`` key over a few
+    rows. Detail: removed when the run's detail expires (``Run.detail_expired_at``).
+    """
+
+    __tablename__ = "run_profile_blocks"
 
     run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
-    chainage_m: Mapped[float] = mapped_column(Float, primary_key=True)
-    level_mm: Mapped[float | None] = mapped_column(Float)
-    front_level_mm: Mapped[float | None] = mapped_column(Float)
-    rear_level_mm: Mapped[float | None] = mapped_column(Float)
-    baseline_mm: Mapped[float | None] = mapped_column(Float)
-    front_force_n: Mapped[float | None] = mapped_column(Float)  # wheel force, static + dynamic
-    rear_force_n: Mapped[float | None] = mapped_column(Float)
+    block: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    first: Mapped[int] = mapped_column(Integer)
+    data: Mapped[bytes] = mapped_column(LargeBinary)
 
 
 class SoftSpot(Base):

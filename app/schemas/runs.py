@@ -337,6 +337,12 @@ class RunPublic(BaseModel):
         description="Placement by GNSS fixes on the track's centerline (null: placed by the "
         "start chainage given)",
     )
+    detail_expired_at: datetime | None = Field(
+        default=None,
+        description="When the retention policy removed the run's detail (profile, signals, "
+        "log: their routes answer 410 since); null while it is kept. Metadata and soft spots "
+        "are kept for ever",
+    )
 
 
 class RunCreated(RunPublic):

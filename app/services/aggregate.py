@@ -21,6 +21,7 @@ from engine.aggregate import AggregateProfile, aggregate_levels
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
 
+from .packing import pack_f4, unpack_f4
 from .window import Window
 
 CHUNK_POINTS = 1000
@@ -76,8 +77,8 @@ def store_run_levels(
         return None
     forces = chunked(i_lo, force_n)[2] if force_n is not None else {}
     rows = [
-        {"run_id": run_id, "chunk": chunk, "track_id": track_id, "levels": buf.tobytes(),
-         "force_n": forces[chunk].tobytes() if chunk in forces else None}
+        {"run_id": run_id, "chunk": chunk, "track_id": track_id, "levels": pack_f4(buf),
+         "force_n": pack_f4(forces[chunk]) if chunk in forces else None}
         for chunk, buf in parts.items()
     ]  # fmt: skip
     session.execute(insert(TrackRunLevels), rows)
@@ -118,7 +119,7 @@ def expected_points(
     levels = np.full((len(run_row), n), np.nan)
     for rid, chunk, blob in rows:
         at = (chunk - a) * CHUNK_POINTS
-        levels[run_row[rid], at : at + CHUNK_POINTS] = np.frombuffer(blob, dtype=_DTYPE)
+        levels[run_row[rid], at : at + CHUNK_POINTS] = unpack_f4(blob)
     grid = (i0 + np.arange(n, dtype=np.float64)) * GRID_STEP_M
     return grid, (aggregate_levels(grid, levels) if rows else None)
 

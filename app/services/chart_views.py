@@ -24,10 +24,10 @@ from datetime import datetime
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Float, Integer, and_, cast, func, select
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.db.models import ProfilePoint, Run, SoftSpot, Track
+from app.db.models import Run, SoftSpot, Track
 from app.schemas.views import (
     ChainageMapPublic,
     CsvPreviewPublic,
@@ -47,8 +47,9 @@ from engine.logio import CsvOptions, preview_csv
 from engine.register import Observation, RegisterConfig, RunCoverage, build_register
 
 from .errors import Invalid
-from .profiles import nullable, read_profile
-from .runs import done_run
+from .profiles import nullable, profile_arrays, read_profile
+from .retention import require_detail
+from .runs import detail_run
 from .window import Window
 
 HEATMAP_MAX_SPAN_M = 10_000.0
@@ -97,9 +98,10 @@ def run_profile_view(
 ) -> ProfileViewPublic:
     """A processed run's profile (fused, front, rear, baseline; mm) in a window, thinned to
     ``max_points`` for display."""
-    run = done_run(session, run_id, "profile")
+    run = detail_run(session, run_id, "profile")
     lo, hi = window.stored(run.offset_m)
     data = read_profile(session, run.id, lo, hi)
+    require_detail(session, run, "profile")  # a sweep may have removed it meanwhile
     x = np.asarray(data["chainage_m"], dtype=np.float64) + run.offset_m
     names = ("level_mm", "front_level_mm", "rear_level_mm", "baseline_mm")
     cols = {k: _as_array(data[k]) for k in names}
@@ -235,35 +237,21 @@ def _when(run: Run) -> datetime:
 def _heatmap(
     session: Session, runs: list[Run], from_m: float, to_m: float, bins: int
 ) -> HeatmapPublic:
-    """Lowest fused level per run and chainage bin, binned by the database."""
+    """Lowest fused level per run and chainage bin (runs without detail: empty rows)."""
     width = max((to_m - from_m) / bins, HEATMAP_MIN_BIN_M)
     nbins = max(1, math.ceil((to_m - from_m) / width))
-    t = ProfilePoint.__table__
-    dialect = session.get_bind().dialect.name
     z: list[list[float | None]] = []
     for run in runs:
         off = run.offset_m
         lo, hi = from_m - off, to_m - off
-        # Bin index of each row; the WHERE keeps the argument >= 0, where SQLite's integer
-        # CAST (truncation) is a floor. Other databases round on CAST, so they floor first.
-        arg = (t.c.chainage_m - lo) / width
-        bin_expr = cast(arg, Integer) if dialect == "sqlite" else cast(func.floor(arg), Integer)
-        stmt = (
-            select(bin_expr.label("b"), cast(func.min(t.c.level_mm), Float))
-            .where(
-                and_(
-                    t.c.run_id == run.id,
-                    t.c.chainage_m >= lo,
-                    t.c.chainage_m < hi,
-                    t.c.level_mm.is_not(None),
-                )
-            )
-            .group_by("b")
-        )
-        row: list[float | None] = [None] * nbins
-        for b, level in session.execute(stmt):
-            if b is not None and 0 <= int(b) < nbins and level is not None:
-                row[int(b)] = round(float(level), 4)
+        cols = profile_arrays(session, run.id, lo, hi, ("chainage_m", "level_mm"))
+        x, level = cols["chainage_m"], cols["level_mm"]
+        keep = (x < hi) & np.isfinite(level)
+        b = np.floor((x[keep] - lo) / width).astype(np.int64)
+        inside = (b >= 0) & (b < nbins)
+        low = np.full(nbins, np.inf)
+        np.minimum.at(low, b[inside], level[keep][inside])
+        row: list[float | None] = [round(float(v), 4) if np.isfinite(v) else None for v in low]
         z.append(row)
     x = (from_m + (np.arange(nbins) + 0.5) * width).tolist()
     return HeatmapPublic(x=x, bin_m=width, z=z)

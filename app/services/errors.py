@@ -8,7 +8,8 @@ them, and the engine's own errors, to status codes:
   not in the state the request needs);
 - :class:`Invalid`: an input is wrong; ``field`` names it, ``column``/``row``/``unit`` point
   into an uploaded file;
-- :class:`TooLarge`: an input is over a size limit.
+- :class:`TooLarge`: an input is over a size limit;
+- :class:`Gone`: it existed and was removed on purpose (a run's detail after retention).
 
 Facts are keyword arguments; those left None are not reported. ``kind`` names the error class
 clients can branch on (``"LogFormatError"``, ``"ParameterError"``, ...).
@@ -51,6 +52,11 @@ class NotFound(DomainError):
 
 class Conflict(DomainError):
     """The request contradicts what is stored."""
+
+
+class Gone(DomainError):
+    """Something the caller addressed existed but was removed on purpose (a run's detail
+    under the retention policy)."""
 
 
 class Invalid(DomainError):

@@ -22,10 +22,11 @@ from engine.register import Defect
 
 from .aggregate import read_track_profile
 from .context import AppContext
-from .profiles import iter_profile_rows
+from .profiles import iter_profile_rows, profile_blocks
 from .register import load_limits, track_register
 from .report import ReportInput, ReportRun, render_report
 from .report_stiffness import stiffness_section
+from .retention import require_detail
 from .runs import SpotOnTrack
 from .stiffness import stiffness_with_vehicles
 from .window import Window
@@ -50,16 +51,30 @@ def csv_value(v: float | None, fmt: str) -> str:
 def run_profile_csv(
     ctx: AppContext, run: Run, window: Window, columns: tuple[str, ...]
 ) -> Iterator[str]:
-    """A processed run's profile in a window as CSV lines (chainage aligned, 4 decimals)."""
-    run_id, off = run.id, run.offset_m
+    """A processed run's profile in a window as CSV lines (chainage aligned, 4 decimals).
+
+    The stored blocks are read now (:class:`Gone` when retention removed them), decoded as
+    the lines are sent."""
+    off = run.offset_m
     lo, hi = window.stored(off)
-    yield ",".join(columns) + "\n"
     with ctx.db.session() as s:
-        for rows in iter_profile_rows(s, run_id, lo, hi, columns):
-            yield "".join(
-                f"{r[0] + off:.4f}," + ",".join(csv_value(v, ".6f") for v in r[1:]) + "\n"
-                for r in rows
-            )
+        blocks = profile_blocks(s, run.id, lo, hi)
+        require_detail(s, run, "profile")
+    return _profile_lines(blocks, lo, hi, columns, off)
+
+
+def _profile_lines(
+    blocks: list[tuple[int, bytes]],
+    lo: float | None,
+    hi: float | None,
+    columns: tuple[str, ...],
+    off: float,
+) -> Iterator[str]:
+    yield ",".join(columns) + "\n"
+    for rows in iter_profile_rows(blocks, lo, hi, columns):
+        yield "".join(
+            f"{r[0] + off:.4f}," + ",".join(csv_value(v, ".6f") for v in r[1:]) + "\n" for r in rows
+        )
 
 
 def soft_spots_csv(spots: Iterable[SpotOnTrack]) -> str:

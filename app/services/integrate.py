@@ -20,7 +20,7 @@ from app.db.models import Run, Track, TrackProfilePoint, TrackRunLevels
 
 from .aggregate import drop_run_levels, recompute_aggregate, store_run_levels
 from .alignment import RunAlignment, align_to_track, on_track_grid
-from .profiles import fused_force, read_profile
+from .profiles import fuse_axles, read_profile
 from .stiffness import recompute_all, recompute_stiffness
 
 
@@ -103,13 +103,16 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
 
     For runs stored before alignment existed (``alignment_status`` NULL) or after the
     alignment settings changed. Returns each run's id and alignment, in the order processed.
+    Runs whose detail expired (``app.services.retention``) keep their alignment and their
+    aligned levels: there is no profile left to align again.
     """
     lock_track(session, track_id)
-    session.execute(delete(TrackRunLevels).where(TrackRunLevels.track_id == track_id))
+    with_detail = select(Run.id).where(Run.track_id == track_id, Run.detail_expired_at.is_(None))
+    session.execute(delete(TrackRunLevels).where(TrackRunLevels.run_id.in_(with_detail)))
     session.execute(delete(TrackProfilePoint).where(TrackProfilePoint.track_id == track_id))
     runs = session.scalars(
         select(Run)
-        .where(Run.track_id == track_id, Run.status == "done")
+        .where(Run.track_id == track_id, Run.status == "done", Run.detail_expired_at.is_(None))
         .order_by(func.coalesce(Run.recorded_at, Run.created_at), Run.id)
     ).all()
     out = []
@@ -121,8 +124,15 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
             np.array([np.nan if v is None else v for v in cols[k]], dtype=np.float64)
             for k in names[1:]
         )
-        force = fused_force(front, rear) if np.isfinite(front).any() else None
+        force = fuse_axles(front, rear) if np.isfinite(front).any() else None
         al = add_run_to_track(session, run, chainage, level, force, separate=False)
         out.append((run.id, al))
+    # where only runs without detail remain, their kept levels make the aggregate
+    lv = TrackRunLevels.__table__
+    lo, hi = session.execute(
+        select(func.min(lv.c.chunk), func.max(lv.c.chunk)).where(lv.c.track_id == track_id)
+    ).one()
+    if lo is not None:
+        recompute_aggregate(session, track_id, int(lo), int(hi))
     recompute_all(session, track_id)
     return out

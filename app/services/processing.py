@@ -20,7 +20,7 @@ from engine.track import TrackParams
 from engine.vehicle import VehicleParams
 
 from .integrate import add_run_to_track
-from .profiles import fused_force, insert_profile
+from .profiles import fuse_axles, insert_profile
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,6 @@ def store_result(
         session,
         run.id,
         res.chainage_m,
-        res.level_mm,
         res.front_level_mm,
         res.rear_level_mm,
         res.baseline_mm,
@@ -114,7 +113,7 @@ def store_result(
     run.method = res.method
     run.n_soft_spots = len(res.soft_spots)
     run.processing_s = processed.seconds
-    force = fused_force(front_force, rear_force)
+    force = fuse_axles(front_force, rear_force)
     under_level = force[np.isfinite(res.level_mm) & np.isfinite(force)]
     run.mean_wheel_force_n = float(under_level.mean()) if under_level.size else None
     run.single_pass_valid = None if check is None else valid

@@ -17,6 +17,7 @@ from app.db.models import Run, RunSignals, SoftSpot
 
 from .errors import Conflict, Invalid, NotFound
 from .profiles import PROFILE_COLUMNS, read_profile
+from .retention import require_detail
 from .stiffness import run_stiffness_basis
 from .window import Window
 
@@ -49,6 +50,14 @@ def done_run(session: Session, run_id: int, what: str = "profile") -> Run:
     """The run, processed; :class:`NotFound` or :class:`Conflict` otherwise."""
     run = get_run(session, run_id)
     require_done(run, what)
+    return run
+
+
+def detail_run(session: Session, run_id: int, what: str = "profile") -> Run:
+    """The run, processed and with its detail kept; :class:`NotFound`, :class:`Conflict`
+    or :class:`Gone` (expired under the retention policy) otherwise."""
+    run = done_run(session, run_id, what)
+    require_detail(session, run, what)
     return run
 
 
@@ -102,6 +111,7 @@ def profile_window(
     off = run.offset_m
     lo, hi = window.stored(off)
     cols = read_profile(session, run.id, lo, hi, columns)
+    require_detail(session, run, "profile")  # a sweep may have removed it meanwhile
     chainage = cols["chainage_m"] if off == 0 else [c + off for c in cols["chainage_m"]]
     return {
         "run_id": run.id,
@@ -152,7 +162,9 @@ def soft_spots(session: Session, run: Run) -> list[SpotOnTrack]:
 
 def signals(session: Session, run: Run) -> RunSignals:
     """The display signals stored with a run; :class:`NotFound` when there are none."""
+    require_detail(session, run, "signals")
     sig = session.get(RunSignals, run.id)
     if sig is None:
+        require_detail(session, run, "signals")
         raise NotFound(f"run {run.id} has no stored signals", field="run_id")
     return sig

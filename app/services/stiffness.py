@@ -46,6 +46,7 @@ from engine.track import TrackParams
 
 from .aggregate import CHUNK_POINTS
 from .alignment import GRID_STEP_M
+from .packing import unpack_f4
 
 STIFFNESS_ARRAYS = (
     "geometry_mm",
@@ -102,12 +103,8 @@ class PassLevels:
         return f"{self.kind} {self.id}"
 
 
-def _blob(a: NDArray[np.float64] | None) -> bytes | None:
-    return None if a is None else np.asarray(a, dtype=_DTYPE).tobytes()
-
-
 def _unblob(blob: bytes) -> NDArray[np.float64]:
-    return np.frombuffer(blob, dtype=_DTYPE).astype(np.float64)
+    return unpack_f4(blob)
 
 
 def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[PassLevels]:

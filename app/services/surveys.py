@@ -31,6 +31,7 @@ from .alignment import GRID_STEP_M, MIN_OVERLAP_M, align_to_track, on_track_grid
 from .errors import Invalid, NotFound
 from .integrate import lock_track
 from .logs import sha256_hex
+from .packing import pack_f4
 from .stiffness import recompute_all, recompute_stiffness
 
 SURVEY_COLUMNS = ("chainage_m", "level_mm")
@@ -227,7 +228,7 @@ def _place(
     session.execute(
         insert(SurveyLevels),
         [{"survey_id": survey.id, "chunk": c, "track_id": survey.track_id,
-          "levels": buf32.tobytes()} for c, buf32 in parts.items()],
+          "levels": pack_f4(buf32)} for c, buf32 in parts.items()],
     )  # fmt: skip
     return c_lo, c_hi
 

@@ -15,12 +15,13 @@ from sqlalchemy import delete, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.db.models import ProfilePoint, Run, RunInput, SoftSpot, Vehicle, VehicleVersion
+from app.db.models import Run, RunInput, SoftSpot, Vehicle, VehicleVersion
 from engine.errors import ParameterError
 from engine.vehicle import VehicleParams
 
 from .errors import Conflict, Invalid
 from .integrate import remove_run_from_track
+from .profiles import delete_profile
 
 
 def checked_params(params: dict[str, Any], field: str = "params") -> VehicleParams:
@@ -107,7 +108,7 @@ def reprocess_vehicle_runs(session: Session, vehicle_id: int) -> int:
         run = session.get(Run, run_id)
         assert run is not None
         remove_run_from_track(session, run)
-        session.execute(delete(ProfilePoint).where(ProfilePoint.run_id == run_id))
+        delete_profile(session, run_id)
         session.execute(delete(SoftSpot).where(SoftSpot.run_id == run_id))
     if ids:
         session.execute(

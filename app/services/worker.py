@@ -14,6 +14,7 @@ import logging
 import os
 import socket
 import threading
+import time
 import uuid
 from collections.abc import Callable
 from datetime import timedelta
@@ -39,6 +40,7 @@ from .context import AppContext
 from .loads import loaded_vehicle
 from .logs import unpack_log
 from .processing import Processed, invert, store_result
+from .retention import RetentionPolicy, sweep
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -108,6 +110,8 @@ class Worker:
         self._wake = threading.Event()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
+        self._next_sweep = 0.0  # time.monotonic() of the next retention sweep
+        self._sweep_lock = threading.Lock()
 
     # -- lifecycle -------------------------------------------------------------------------
     def start(self) -> None:
@@ -230,10 +234,31 @@ class Worker:
             return True
         cal_id = self.claim_calibration()
         if cal_id is None:
-            return False
+            return self.sweep_if_due()
         with self.ctx.slots:
             self.calibrate(cal_id)
         return True
+
+    def sweep_if_due(self) -> bool:
+        """Remove expired detail (``app.services.retention``) when the last sweep is
+        ``retention_interval_s`` old; True when it removed something (more may be due).
+        Only one thread of the process sweeps at a time; several processes may (each run is
+        removed once, under its track's lock)."""
+        policy = RetentionPolicy.from_settings(self.ctx.settings)
+        if not policy.active or time.monotonic() < self._next_sweep:
+            return False
+        if not self._sweep_lock.acquire(blocking=False):
+            return False
+        try:
+            result = sweep(self.ctx.db, policy)
+            if result.removed:
+                log.info("retention: detail of %d runs expired, %d logs dropped",
+                         result.expired_runs, result.dropped_logs)  # fmt: skip
+            else:
+                self._next_sweep = time.monotonic() + self.ctx.settings.retention_interval_s
+            return result.removed > 0
+        finally:
+            self._sweep_lock.release()
 
     # -- calibrations ----------------------------------------------------------------------
     def claim_calibration(self) -> int | None:

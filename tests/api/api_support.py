@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sqlite3
+import struct
 import time
 from pathlib import Path
 from typing import Any
@@ -18,10 +19,10 @@ from app.core.config import Settings
 from support.samples import shared_data_dir
 
 TABLES = (
-    "tracks", "vehicles", "runs", "run_inputs", "profile_points", "soft_spots", "run_signals",
+    "tracks", "vehicles", "runs", "run_inputs", "run_profile_blocks", "soft_spots", "run_signals",
     "api_keys",
 )  # fmt: skip
-"""Tables of the first migration (``row_counts`` counts every table there is)."""
+"""Tables a run writes to (``row_counts`` counts every table there is)."""
 
 
 def is_sqlite(settings: Settings) -> bool:
@@ -63,6 +64,15 @@ def row_counts(settings: Settings) -> dict[str, int]:
             }
     finally:
         engine.dispose()
+
+
+def stored_points(settings: Settings) -> dict[int, int]:
+    """Grid points of each run's stored profile (``run_profile_blocks``), read outside the
+    app: the point count every block carries in its header."""
+    counts: dict[int, int] = {}
+    for run_id, data in sql(settings, "SELECT run_id, data FROM run_profile_blocks"):
+        counts[run_id] = counts.get(run_id, 0) + struct.unpack_from("<I", bytes(data), 4)[0]
+    return counts
 
 
 def sql(settings: Settings, statement: str, **params: Any) -> list[tuple[Any, ...]]:

@@ -18,7 +18,7 @@ from typing import Any
 import httpx
 import numpy as np
 
-from api.api_support import sql
+from api.api_support import sql, stored_points
 from api.live_server import LiveServer, live_servers, wait_status
 
 TIME_LIMIT_S = 180.0
@@ -160,7 +160,7 @@ def test_parallel_uploads_readers_and_deletes(settings, synthetic_run) -> None:
         assert {r["id"] for r in listed["data"]} == {*uploaded, resent[0]}
     assert sum(n for code, n in statuses.items() if code >= 500) == 0
     assert statuses[200] > 50  # the readers did read throughout
-    for table in ("profile_points", "soft_spots", "run_inputs", "run_signals"):
+    for table in ("run_profile_blocks", "soft_spots", "run_inputs", "run_signals"):
         leftovers = sql(
             settings,
             f"SELECT count(*) FROM {table} WHERE run_id NOT IN (SELECT id FROM runs)",
@@ -200,5 +200,5 @@ def test_two_app_processes_process_each_run_exactly_once(settings) -> None:
     assert all(s.claims() for s in servers), [s.claims() for s in servers]
     attempts = dict(sql(settings, "SELECT id, attempts FROM runs"))
     assert attempts == {rid: 1 for rid in ids}
-    rows = dict(sql(settings, "SELECT run_id, count(*) FROM profile_points GROUP BY run_id"))
+    rows = stored_points(settings)
     assert rows == profile_n

@@ -16,7 +16,7 @@ import httpx
 import numpy as np
 import pytest
 
-from api.api_support import row_counts, sql
+from api.api_support import row_counts, sql, stored_points
 from api.live_server import LiveServer, wait_status
 from engine.logio import read_run_csv
 from engine.pipeline import process_run
@@ -91,8 +91,9 @@ def _stored(settings, run_id: int) -> dict[str, Any]:
     )
     count = {
         table: sql(settings, f"SELECT count(*) FROM {table} WHERE run_id=:id", id=run_id)[0][0]
-        for table in ("profile_points", "soft_spots", "run_inputs")
+        for table in ("soft_spots", "run_inputs")
     }
+    count["profile_points"] = stored_points(settings).get(run_id, 0)
     return {"status": status, "attempts": attempts, "error": error, **count}
 
 

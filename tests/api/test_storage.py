@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import sqlite3
 
+import numpy as np
 import pytest
 from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 
-from api.api_support import db_file, is_sqlite, row_counts, sql, upload
+from api.api_support import db_file, is_sqlite, row_counts, sql, stored_points, upload
 from app.core.config import Settings
 from app.db.migrate import alembic_config, current_revision, upgrade
-from app.db.models import ProfilePoint
+from app.db.models import Run, RunProfileBlock
 from app.db.session import Database
 
 
@@ -74,38 +75,63 @@ def test_sqlite_runs_in_wal_mode_with_foreign_keys(client, settings) -> None:
 
 
 @pytest.mark.sqlite_only
-def test_profile_is_stored_per_grid_point_and_read_by_key(client, settings, synthetic_run):
-    """One row per chainage grid point; a chainage window is a primary-key range search."""
+def test_profile_is_stored_in_blocks_and_read_by_key(client, settings, synthetic_run):
+    """A profile is a few compressed 1 km blocks; a chainage window is a primary-key range
+    search over them, in block order without sorting."""
     r = upload(client, synthetic_run["csv"], track="T",
                start_chainage_m=synthetic_run["start_chainage_m"])  # fmt: skip
     rid = r.json()["id"]
-    n = client.get(f"/api/v1/runs/{rid}/profile").json()["n"]
-    assert row_counts(settings)["profile_points"] == n
+    prof = client.get(f"/api/v1/runs/{rid}/profile").json()
+    assert stored_points(settings) == {rid: prof["n"]}
+    span_km = (prof["chainage_m"][-1] - prof["chainage_m"][0]) / 1000
+    assert row_counts(settings)["run_profile_blocks"] <= span_km + 2
     ctx = client.app.state.ctx
+    t = RunProfileBlock.__table__
     stmt = (
-        select(ProfilePoint.chainage_m, ProfilePoint.level_mm)
-        .where(ProfilePoint.run_id == rid, ProfilePoint.chainage_m.between(50.0, 60.0))
-        .order_by(ProfilePoint.chainage_m)
+        select(t.c.first, t.c.data)
+        .where(t.c.run_id == rid, t.c.block >= 0, t.c.block <= 2)
+        .order_by(t.c.block)
     )
-    sql = str(stmt.compile(ctx.db.engine, compile_kwargs={"literal_binds": True}))
+    sql_text = str(stmt.compile(ctx.db.engine, compile_kwargs={"literal_binds": True}))
     con = sqlite3.connect(db_file(settings))
-    plan = " ".join(str(row[-1]) for row in con.execute(f"EXPLAIN QUERY PLAN {sql}"))
+    plan = " ".join(str(row[-1]) for row in con.execute(f"EXPLAIN QUERY PLAN {sql_text}"))
     con.close()
-    assert "USING PRIMARY KEY" in plan and "chainage_m>" in plan, plan
-    assert "TEMP B-TREE" not in plan  # rows come in chainage order without sorting
+    # the (run_id, block) key: SQLite names it PRIMARY KEY or its automatic index
+    assert "run_id=? AND block>" in plan and "SCAN" not in plan, plan
+    assert "TEMP B-TREE" not in plan  # blocks come in chainage order without sorting
 
 
-def test_nan_levels_are_stored_as_null(client, settings, synthetic_run) -> None:
-    """Where an axle did not pass, its level is missing (null), never NaN in the JSON."""
+def test_stored_profile_keeps_levels_to_the_stated_resolution(client, settings, synthetic_run):
+    """What is served is the engine's profile rounded to 0.0001 mm (levels) and 1 N (forces);
+    where an axle did not pass its level is missing (null), never NaN in the JSON."""
+    from app.services.logs import parse_csv
+    from app.services.processing import invert
+    from engine.track import TrackParams
+    from engine.vehicle import VehicleParams
+
     rid = upload(client, synthetic_run["csv"], track="T",
                  start_chainage_m=synthetic_run["start_chainage_m"]).json()["id"]  # fmt: skip
     prof = client.get(f"/api/v1/runs/{rid}/profile", params={"include": "all"}).json()
     assert None in prof["front_level_mm"] or None in prof["rear_level_mm"]
-    nulls = sql(
-        settings,
-        "SELECT count(*) FROM profile_points WHERE front_level_mm IS NULL OR rear_level_mm IS NULL",
-    )[0][0]
-    assert nulls > 0
+    ctx = client.app.state.ctx
+    with ctx.db.session() as s:
+        run = s.get(Run, rid)
+        vp = VehicleParams.from_dict(run.vehicle.params_dict())
+        tp = TrackParams.from_dict(run.track.params_dict())
+    res = invert(
+        parse_csv(synthetic_run["csv"], {}), start_chainage_m=synthetic_run["start_chainage_m"],
+        direction="increasing", vehicle=vp, track=tp,
+    ).result  # fmt: skip
+    assert prof["n"] == res.chainage_m.size
+    np.testing.assert_array_equal(np.asarray(prof["chainage_m"]), res.chainage_m)
+    tolerance = {"front_force_n": 0.5, "rear_force_n": 0.5}  # N; levels 0.00005 mm
+    for name in ("level_mm", "front_level_mm", "rear_level_mm", "baseline_mm", *tolerance):
+        tol = tolerance.get(name, 5e-5)
+        got = np.array([np.nan if v is None else v for v in prof[name]])
+        want = getattr(res, name)
+        assert np.array_equal(np.isnan(got), np.isnan(want)), name
+        ok = np.isfinite(want)
+        assert np.abs(got[ok] - want[ok]).max() <= tol * (1 + 1e-9), name
 
 
 def test_database_location_from_environment(monkeypatch, tmp_path) -> None:

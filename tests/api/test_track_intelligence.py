@@ -265,7 +265,9 @@ def test_aggregated_profile_is_the_median_of_the_aligned_runs(
     median = np.median(stack, axis=0)
     assert np.allclose(agg["level_mm"], median, atol=1e-4)
     mad = 1.4826 * np.median(np.abs(stack - median), axis=0)
-    assert np.allclose(agg["spread_mm"], mad, atol=1e-4)
+    # served levels are rounded to 0.0001 mm (app.services.packing): the MAD of five of
+    # them moves by up to ~1.5x that
+    assert np.allclose(agg["spread_mm"], mad, atol=2e-4)
     err0 = steady_runs[0].error_m
     for zone in STEADY_ZONES:
         lo, hi = aligned_truth(zone, err0)

@@ -10,7 +10,7 @@ from datetime import UTC, datetime
 import pytest
 from starlette.testclient import TestClient
 
-from api.api_support import assert_zones_match, row_counts, sql, upload, wait_done
+from api.api_support import assert_zones_match, row_counts, sql, stored_points, upload, wait_done
 from app.services.worker import Worker
 
 
@@ -86,7 +86,7 @@ def test_run_interrupted_by_a_crash_is_resumed_at_start(start_app, settings, syn
     restarted = start_app(inline_max_samples=0, lease_s=3600)
     done = wait_done(restarted, run["id"])
     assert done["status"] == "done", done
-    assert row_counts(settings)["profile_points"] > 0
+    assert sum(stored_points(settings).values()) > 0
     assert sql(settings, "SELECT attempts FROM runs WHERE id=:id", id=run["id"]) == [(2,)]
 
 
@@ -161,7 +161,7 @@ def test_engine_error_in_the_background_marks_the_run_failed(
     assert failed["error"]["message"] == "the profile band has no energy (test)"
     assert c.get(f"/api/v1/runs/{failed['id']}/profile").status_code == 409
     counts = row_counts(settings)
-    assert counts["run_inputs"] == counts["profile_points"] == counts["soft_spots"] == 0
+    assert counts["run_inputs"] == counts["run_profile_blocks"] == counts["soft_spots"] == 0
     monkeypatch.undo()
     again = _queue(c, synthetic_run)
     assert again["id"] != failed["id"]
@@ -225,7 +225,7 @@ def test_run_deleted_while_processing_leaves_nothing(start_app, settings, synthe
     w = Worker(c.app.state.ctx)
     assert w.run_once() is True
     counts = row_counts(settings)
-    assert counts["runs"] == counts["profile_points"] == counts["soft_spots"] == 0
+    assert counts["runs"] == counts["run_profile_blocks"] == counts["soft_spots"] == 0
     assert counts["run_inputs"] == counts["run_signals"] == 0
 
 

@@ -136,7 +136,7 @@ def fill_big_track(
                     level -= d * np.exp(-0.5 * ((grid - p) / (w / 4)) ** 2)
             force = np.full_like(grid, 58_000.0)  # a steady wheel force, N
             insert_profile(
-                s, run.id, grid, level, level + 0.01, level - 0.01, np.zeros_like(grid),
+                s, run.id, grid, level + 0.01, level - 0.01, np.zeros_like(grid),
                 force, force,
             )  # fmt: skip
         s.commit()

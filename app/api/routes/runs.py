@@ -346,7 +346,7 @@ def read_run_profile(
     """
     names = [n.strip() for n in (include or "").split(",") if n.strip()]
     columns = ("chainage_m", "level_mm", *runs.included_columns(names))
-    run = runs.done_run(session, run_id, "profile")
+    run = runs.detail_run(session, run_id, "profile")
     if format == "csv":
         csv = exports.run_profile_csv(ctx, run, window, columns)
         return csv_answer(csv, f"run-{run_id}-profile.csv")
