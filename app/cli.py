@@ -11,6 +11,10 @@
     check-aggregates [--fix] [TRACK ...]
                          check that each track's aggregated profile is what its runs make
                          (exit 1 when one differs; --fix rebuilds those that differ)
+    worker               process queued runs and calibrations and sweep expired detail, without
+                         serving HTTP (``TRACKPROFILE_WORKERS`` threads; stops on SIGTERM/SIGINT):
+                         more of these, on any host sharing the database, process more runs
+    sweep                remove the detail the retention policy says has expired, now
 
 The database is the service's: ``DATABASE_URL`` or ``TRACKPROFILE_DATA_DIR``.
 """
@@ -166,6 +170,44 @@ def cmd_check_aggregates(ns: argparse.Namespace) -> int:
     return 1 if bad and not ns.fix else 0
 
 
+def cmd_worker(_ns: argparse.Namespace) -> int:
+    import signal
+    import threading
+
+    from app.services.worker import Worker
+
+    ctx = AppContext(settings=get_settings(), db=_db())
+    worker = Worker(ctx)
+    stop = threading.Event()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: stop.set())
+    worker.start()
+    print(f"worker {worker.id}: {ctx.settings.workers} thread(s)", flush=True)
+    while not stop.wait(1.0):
+        if not worker.alive:
+            print("a worker thread died", file=sys.stderr)
+            return 1
+    worker.stop()
+    ctx.db.dispose()
+    return 0
+
+
+def cmd_sweep(_ns: argparse.Namespace) -> int:
+    from app.services.retention import RetentionPolicy, sweep
+
+    settings = get_settings()
+    db = _db()
+    policy = RetentionPolicy.from_settings(settings)
+    expired = dropped = 0
+    while True:
+        result = sweep(db, policy)
+        expired, dropped = expired + result.expired_runs, dropped + result.dropped_logs
+        if not result.removed:
+            break
+    print(f"detail of {expired} runs expired, {dropped} logs dropped")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m app", description="TrackProfile service admin")
     sub = p.add_subparsers(dest="command", required=True)
@@ -193,6 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--fix", action="store_true", help="rebuild the aggregates that differ")
     k.add_argument("tracks", nargs="*", metavar="TRACK", help="track names or ids (default all)")
     k.set_defaults(fn=cmd_check_aggregates)
+    sub.add_parser("worker", help="process queued runs (no HTTP)").set_defaults(fn=cmd_worker)
+    sub.add_parser("sweep", help="remove expired run detail now").set_defaults(fn=cmd_sweep)
     return p
 
 

@@ -255,10 +255,13 @@ class Run(Base):
 
 
 class RunInput(Base):
-    """The parsed log of a run waiting for the worker (deleted once the run is done or failed).
+    """The parsed log of a run: what the worker inverts, reprocessing and calibration read.
 
-    ``data`` is an uncompressed ``.npz`` of the canonical SI columns; keeping it in the database
-    (not on a local disk) lets any app process sharing the database pick the run up.
+    ``data`` holds the canonical SI columns, float64, losslessly compressed
+    (``app.services.logs.pack_log``); keeping it in the database (not on a local disk) lets any
+    process sharing the database pick the run up. Deleted when the run fails; for processed
+    runs kept under the retention policy (``app.services.retention``: the newest runs of each
+    vehicle, and never longer than the run's detail).
     """
 
     __tablename__ = "run_inputs"
@@ -303,8 +306,9 @@ class SoftSpot(Base):
 class RunSignals(Base):
     """The run's raw signals against time, decimated for display (min/max envelope).
 
-    ``data`` holds ``time_s`` (from the first sample), ``accel_z_mps2``, ``pitch_rate_radps``
-    and ``speed_mps`` as equal-length lists of at most a few thousand points.
+    ``packed`` holds ``time_s`` (from the first sample), ``accel_z_mps2``, ``pitch_rate_radps``
+    and ``speed_mps``, equal length, at most a few thousand points, packed by
+    ``app.services.signals.pack_signals``. Detail: removed when the run's detail expires.
     """
 
     __tablename__ = "run_signals"
@@ -312,7 +316,7 @@ class RunSignals(Base):
     run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
     n_points: Mapped[int] = mapped_column(Integer)
     decimated: Mapped[bool] = mapped_column(Boolean)
-    data: Mapped[dict[str, Any]] = mapped_column(JSON, deferred=True)
+    packed: Mapped[bytes | None] = mapped_column(LargeBinary, deferred=True)
 
 
 class ApiKey(Base):

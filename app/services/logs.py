@@ -6,16 +6,14 @@ Units: the :class:`engine.runlog.RunLog` is canonical SI (s, m/s², rad/s, m/s, 
 from __future__ import annotations
 
 import hashlib
-import struct
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from app.services.errors import Invalid, TooLarge
-from app.services.packing import pack_floats, unpack_floats
+from app.services.packing import pack_named, unpack_named
 from engine.errors import InputTooLarge, LogFormatError, ParameterError
 from engine.logio import MAX_DECOMPRESSED_BYTES, CsvOptions, preview_csv, read_run_csv
 from engine.runlog import COLUMNS as RUNLOG_COLUMNS
@@ -110,36 +108,16 @@ def hash_columns(log: RunLog) -> str:
     return h.hexdigest()
 
 
-_LOG_MAGIC = b"TPL1"
-
-
 def pack_log(log: RunLog) -> bytes:
     """The log as stored for the worker, calibration and reprocessing: each canonical SI
     column losslessly compressed (float64, ``app.services.packing``), ~45 % of its size
     (the sensor channels are noise down to their last digits and compress least)."""
-    parts = [_LOG_MAGIC]
-    for name in LOG_COLUMNS:
-        arr = getattr(log, name)
-        blob = b"" if arr is None else pack_floats(arr, "f8")
-        parts.append(struct.pack("<I", len(blob)))
-        parts.append(blob)
-    return b"".join(parts)
+    return pack_named({name: getattr(log, name) for name in LOG_COLUMNS}, LOG_COLUMNS, "f8")
 
 
 def unpack_log(data: bytes) -> RunLog:
     """Inverse of :func:`pack_log`."""
-    if data[:4] != _LOG_MAGIC:
-        raise ValueError("not a stored run log")
-    view = memoryview(data)
-    at = 4
-    arrays: dict[str, NDArray[np.float64]] = {}
-    for name in LOG_COLUMNS:
-        (size,) = struct.unpack_from("<I", view, at)
-        at += 4
-        if size:
-            arrays[name] = unpack_floats(view[at : at + size])
-        at += size
-    return RunLog(**arrays)
+    return RunLog(**unpack_named(data, LOG_COLUMNS))
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ float32 mantissas are noise to a compressor.
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pyarrow as pa
@@ -126,3 +126,37 @@ def pack_f4(values: NDArray[np.floating]) -> bytes:
 
 
 unpack_f4 = unpack_floats
+
+
+_NAMED_MAGIC = b"TPN1"
+
+
+def pack_named(
+    columns: Mapping[str, NDArray[np.floating] | None], names: Sequence[str], dtype: str = "f8"
+) -> bytes:
+    """Named columns (``names`` in order; None = absent) packed one after the other with
+    :func:`pack_floats` in ``dtype``: a run's log (float64, bit for bit) or its display
+    signals."""
+    parts = [_NAMED_MAGIC]
+    for name in names:
+        arr = columns.get(name)
+        blob = b"" if arr is None else pack_floats(arr, dtype)
+        parts.append(struct.pack("<I", len(blob)))
+        parts.append(blob)
+    return b"".join(parts)
+
+
+def unpack_named(blob: bytes, names: Sequence[str]) -> dict[str, NDArray[np.float64]]:
+    """Inverse of :func:`pack_named`: the columns present, as float64."""
+    if bytes(blob[:4]) != _NAMED_MAGIC:
+        raise ValueError("not packed named columns")
+    view = memoryview(blob)
+    at = 4
+    out: dict[str, NDArray[np.float64]] = {}
+    for name in names:
+        (size,) = struct.unpack_from("<I", view, at)
+        at += 4
+        if size:
+            out[name] = unpack_floats(view[at : at + size])
+        at += size
+    return out

@@ -18,6 +18,7 @@ from app.db.models import Run, RunSignals, SoftSpot
 from .errors import Conflict, Invalid, NotFound
 from .profiles import PROFILE_COLUMNS, read_profile
 from .retention import require_detail
+from .signals import unpack_signals
 from .stiffness import run_stiffness_basis
 from .window import Window
 
@@ -158,6 +159,11 @@ def soft_spots(session: Session, run: Run) -> list[SpotOnTrack]:
         )  # fmt: skip
         for s in rows
     ]
+
+
+def signal_data(sig: RunSignals) -> dict[str, list[float | None]]:
+    """A run's stored display signals by name (equal-length lists, None = no value)."""
+    return unpack_signals(sig.packed) if sig.packed is not None else {}
 
 
 def signals(session: Session, run: Run) -> RunSignals:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from typing import Any
 
 import numpy as np
@@ -10,10 +11,34 @@ from numpy.typing import NDArray
 from engine.decimate import minmax_indices
 from engine.runlog import RunLog
 
+from .packing import pack_named, unpack_named
 from .profiles import nullable
 
 MAX_SIGNAL_POINTS = 5000
 """Most points kept per signal."""
+
+SIGNAL_NAMES = ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps")
+"""What is stored, in order: time (float64) and the signals (float32, plenty for display)."""
+
+
+def pack_signals(data: dict[str, list[float | None]]) -> bytes:
+    """Display signals as stored (``RunSignals.packed``): time as float64, the signals as
+    float32, compressed (~10x smaller than JSON numbers); None stays missing."""
+    arrays = {
+        k: np.array([np.nan if v is None else v for v in data[k]], dtype=np.float64)
+        for k in SIGNAL_NAMES
+    }
+    return pack_named({"time_s": arrays["time_s"]}, ("time_s",), "f8") + pack_named(
+        arrays, SIGNAL_NAMES[1:], "f4"
+    )
+
+
+def unpack_signals(blob: bytes) -> dict[str, list[float | None]]:
+    """Inverse of :func:`pack_signals`: equal-length lists, None where there is no value."""
+    (size,) = struct.unpack_from("<I", blob, 4)
+    split = 8 + size
+    arrays = unpack_named(blob[:split], ("time_s",)) | unpack_named(blob[split:], SIGNAL_NAMES[1:])
+    return {k: nullable(arrays[k]) for k in SIGNAL_NAMES}
 
 
 def minmax_envelope(

@@ -38,7 +38,7 @@ from .errors import Conflict, Invalid
 from .loads import declared_wheel_load, loaded_vehicle
 from .logs import pack_log, summarize
 from .processing import Processed, invert, store_result
-from .signals import log_signals
+from .signals import log_signals, pack_signals
 from .vehicles import create_vehicle
 
 DEFAULT_VEHICLE = "table1"
@@ -357,7 +357,10 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         s.flush()
         s.add(
             RunSignals(
-                run_id=run.id, n_points=len(signals["time_s"]), decimated=decimated, data=signals
+                run_id=run.id,
+                n_points=len(signals["time_s"]),
+                decimated=decimated,
+                packed=pack_signals(signals),
             )
         )
         s.add(RunInput(run_id=run.id, data=packed))

@@ -8,6 +8,8 @@
   (``app.services.packing.pack_f4``).
 - ``run_inputs``: each stored log re-packed from an uncompressed ``.npz`` to compressed
   float64 columns, bit for bit (``app.services.logs.pack_log``).
+- ``run_signals``: the display signals packed (``packed``: time float64, signals float32,
+  compressed; ``app.services.signals.pack_signals``) instead of JSON lists (``data``).
 - ``runs.detail_expired_at``: when retention removed the run's detail (NULL: kept).
 
 The data move uses the service's own codecs, so what it writes is exactly what the service
@@ -114,6 +116,20 @@ def _repack_logs(conn: sa.Connection) -> None:
         )
 
 
+def _pack_signals(conn: sa.Connection) -> None:
+    from app.services.signals import pack_signals
+
+    for run_id in conn.execute(sa.text("SELECT run_id FROM run_signals")).scalars().all():
+        data = conn.execute(
+            sa.select(sa.column("data", sa.JSON)).select_from(sa.table("run_signals"))
+            .where(sa.column("run_id") == run_id)
+        ).scalar_one()  # fmt: skip
+        conn.execute(
+            sa.text("UPDATE run_signals SET packed = :p WHERE run_id = :r"),
+            {"p": pack_signals(data), "r": run_id},
+        )
+
+
 def upgrade() -> None:
     conn = op.get_bind()
     op.create_table(
@@ -135,6 +151,10 @@ def upgrade() -> None:
     _pack_chunks(conn, "track_run_levels", "run_id", ("levels", "force_n"))
     _pack_chunks(conn, "survey_levels", "survey_id", ("levels",))
     _repack_logs(conn)
+    op.add_column("run_signals", sa.Column("packed", sa.LargeBinary(), nullable=True))
+    _pack_signals(conn)
+    # a plain DROP COLUMN (SQLite >= 3.35), see downgrade()
+    op.execute("ALTER TABLE run_signals DROP COLUMN data")
 
 
 def _unpack_chunks(conn: sa.Connection, table: str, key: str, columns: Sequence[str]) -> None:
@@ -185,6 +205,16 @@ def downgrade() -> None:
     # A plain DROP COLUMN (SQLite >= 3.35): a batch rebuild of ``runs`` would drop the table
     # and, with foreign keys on, cascade the delete to every run's rows.
     op.execute("ALTER TABLE runs DROP COLUMN detail_expired_at")
+    from app.services.signals import unpack_signals
+
+    op.add_column("run_signals", sa.Column("data", sa.JSON(), nullable=True))
+    signals = sa.table("run_signals", sa.column("run_id"), sa.column("data", sa.JSON))
+    for run_id, packed in conn.execute(sa.text("SELECT run_id, packed FROM run_signals")).all():
+        conn.execute(
+            signals.update().where(signals.c.run_id == run_id),
+            {"data": unpack_signals(bytes(packed))},
+        )
+    op.execute("ALTER TABLE run_signals DROP COLUMN packed")
     _unpack_chunks(conn, "track_run_levels", "run_id", ("levels", "force_n"))
     _unpack_chunks(conn, "survey_levels", "survey_id", ("levels",))
     for run_id in conn.execute(sa.text("SELECT run_id FROM run_inputs")).scalars().all():

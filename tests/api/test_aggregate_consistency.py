@@ -71,7 +71,8 @@ def test_the_command_finds_and_fixes_a_stale_aggregate(client, settings, synthet
 def test_a_delete_waits_for_a_store_in_progress(start_app, settings, synthetic_run) -> None:
     """A store of run R (its levels and the aggregate written, not yet committed) is held
     open while R is deleted: the delete waits for it, then takes R out of the aggregate."""
-    client = start_app()
+    # no worker anywhere: the queued run R is stored by this test alone
+    client = start_app(start_worker=False)
     done_id, _ = _two_runs(client, synthetic_run)
     queued = start_app(inline_max_samples=0, start_worker=False)
     r = upload(queued, synthetic_run["csv"], track="L", start_chainage_m=12.6)

@@ -375,7 +375,7 @@ def read_run_signals(session: SessionDep, run_id: int) -> SignalsPublic:
     """The raw signals against time (decimated to at most 5000 points, min/max envelope)."""
     run = runs.get_run(session, run_id)
     sig = runs.signals(session, run)
-    d = sig.data
+    d = runs.signal_data(sig)
     return SignalsPublic(
         run_id=run_id,
         n_samples=run.n_samples,
