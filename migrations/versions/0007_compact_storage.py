@@ -16,7 +16,7 @@ The data move uses the service's own codecs, so what it writes is exactly what t
 writes for a new run. Downgrade moves the profiles back (to the stored resolution).
 
 Revision ID: 0007
-Revises: 0005
+Revises: 0006
 Create Date: 2026-12-01
 """
 
@@ -30,7 +30,7 @@ from alembic import op
 from app.db.base import UTCDateTime
 
 revision: str = "0007"
-down_revision: str | Sequence[str] | None = "0005"
+down_revision: str | Sequence[str] | None = "0006"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
