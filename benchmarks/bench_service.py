@@ -174,6 +174,11 @@ def main() -> int:
                 t = time.perf_counter()
                 cols = read_profile(s, run["id"], float(a), float(a) + 2000.0)
                 db_ms.append(1e3 * (time.perf_counter() - t))
+        with db.engine.connect() as conn:
+            conn.exec_driver_sql("PRAGMA wal_checkpoint(TRUNCATE)")
+            tables = dict(
+                conn.exec_driver_sql("SELECT name, SUM(pgsize) FROM dbstat GROUP BY name").all()
+            )
         db.dispose()
         db_mb = sum(p.stat().st_size for p in Path(data_dir).glob("trackprofile.db*")) / 1e6
 
@@ -190,6 +195,19 @@ def main() -> int:
         f"upload + parse + checks + queue; engine {run['processing_s']:.2f} s) (target <= 15 s)",
         file=out,
     )
+    km = (hi - lo) / 1000
+    log_b = sum(b for n, b in tables.items() if "run_inputs" in n)
+    rest = sum(b for n, b in tables.items() if "run_inputs" not in n)
+    print(
+        f"database after a checkpoint: {sum(tables.values()) / 1e6:.1f} MB: the stored log "
+        f"{log_b / 1e6:.1f} MB ({log_b / 1e3 / km:.0f} kB per run-km), everything else "
+        f"{rest / 1e6:.1f} MB ({rest / 1e3 / km:.1f} kB per run-km: "
+        + ", ".join(f"{n} {b / 1e3 / km:.1f}"
+                    for n, b in sorted(tables.items(), key=lambda x: -x[1])
+                    if "run_inputs" not in n and b / km > 100)
+        + ")",
+        file=out,
+    )  # fmt: skip
     print(
         f"server resident memory: idle {rss_idle / 1e6:.0f} MB, peak {mem.peak / 1e6:.0f} MB "
         "(target <= 1500 MB)",
