@@ -177,8 +177,8 @@ def reads(client, track_id: int, run_ids: list[int], line_m: float,
         assert r.status_code == 200, r.text[:200]
 
     return {
-        "run window": timed(run_window), "aggregate window": timed(agg_window),
-        "register": timed(register, 5), "alerts": timed(alerts, 5),
+        "run window": timed(run_window, 10), "aggregate window": timed(agg_window, 10),
+        "register": timed(register, 3), "alerts": timed(alerts, 3),
     }  # fmt: skip
 
 

@@ -11,7 +11,7 @@ from datetime import datetime
 from typing import Any
 
 from sqlalchemy import func, select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, undefer
 
 from app.db.models import Run, RunSignals, SoftSpot
 
@@ -169,7 +169,11 @@ def signal_data(sig: RunSignals) -> dict[str, list[float | None]]:
 def signals(session: Session, run: Run) -> RunSignals:
     """The display signals stored with a run; :class:`NotFound` when there are none."""
     require_detail(session, run, "signals")
-    sig = session.get(RunSignals, run.id)
+    # one statement for the row and its (deferred) data: a sweep committing between two
+    # would leave the row without its data
+    sig = session.scalar(
+        select(RunSignals).options(undefer(RunSignals.packed)).where(RunSignals.run_id == run.id)
+    )
     if sig is None:
         require_detail(session, run, "signals")
         raise NotFound(f"run {run.id} has no stored signals", field="run_id")
