@@ -6,6 +6,7 @@ Swagger UI from ``swagger-ui-bundle``, so the service works without internet.
 
 from __future__ import annotations
 
+import functools
 import gzip
 import hashlib
 import importlib.resources
@@ -96,6 +97,16 @@ DOCS_BACK_LINK = (
 )
 
 
+@functools.cache
+def plotly_bundle() -> PlotlyBundle:
+    """The process's one plotly.js bundle (every app of the process shares its compressed
+    bytes), compressed in a background thread from the first call on, so that the first chart
+    does not wait for it."""
+    bundle = PlotlyBundle(plotly_js_path())
+    threading.Thread(target=lambda: bundle.gzipped, name="plotly-gzip", daemon=True).start()
+    return bundle
+
+
 def swagger_ui_dir() -> Path:
     """Swagger UI's files shipped by the ``swagger-ui-bundle`` package."""
     import swagger_ui_bundle
@@ -107,9 +118,7 @@ def install_web(app: FastAPI, settings: Settings) -> None:
     """Routes for ``/``, ``/static``, plotly.js (``/static/vendor/plotly[-VERSION].min.js``)
     and ``/docs``."""
     static_dir = settings.static_dir
-    bundle = PlotlyBundle(plotly_js_path())
-    # Compressed in the background at start-up, so that the first chart does not wait for it.
-    threading.Thread(target=lambda: bundle.gzipped, name="plotly-gzip", daemon=True).start()
+    bundle = plotly_bundle()
 
     @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     def dashboard() -> HTMLResponse:
