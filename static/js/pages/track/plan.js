@@ -74,7 +74,9 @@ export function planCard(enc) {
         // line's vertex can be the nearest point), the defect within 20 m of that chainage.
         const near = (c) => zonesOf().find((z) => c >= z.start_m - 20 && c <= z.end_m + 20);
         const zone = p.curveNumber === 1 ? zonesOf().find((z) => z.id === p.customdata) : near(p.customdata);
-        if (zone) onZone(zone);
+        if (!zone) return;
+        onZone(zone);
+        info.textContent = `Defect ${zone.id} (${fmt(zone.start_m, 1)}–${fmt(zone.end_m, 1)} m) is open in the register below.`;
       });
     });
   }
