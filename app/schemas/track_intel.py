@@ -96,9 +96,11 @@ class DefectPublic(BaseModel):
 
 
 def _limit(default: float | None, unit: str, what: str) -> float | None:
+    # a stiffness loss is a share of the nominal stiffness: at most all of it
     return Field(
         default=default,
         gt=0,
+        le=100.0 if unit == "%" else None,
         allow_inf_nan=False,
         description=f"{what}, {unit} (null: not used; default {default})",
     )

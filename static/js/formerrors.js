@@ -112,10 +112,13 @@ export function showServerErrors(form, err, rename = {}) {
     if (!control) continue;
     const label = labelOf(control);
     let words = text.replace(/^Value error, /, "").replace(/^Input should be/, "must be");
-    // The API's own names of the fields become the labels the user sees.
-    for (const [api, formName] of Object.entries({ ...rename, [name]: name })) {
+    // The API's own names of the fields (this one and any other of the form the message
+    // mentions) become the labels the user sees; longest names first (a name inside another).
+    const names = new Map(Object.entries(rename));
+    for (const c of form.querySelectorAll("[name]")) if (c.name && !names.has(c.name)) names.set(c.name, c.name);
+    for (const [api, formName] of [...names].sort((a, b) => b[0].length - a[0].length)) {
       const c = form.querySelector(`[name="${CSS.escape(formName)}"]`);
-      if (c) words = words.split(api).join(labelOf(c).toLowerCase());
+      if (c && words.includes(api)) words = words.split(api).join(labelOf(c).toLowerCase());
     }
     if (words.toLowerCase().startsWith(label.toLowerCase())) words = words.slice(label.length).trim();
     showFieldError(control, words);

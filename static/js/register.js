@@ -3,7 +3,8 @@
 // from the API is shown through text nodes (h(), textContent); nothing is parsed as HTML.
 
 import { h, clear, append, announce, fmt, fmtDay, field, messageBox } from "./dom.js";
-import { ApiError, apiFetch } from "./api.js";
+import { ApiError, apiFetch, apiSchema } from "./api.js";
+import { applyBounds, clearFieldErrors, numberProblem, showFieldError, showServerErrors } from "./formerrors.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, TERMS } from "./plots.js";
 
 export const LEVEL_LABELS = { immediate: "Immediate action", intervention: "Intervention", alert: "Alert" };
@@ -196,7 +197,7 @@ const LIMIT_FIELDS = [
 export function limitsCard(enc, onSaved) {
   const inputs = {};
   const fields = LIMIT_FIELDS.map((f) => {
-    const input = h("input", { type: "number", id: `limit-${f.key}`, name: f.key, min: "0", step: "any", inputmode: "decimal" });
+    const input = h("input", { type: "number", id: `limit-${f.key}`, name: f.key, step: "any", inputmode: "decimal" });
     inputs[f.key] = input;
     return field(f.label, input);
   });
@@ -218,6 +219,11 @@ export function limitsCard(enc, onSaved) {
     }
     state.textContent = lim.is_default ? "The default limits (this track has none of its own yet)." : `This track's limits, set ${fmtDay(lim.updated_at)}.`;
   };
+  // the service's own bounds (e.g. > 0, loss at most 100 %), from its schema
+  apiSchema().then((spec) => {
+    const props = spec.components.schemas.LimitsUpdate.properties;
+    for (const f of LIMIT_FIELDS) applyBounds(inputs[f.key], props[f.key]);
+  }).catch(() => {});
   const load = async () => {
     try {
       show(await apiFetch(`/api/v1/tracks/${enc}/limits`));
@@ -227,12 +233,23 @@ export function limitsCard(enc, onSaved) {
   };
   form.addEventListener("submit", async (e) => {
     e.preventDefault();
+    clearFieldErrors(form);
+    msg.hide();
     const body = {};
+    const bad = [];
     for (const f of LIMIT_FIELDS) {
       const raw = inputs[f.key].value.trim();
-      inputs[f.key].removeAttribute("aria-invalid");
+      const problem = numberProblem(inputs[f.key]);
+      if (problem) {
+        showFieldError(inputs[f.key], problem);
+        bad.push(inputs[f.key]);
+      }
       body[f.key] = raw === "" ? null : Number(raw);
-      if (raw !== "" && !Number.isFinite(body[f.key])) body[f.key] = raw; // the service names it
+    }
+    if (bad.length) {
+      msg.show("Not saved: correct the marked values.", "error");
+      bad[0].focus();
+      return;
     }
     save.disabled = true;
     try {
@@ -246,10 +263,9 @@ export function limitsCard(enc, onSaved) {
       announce("Limits saved.");
       await onSaved();
     } catch (err) {
-      const fieldsBad = err instanceof ApiError ? err.fields : [];
-      for (const name of fieldsBad) if (inputs[name]) inputs[name].setAttribute("aria-invalid", "true");
-      msg.show(`Not saved: ${err.message}`, "error");
-      if (fieldsBad.length && inputs[fieldsBad[0]]) inputs[fieldsBad[0]].focus();
+      const marked = err instanceof ApiError ? showServerErrors(form, err) : [];
+      msg.show(marked.length ? "Not saved: correct the marked values." : `Not saved: ${err.message}`, "error");
+      if (marked.length) marked[0].focus();
     } finally {
       save.disabled = false;
     }

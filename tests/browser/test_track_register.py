@@ -123,9 +123,25 @@ def test_limits_form_names_a_refused_field_and_re_ranks_the_register(
     page.fill("#limit-intervention_depth_mm", "0.2")
     page.click("#limits-save")
     page.wait_for_selector("#limits-message.error")
-    assert "intervention_depth_mm" in page.locator("#limits-message").inner_text()
+    # the refusal sits next to the field, in the form's words (labels, not API names)
+    error = page.locator("#limit-intervention_depth_mm-error").inner_text()
+    assert error.startswith("Intervention depth (mm)") and "alert depth (mm)" in error, error
+    assert "_mm" not in error and "_mm" not in page.locator("#limits-message").inner_text()
     invalid = page.get_attribute("#limit-intervention_depth_mm", "aria-invalid")
     assert invalid == "true"
+    page.fill("#limit-intervention_depth_mm", "")
+
+    # the service's bounds are the form's: checked before anything is sent
+    puts: list[str] = []
+    page.on("request", lambda r: puts.append(r.url) if r.method == "PUT" else None)
+    page.fill("#limit-alert_depth_mm", "-1")
+    page.fill("#limit-alert_loss_pct", "150")
+    page.click("#limits-save")
+    page.wait_for_selector("#limit-alert_loss_pct-error")
+    assert "must be greater than 0" in page.locator("#limit-alert_depth_mm-error").inner_text()
+    assert "at most 100" in page.locator("#limit-alert_loss_pct-error").inner_text()
+    assert puts == []
+    page.fill("#limit-alert_loss_pct", "")
 
     for name, value in (("alert_depth_mm", "0.01"), ("intervention_depth_mm", "0.02"),
                         ("immediate_depth_mm", "0.03")):  # fmt: skip
