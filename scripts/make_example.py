@@ -68,8 +68,10 @@ def main() -> None:
             for z in ZONES
         ],
         "columns": {
-            "timestamp": "epoch seconds", "az_g": "vertical acceleration, g, gravity included",
-            "gyro_y_dps": "pitch rate, deg/s, nose-up positive", "speed_kmh": "speed, km/h",
+            "timestamp": "epoch seconds",
+            "az_g": "vertical acceleration, g, gravity included",
+            "gyro_y_dps": "pitch rate, deg/s, nose-up positive",
+            "speed_kmh": "speed, km/h",
         },  # fmt: skip
     }
     (OUT / "example_run.truth.json").write_text(json.dumps(truth, indent=2) + "\n")

@@ -1,7 +1,7 @@
-"""Migration 0007 (issue 15): a database holding runs stored before compact storage keeps
+"""Migration 0008 (issue 15): a database holding runs stored before compact storage keeps
 every result when upgraded.
 
-The database is brought to the revision before 0007 with runs in it, stored the way that
+The database is brought to the revision before 0008 with runs in it, stored the way that
 revision stored them: a row per 0.25 m grid point with each column as the engine computed it
 (float64), float32 chunks of aligned levels, the log as an uncompressed ``.npz``. Upgraded,
 the service serves the same runs, profiles (to the stated resolution), signals, soft spots,
@@ -32,7 +32,7 @@ DETAIL = ("front_level_mm", "rear_level_mm", "baseline_mm", "front_force_n", "re
 
 def _previous_revision() -> str:
     script = ScriptDirectory.from_config(alembic_config())
-    down = script.get_revision("0007").down_revision
+    down = script.get_revision("0008").down_revision
     assert isinstance(down, str)
     return down
 

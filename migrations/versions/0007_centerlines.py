@@ -5,8 +5,8 @@
 - ``runs.positioning``: the GNSS placement of a run (start chainage, direction, odometer scale,
   residual, fixes used/rejected, lateral offsets); NULL for runs placed by a start chainage.
 
-Revision ID: 0006
-Revises: 0008
+Revision ID: 0007
+Revises: 0006
 Create Date: 2026-12-01
 """
 
@@ -17,8 +17,8 @@ from alembic import op
 
 from app.db.base import UTCDateTime
 
-revision: str = "0006"
-down_revision: str | Sequence[str] | None = "0008"
+revision: str = "0007"
+down_revision: str | Sequence[str] | None = "0006"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

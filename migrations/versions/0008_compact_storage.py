@@ -15,8 +15,8 @@
 The data move uses the service's own codecs, so what it writes is exactly what the service
 writes for a new run. Downgrade moves the profiles back (to the stored resolution).
 
-Revision ID: 0007
-Revises: 0006
+Revision ID: 0008
+Revises: 0007
 Create Date: 2026-12-01
 """
 
@@ -29,8 +29,8 @@ from alembic import op
 
 from app.db.base import UTCDateTime
 
-revision: str = "0007"
-down_revision: str | Sequence[str] | None = "0006"
+revision: str = "0008"
+down_revision: str | Sequence[str] | None = "0007"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
