@@ -98,14 +98,21 @@ def percentiles(ms: list[float]) -> dict[str, float]:
 class Server:
     """A uvicorn process of the service on 127.0.0.1."""
 
-    def __init__(self, port: int, data_dir: Path, database_url: str | None, workers: int) -> None:
+    def __init__(
+        self,
+        port: int,
+        data_dir: Path,
+        database_url: str | None,
+        workers: int,
+        settings: dict[str, str] | None = None,
+    ) -> None:
         env = {k: v for k, v in os.environ.items() if not k.startswith("TRACKPROFILE_")}
         env.pop("DATABASE_URL", None)
         env |= {
             "TRACKPROFILE_DATA_DIR": str(data_dir),
             "TRACKPROFILE_WORKERS": str(workers),
             "PYTHONPATH": str(REPO),
-        }
+        } | (settings or {})
         if database_url:
             env["DATABASE_URL"] = database_url
         self.url = f"http://{HOST}:{port}"
