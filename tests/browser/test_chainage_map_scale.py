@@ -88,6 +88,11 @@ def test_browser_opens_the_100km_map_within_two_seconds(
                  .find(d => d.meta === 'spots').x.length"""
     )
     assert n_markers == track.n_spots
+    # At ~100 m per pixel a spot's few metres are not a pixel: no extent bars (thousands of
+    # invisible SVG paths were a third of the drawing time).
+    assert page.evaluate(
+        "() => !document.getElementById('chainage-map').data.some(d => d.meta === 'extents')"
+    )
     print(f"\n100 km chainage map opened in {min(times):.2f} s (tries: {times})")
     assert min(times) <= CEILING_S, f"chainage map opened in {min(times):.2f} s (tries: {times})"
     page.screenshot(path=str(screenshots / "track-100km.png"), full_page=False)
@@ -118,6 +123,14 @@ def test_zooming_into_the_line_draws_the_level_heatmap(
     )
     assert heat["rows"] == track.n_runs and heat["filled"]
     assert 42000 <= heat["x0"] < 42100 and 46900 < heat["x1"] <= 47000
+    # Zoomed to ~5 m per pixel the extents are visible again: one bar per spot of the window.
+    bars = page.evaluate(
+        """() => { const d = document.getElementById('chainage-map').data;
+                   const e = d.find(t => t.meta === 'extents');
+                   const s = d.find(t => t.meta === 'spots');
+                   return e ? [e.x.length, s.x.length] : null; }"""
+    )
+    assert bars is not None and bars[1] > 0 and bars[0] == 3 * bars[1]
     print(f"\nzoomed 5 km heatmap drawn in {elapsed:.2f} s")
     assert elapsed <= CEILING_S, f"zoomed heatmap drawn in {elapsed:.2f} s"
     page.watch.assert_clean()

@@ -25,6 +25,10 @@ export async function render(main, [ref]) {
   const status = messageBox("info");
   main.append(heading, lead, status.el);
 
+  const t0 = performance.now();
+  // A route by id (every link of the dashboard) asks for the data at once: the API resolves an
+  // id the same way everywhere. A name waits for its id (a name may hold "/").
+  const early = /^\d+$/.test(ref) ? loadTrackData(encodeURIComponent(ref)) : null;
   let track;
   try {
     track = await resolveTrack(ref);
@@ -39,8 +43,7 @@ export async function render(main, [ref]) {
   const name = track.name;
   heading.querySelector(".track-name").textContent = name;
   const enc = encodeURIComponent(track.id);
-  const t0 = performance.now();
-  const { mapP, registerP } = loadTrackData(enc);
+  const { mapP, registerP } = early || loadTrackData(enc);
   let map;
   try {
     map = await mapP;
@@ -48,18 +51,6 @@ export async function render(main, [ref]) {
     status.show(err instanceof ApiError && err.status === 404 ? `There is no track “${name}”.` : `Cannot load the chainage map: ${err.message}`, "error");
     return null;
   }
-  let register = [];
-  let trackRuns = [];
-  try {
-    const [defects, runList] = await registerP;
-    trackRuns = runList ? runList.data : [];
-    if (defects) register = defects;
-  } catch (err) {
-    status.show(`Cannot load the defect register: ${err.message}`, "error");
-  }
-  // The aggregated profile is made of aligned runs only: no card for a track without any.
-  const anyAligned = trackRuns.some((r) => r.alignment && r.alignment.status !== "unaligned");
-
   const runs = map.runs || []; // the map shows processed runs only
   const trackInfo = map.track || {};
   append(lead, [
@@ -77,10 +68,23 @@ export async function render(main, [ref]) {
     return null;
   }
   main.appendChild(exportLinks(enc, track.id));
-  const notice = alignmentNotice(trackRuns);
-  if (notice) main.appendChild(notice);
 
+  // The map is drawn while the server still builds the register (it answers later than the
+  // map on a long line): the two cost about the same, one on each side.
   const mapView = await mapCard(main, { enc, map, t0, isStopped });
+  let register = [];
+  let trackRuns = [];
+  try {
+    const [defects, runList] = await registerP;
+    trackRuns = runList ? runList.data : [];
+    if (defects) register = defects;
+  } catch (err) {
+    status.show(`Cannot load the defect register: ${err.message}`, "error");
+  }
+  const notice = alignmentNotice(trackRuns);
+  if (notice) main.insertBefore(notice, mapView.section);
+  // The aggregated profile is made of aligned runs only: no card for a track without any.
+  const anyAligned = trackRuns.some((r) => r.alignment && r.alignment.status !== "unaligned");
 
   // ---- aggregated profile ---------------------------------------------------------------------
   let zones = ranked(register);

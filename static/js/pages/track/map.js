@@ -21,13 +21,25 @@ function heatmapTrace(heat, labels, visible) {
   };
 }
 
-export function mapTraces(map, heat, narrow = false) {
+/** The median extent of the spots (m), 0 when there are none. */
+function medianExtent(s) {
+  const ext = s.peak_m.map((_, i) => s.end_m[i] - s.start_m[i]).sort((a, b) => a - b);
+  return ext.length ? ext[ext.length >> 1] : 0;
+}
+
+/**
+ * The chainage map's traces. `metresPerPixel` is the drawn scale: the extent bars are drawn
+ * only when a typical soft spot is at least a pixel long. Over a whole line (100 km on ~1 000
+ * px, ~100 m per pixel) they would be thousands of invisible SVG paths, as costly to draw as
+ * the markers themselves.
+ */
+export function mapTraces(map, heat, narrow = false, metresPerPixel = 0) {
   const labels = narrow ? rowLabels(map.runs || [], true) : runLabels(map);
   const traces = [];
   if (map.heatmap) traces.push(heatmapTrace(map.heatmap, labels, heat));
   const s = map.spots || { run_index: [], start_m: [], end_m: [], peak_m: [], depth_mm: [], stiffness_loss_pct: [] };
   const n = s.peak_m.length;
-  if (n) {
+  if (n && medianExtent(s) >= metresPerPixel) {
     const segX = [];
     const segY = [];
     for (let i = 0; i < n; i += 1) {
@@ -36,9 +48,11 @@ export function mapTraces(map, heat, narrow = false) {
       segY.push(y, y, null);
     }
     traces.push({
-      type: "scatter", mode: "lines", name: "Extent", x: segX, y: segY, hoverinfo: "skip", showlegend: false,
+      type: "scatter", mode: "lines", name: "Extent", meta: "extents", x: segX, y: segY, hoverinfo: "skip", showlegend: false,
       line: { color: "#1b1f24", width: 3 },
     });
+  }
+  if (n) {
     const depthMax = Math.max(0.5, ...s.depth_mm);
     traces.push({
       type: "scatter", mode: "markers", name: "Soft spots", meta: "spots",
@@ -83,6 +97,12 @@ export function mapLayout(labels, map, narrow = false) {
   });
 }
 
+/** Metres of chainage per pixel of the plot area for the x range [a, b] (m). */
+function scaleOf(div, layout, [a, b]) {
+  const width = Math.max(1, div.clientWidth - layout.margin.l - layout.margin.r);
+  return (b - a) / width;
+}
+
 /** Run labels for the map's rows: the run's own label, else its date and id (short on a
  * phone). */
 function rowLabels(runs, narrow) {
@@ -92,7 +112,7 @@ function rowLabels(runs, narrow) {
 
 /**
  * Draw the chainage map card into `main`. `t0` is when the page started loading (the note
- * reports the load time). Returns {stop} for the page's cleanup.
+ * reports the load time). Returns {section, stop}: the card and the page's cleanup.
  */
 export async function mapCard(main, { enc, map, t0, isStopped }) {
   const runs = map.runs || [];
@@ -104,7 +124,7 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
     h("div", { class: "section-head" },
       h("h2", { id: "map-h" }, "Chainage map"),
       h("label", { class: "check" }, heatToggle, " Profile level as background")),
-    h("p", { class: "hint" }, "Each row is a run (newest at the top). Markers are soft spots at their deepest point; the bar shows their extent. Darker, larger and more angular markers are deeper. Drag to zoom; the background is recomputed for the zoomed window."),
+    h("p", { class: "hint" }, "Each row is a run (newest at the top). Markers are soft spots at their deepest point; zoomed in far enough to see it, a bar shows their extent. Darker, larger and more angular markers are deeper. Drag to zoom; the background is recomputed for the zoomed window."),
     mapDiv,
     legend,
     mapNote,
@@ -115,7 +135,8 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
   const labels = rowLabels(runs, narrow);
   const P = await loadPlotly();
   const layout = mapLayout(labels, map, narrow);
-  await P.newPlot(mapDiv, mapTraces(map, heatToggle.checked, narrow), layout, { ...CONFIG, scrollZoom: false });
+  const fullRange = [map.chainage_min_m ?? 0, map.chainage_max_m ?? 0];
+  await P.newPlot(mapDiv, mapTraces(map, heatToggle.checked, narrow, scaleOf(mapDiv, layout, fullRange)), layout, { ...CONFIG, scrollZoom: false });
   mapSection.insertBefore(zoomControls(mapDiv, { label: "Chainage map view" }), legend);
   const elapsed = performance.now() - t0;
   const describe = (m, prefix) => {
@@ -135,7 +156,7 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
     current = m;
     const lay = { ...mapLayout(labels, map, narrow), xaxis: { ...layout.xaxis } };
     if (range) lay.xaxis = { ...lay.xaxis, range, autorange: false };
-    return P.react(mapDiv, mapTraces(m, heatToggle.checked, narrow), lay, { ...CONFIG, scrollZoom: false });
+    return P.react(mapDiv, mapTraces(m, heatToggle.checked, narrow, scaleOf(mapDiv, lay, range || fullRange)), lay, { ...CONFIG, scrollZoom: false });
   };
 
   async function loadWindow(range) {
@@ -172,5 +193,5 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
     else if (heatToggle.checked) loadWindow(mapDiv.layout.xaxis.range.map(Number));
   });
 
-  return { stop: () => clearTimeout(relayoutTimer) };
+  return { section: mapSection, stop: () => clearTimeout(relayoutTimer) };
 }

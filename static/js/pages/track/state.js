@@ -35,7 +35,9 @@ export function loadTrackData(enc) {
     apiGetOptional(`/api/v1/tracks/${enc}/defects`),
     apiFetch(`/api/v1/runs?track=${enc}&limit=1000`).catch(() => null),
   ]);
-  registerP.catch(() => {}); // awaited by the caller; no unhandled rejection while the map loads
+  // Awaited by the caller (unless the track turns out not to exist): no unhandled rejection.
+  mapP.catch(() => {});
+  registerP.catch(() => {});
   return { mapP, registerP };
 }
 
