@@ -1,7 +1,9 @@
 """The browser side: dashboard page, its static files, plotly.js and the API docs, all local.
 
-Nothing is fetched from a CDN: plotly.js comes from the installed ``plotly`` package and
-Swagger UI from ``swagger-ui-bundle``, so the service works without internet.
+Nothing is fetched from a CDN, so the service works without internet. plotly.js is plotly's
+partial "cartesian" bundle (1.5 MB: every trace type the dashboard draws) when it was installed
+from npm at install time (scripts/serve.sh, scripts/test.sh, the Dockerfile), else the full
+bundle (4.8 MB) of the installed ``plotly`` package; Swagger UI comes from ``swagger-ui-bundle``.
 """
 
 from __future__ import annotations
@@ -10,6 +12,8 @@ import functools
 import gzip
 import hashlib
 import importlib.resources
+import logging
+import re
 import threading
 from dataclasses import dataclass
 from functools import cached_property
@@ -26,9 +30,31 @@ from app.core.errors import ApiError
 STATIC_CACHE = {"Cache-Control": "public, max-age=86400"}
 
 
+log = logging.getLogger(__name__)
+
+
 def plotly_js_path() -> Path:
-    """``plotly.min.js`` shipped inside the installed plotly package."""
+    """``plotly.min.js`` shipped inside the installed plotly package (the full bundle)."""
     return Path(str(importlib.resources.files("plotly") / "package_data" / "plotly.min.js"))
+
+
+def plotly_js_version() -> str:
+    """The version of plotly.js the installed plotly package ships (e.g. ``4.1.1``)."""
+    import plotly.offline
+
+    return str(plotly.offline.get_plotlyjs_version())
+
+
+def bundle_version(path: Path) -> str | None:
+    """The plotly.js version a bundle's banner names (``plotly.js (cartesian - minified)
+    v4.1.1``), or None when the file is missing or has no such banner."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(400).decode("utf-8", "replace")
+    except OSError:
+        return None
+    m = re.search(r"plotly\.js\b[^\n]*? v(\d+\.\d+\.\d+\S*)", head)
+    return m.group(1) if m else None
 
 
 IMMUTABLE_CACHE = "public, max-age=31536000, immutable"
@@ -39,25 +65,23 @@ served at ``/`` names the versioned (immutable) URL there instead."""
 
 @dataclass
 class PlotlyBundle:
-    """plotly.js as served: its version, strong ETag and gzip-compressed bytes (made once, on
-    the first request, ~0.3 s: 4.8 MB become ~1.4 MB)."""
+    """plotly.js as served: its file, flavour (``""`` for the full bundle, ``"cartesian"`` for
+    the partial one), version, strong ETag and gzip-compressed bytes (made once, ~0.3 s: the
+    full 4.8 MB become ~1.4 MB, the partial 1.5 MB ~0.5 MB)."""
 
     path: Path
+    version: str
+    flavour: str = ""
 
     def __post_init__(self) -> None:
         self._lock = threading.Lock()
 
-    @cached_property
-    def version(self) -> str:
-        import plotly.offline
-
-        return str(plotly.offline.get_plotlyjs_version())
-
     @property
     def url(self) -> str:
-        """The versioned URL: a new plotly package gives a new URL, so it may be cached
-        forever (``immutable``)."""
-        return f"/static/vendor/plotly-{self.version}.min.js"
+        """The versioned URL: another plotly.js version or flavour gives another URL, so it
+        may be cached forever (``immutable``)."""
+        name = f"plotly-{self.flavour}" if self.flavour else "plotly"
+        return f"/static/vendor/{name}-{self.version}.min.js"
 
     @cached_property
     def raw(self) -> bytes:
@@ -97,12 +121,34 @@ DOCS_BACK_LINK = (
 )
 
 
+PARTIAL_FLAVOUR = "cartesian"
+"""plotly's partial bundle served when installed (npm ``plotly.js-cartesian-dist-min``): its
+trace types (scatter, heatmap, bar, box, contour, histogram, pie, ...) cover every chart of the
+dashboard, which uses only SVG traces (plots.js)."""
+
+
 @functools.cache
-def plotly_bundle() -> PlotlyBundle:
-    """The process's one plotly.js bundle (every app of the process shares its compressed
-    bytes), compressed in a background thread from the first call on, so that the first chart
-    does not wait for it."""
-    bundle = PlotlyBundle(plotly_js_path())
+def plotly_bundle(partial: Path) -> PlotlyBundle:
+    """The plotly.js bundle to serve: the partial bundle at ``partial`` when it is installed
+    and of the plotly package's plotly.js version (the one the dashboard is written and tested
+    against), else the package's full bundle. One per process and path (the apps of a process
+    share its compressed bytes), compressed in a background thread from the first call on, so
+    that the first chart does not wait for it.
+
+    Its load time is what a first visit waits for: chromium evaluates the full bundle in ~4 s
+    on a loaded 2-core machine, the partial one in ~1 s (docs/benchmarks.md, issue 14)."""
+    version = plotly_js_version()
+    found = bundle_version(partial)
+    if found == version:
+        bundle = PlotlyBundle(partial, version, flavour=PARTIAL_FLAVOUR)
+    else:
+        if partial.exists():
+            log.warning(
+                "%s is plotly.js %s, not %s (the plotly package's): serving the full bundle; "
+                "scripts/serve.sh installs the matching one",
+                partial, found, version,
+            )  # fmt: skip
+        bundle = PlotlyBundle(plotly_js_path(), version)
     threading.Thread(target=lambda: bundle.gzipped, name="plotly-gzip", daemon=True).start()
     return bundle
 
@@ -118,7 +164,7 @@ def install_web(app: FastAPI, settings: Settings) -> None:
     """Routes for ``/``, ``/static``, plotly.js (``/static/vendor/plotly[-VERSION].min.js``)
     and ``/docs``."""
     static_dir = settings.static_dir
-    bundle = plotly_bundle()
+    bundle = plotly_bundle(settings.plotly_partial_js)
 
     @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     def dashboard() -> HTMLResponse:

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # One command from a fresh clone to a running service with a demo run:
 #   bash scripts/serve.sh        ->  http://127.0.0.1:8000
-# Installs into .venv, applies the migrations, stores a simulated demo run (track "demo",
-# two soft zones) and starts uvicorn. HOST and PORT override the address; the database is
+# Installs into .venv (and plotly's partial bundle from npm when npm is there: _plotly.sh),
+# applies the migrations, stores a simulated demo run (track "demo", two soft zones) and starts
+# uvicorn. HOST and PORT override the address; the database is
 # ./data/trackprofile.db unless DATABASE_URL or TRACKPROFILE_DATA_DIR say otherwise.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/_venv.sh '.'
+. scripts/_plotly.sh
 python -m app migrate
 python -m app demo
 host="${HOST:-127.0.0.1}"

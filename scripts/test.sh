@@ -9,6 +9,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/_venv.sh '.[test]'
+. scripts/_plotly.sh
 
 if [ ! -x /usr/bin/chromium ]; then
   sudo=""

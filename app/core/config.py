@@ -69,6 +69,10 @@ class Settings(BaseSettings):
         Longest simulated run ``POST /api/v1/simulate`` accepts, s of travel.
     static_dir : Path
         The dashboard's files, served at ``/static`` (``index.html`` at ``/``).
+    plotly_partial_js : Path
+        plotly's partial bundle (npm ``plotly.js-cartesian-dist-min``, installed by
+        ``scripts/serve.sh`` and ``scripts/test.sh`` from npm): served to the dashboard when
+        present and of the plotly package's plotly.js version, else the package's full bundle.
     run_migrations : bool
         Apply the Alembic migrations when the app starts.
     start_worker : bool
@@ -117,6 +121,11 @@ class Settings(BaseSettings):
     wait_timeout_s: float = Field(default=300.0, gt=0)
     simulate_max_duration_s: float = Field(default=120.0, gt=0)
     static_dir: Path = REPO_ROOT / "static"
+    plotly_partial_js: Path = (
+        REPO_ROOT
+        / ".cache/plotly/node_modules/plotly.js-cartesian-dist-min"
+        / "plotly-cartesian.min.js"
+    )
     run_migrations: bool = True
     start_worker: bool = True
     auto_calibrate_runs: int = Field(default=0, ge=0, le=10_000)

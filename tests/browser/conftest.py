@@ -22,6 +22,7 @@ from browser.harness import (
     VIEWPORT,
     LiveServer,
     PageWatch,
+    ensure_plotly_partial,
     start_server,
     stop_server,
 )
@@ -31,7 +32,9 @@ from support.samples import shared_data_dir
 
 @pytest.fixture(scope="session")
 def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveServer]:
-    """The service on an empty database, shared by the tests of the session."""
+    """The service on an empty database, shared by the tests of the session; it serves plotly's
+    partial bundle (installed from npm when missing), so every chart test draws with it."""
+    ensure_plotly_partial()
     server = start_server(tmp_path_factory.mktemp("browser-service"))
     try:
         yield server

@@ -158,6 +158,28 @@ def axe_source() -> str:
     return AXE_JS.read_text()
 
 
+PLOTLY_PREFIX = REPO / ".cache" / "plotly"
+PLOTLY_PARTIAL_JS = (
+    PLOTLY_PREFIX / "node_modules" / "plotly.js-cartesian-dist-min" / "plotly-cartesian.min.js"
+)
+
+
+def ensure_plotly_partial() -> Path:
+    """plotly's partial bundle at the plotly package's plotly.js version, which the service
+    serves when present: installed from npm by scripts/test.sh (and here, when a test session
+    starts without it), as scripts/_plotly.sh does."""
+    from app.web import bundle_version, plotly_js_version
+
+    version = plotly_js_version()
+    if bundle_version(PLOTLY_PARTIAL_JS) != version:
+        subprocess.run(
+            ["npm", "install", "--no-save", "--no-audit", "--no-fund", "--no-package-lock",
+             "--prefix", str(PLOTLY_PREFIX), f"plotly.js-cartesian-dist-min@{version}"],
+            check=True, capture_output=True, timeout=300,
+        )  # fmt: skip
+    return PLOTLY_PARTIAL_JS
+
+
 def axe_violations(
     page: Any, source: str, impacts: tuple[str, ...] = ("serious", "critical")
 ) -> list[str]:
