@@ -149,6 +149,12 @@ def _spots(
     stmt = select(
         t.c.run_id, t.c.start_m, t.c.end_m, t.c.peak_m, t.c.depth_mm, t.c.stiffness_loss_pct
     ).where(t.c.run_id.in_(list(index)))
+    # The runs' offsets differ: the statement keeps what any of them could place in the window
+    # (a window of a long line reads its few spots, not every spot of the line).
+    if from_m is not None:
+        stmt = stmt.where(t.c.end_m >= from_m - max(offsets.values()))
+    if to_m is not None:
+        stmt = stmt.where(t.c.start_m <= to_m - min(offsets.values()))
     rows = session.execute(stmt.order_by(t.c.run_id, t.c.start_m)).all()
     for run_id, start, end, peak, depth, loss in rows:
         off = offsets[run_id]
@@ -251,7 +257,9 @@ def _heatmap(
         inside = (b >= 0) & (b < nbins)
         low = np.full(nbins, np.inf)
         np.minimum.at(low, b[inside], level[keep][inside])
-        row: list[float | None] = [round(float(v), 4) if np.isfinite(v) else None for v in low]
+        row: list[float | None] = np.round(low, 4).tolist()
+        for i in np.flatnonzero(~np.isfinite(low)).tolist():
+            row[i] = None
         z.append(row)
     x = (from_m + (np.arange(nbins) + 0.5) * width).tolist()
     return HeatmapPublic(x=x, bin_m=width, z=z)

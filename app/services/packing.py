@@ -65,24 +65,27 @@ def encode_block(columns: Sequence[NDArray[np.float64]], scales: Sequence[float]
     return _HEADER.pack(_MAGIC, n, len(columns), len(raw)) + _CODEC.compress(raw, asbytes=True)
 
 
-def decode_block(blob: bytes, scales: Sequence[float]) -> list[NDArray[np.float64]]:
-    """Inverse of :func:`encode_block`: the columns as float64 (NaN = no data)."""
+def decode_block(
+    blob: bytes, scales: Sequence[float], which: Sequence[int] | None = None
+) -> list[NDArray[np.float64]]:
+    """Inverse of :func:`encode_block`: the columns as float64 (NaN = no data).
+
+    ``which`` lists the column indices wanted (default: all), returned in that order; the
+    others are not reconstructed (a window read of the level needs two of seven).
+    """
     magic, n, k, size = _HEADER.unpack_from(blob)
     if magic != _MAGIC or k != len(scales):
         raise ValueError("not a column block of this layout")
+    cols = list(range(k)) if which is None else list(which)
     raw = _CODEC.decompress(memoryview(blob)[_HEADER.size :], size, asbytes=True)
-    at = 0
     nm = (n + 7) // 8
-    masks = []
-    for _ in range(k):
-        masks.append(np.unpackbits(np.frombuffer(raw, np.uint8, nm, at), count=n).astype(bool))
-        at += nm
-    b = np.frombuffer(raw, np.uint8, 4 * k * n, at).reshape(4, k, n).transpose(1, 2, 0)
-    deltas = np.ascontiguousarray(b).view("<i4").reshape(k, n)
+    b = np.frombuffer(raw, np.uint8, 4 * k * n, k * nm).reshape(4, k, n)
     out = []
-    for j in range(k):
-        v = np.cumsum(deltas[j], dtype=np.int32).astype(np.float64) * scales[j]
-        v[~masks[j]] = np.nan
+    for j in cols:
+        mask = np.unpackbits(np.frombuffer(raw, np.uint8, nm, j * nm), count=n).astype(bool)
+        deltas = np.ascontiguousarray(b[:, j, :].T).view("<i4").reshape(n)
+        v = np.cumsum(deltas, dtype=np.int32).astype(np.float64) * scales[j]
+        v[~mask] = np.nan
         out.append(v)
     return out
 

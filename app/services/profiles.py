@@ -160,9 +160,16 @@ def _decode_window(
     parts: list[list[NDArray[np.float64]]] = [[] for _ in columns]
     lo_i = -np.inf if from_m is None else from_m / GRID_STEP_M - _GRID_TOL
     hi_i = np.inf if to_m is None else to_m / GRID_STEP_M + _GRID_TOL
+    # The stored columns each asked column is made of (the level is the fused axles).
+    sources = {
+        name: () if name == "chainage_m" else (0, 1) if name == "level_mm" else
+        (STORED_COLUMNS.index(name),)
+        for name in columns
+    }  # fmt: skip
+    wanted = sorted({i for src in sources.values() for i in src}) or [0]  # [0]: the block's length
     for first, data in rows:
-        decoded = decode_block(data, SCALES)
-        idx = first + np.arange(decoded[0].size)
+        decoded = dict(zip(wanted, decode_block(data, SCALES, wanted), strict=True))
+        idx = first + np.arange(decoded[wanted[0]].size)
         keep = (idx >= lo_i) & (idx <= hi_i)
         if not keep.any():
             continue
