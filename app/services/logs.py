@@ -72,7 +72,8 @@ def parse_csv(
 
 def recorded_at_of(data: bytes, options: dict[str, Any]) -> datetime | None:
     """When a CSV's first sample was recorded (UTC), if its time column holds epoch seconds
-    or milliseconds; None otherwise. Called after :func:`parse_csv` accepted the file."""
+    or milliseconds or another column ISO 8601 date-times (:func:`preview_csv`); None
+    otherwise. Called after :func:`parse_csv` accepted the file."""
     try:
         return preview_csv(data, n_rows=0, options=CsvOptions(**options)).recorded_at
     except (LogFormatError, ParameterError):

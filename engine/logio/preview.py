@@ -33,7 +33,7 @@ from .source import (
     _gunzip_head,
 )
 from .table import _to_float
-from .units import _auto_gravity, epoch_start, resolve_units
+from .units import _auto_gravity, epoch_start, iso_start, resolve_units
 
 PREVIEW_BYTES = 1 << 20
 """How much (decompressed) text :func:`preview_csv` looks at, bytes."""
@@ -66,7 +66,8 @@ class CsvPreview:
         in the first rows) and assumptions worth checking (units without a suffix).
     recorded_at : datetime or None
         When the first sample was recorded (UTC), if the time column holds epoch seconds or
-        milliseconds; None for times counted from the start.
+        milliseconds, else if another column holds ISO 8601 dates and times (the first row's);
+        None when the file has no clock time.
     """
 
     delimiter: str
@@ -207,5 +208,17 @@ def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None
         units=units,
         gravity=gravity,
         warnings=warns,
-        recorded_at=epoch_start(t0, units["time"]) if t0 is not None else None,
+        recorded_at=(epoch_start(t0, units["time"]) if t0 is not None else None)
+        or _iso_recorded_at(parsed, set(chosen.values())),
     )
+
+
+def _iso_recorded_at(parsed: list[tuple[int, list[str]]], taken: set[int]) -> datetime | None:
+    """The first row's ISO date and time in a column no role reads (a logger's wall-clock
+    column beside its numeric time), or None."""
+    for _, fields_ in parsed[:1]:
+        for j, value in enumerate(fields_):
+            when = None if j in taken else iso_start(value)
+            if when is not None:
+                return when
+    return None

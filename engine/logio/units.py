@@ -3,6 +3,7 @@ preview, gravity, and the plausibility limits that tell a wrong unit."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from datetime import UTC, datetime
 
@@ -62,6 +63,36 @@ def epoch_start(t0: float, unit: str | None) -> datetime | None:
     if not lo <= seconds <= hi:
         return None
     return datetime.fromtimestamp(seconds, UTC)
+
+
+_ISO_DATETIME = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+
+
+def iso_start(value: str) -> datetime | None:
+    """The clock time a field holds when it is an ISO 8601 date and time.
+
+    Parameters
+    ----------
+    value : str
+        A CSV field, e.g. ``2025-11-03T10:15:02.125Z``, ``2025-11-03 10:15:02+01:00`` or
+        ``2025-11-03T10:15:02`` (no offset: taken as UTC, loggers' usual clock).
+
+    Returns
+    -------
+    datetime or None
+        UTC; None for anything else (a date without a time, a number) or an implausible date
+        (outside :data:`PLAUSIBLE_EPOCH_S`).
+    """
+    text = value.strip().strip("\"'")
+    if not _ISO_DATETIME.match(text):
+        return None
+    try:
+        when = datetime.fromisoformat(text)
+    except ValueError:
+        return None
+    when = when.replace(tzinfo=UTC) if when.tzinfo is None else when.astimezone(UTC)
+    lo, hi = PLAUSIBLE_EPOCH_S
+    return when if lo <= when.timestamp() <= hi else None
 
 
 def _auto_time_unit(t0: float) -> str:

@@ -145,6 +145,22 @@ export async function apiFetch(path, options = {}) {
   return watched(body, (options.method || "GET").toUpperCase(), url);
 }
 
+/**
+ * Every item of a paged list (`{data, count}` answers: tracks, vehicles, runs), fetched a page
+ * of `pageSize` (the API's largest) at a time by `offset`: the first page says how many there
+ * are, the others come together. `path` may carry its own query (`runs?track=3`).
+ */
+export async function apiFetchAll(path, pageSize = 1000) {
+  const sep = path.includes("?") ? "&" : "?";
+  const page = (offset) => apiFetch(`${path}${sep}limit=${pageSize}&offset=${offset}`);
+  const first = await page(0);
+  const total = Number.isFinite(first.count) ? first.count : first.data.length;
+  const offsets = [];
+  for (let o = first.data.length; o < total && first.data.length > 0; o += pageSize) offsets.push(o);
+  const rest = await Promise.all(offsets.map(page));
+  return [first, ...rest].flatMap((p) => p.data);
+}
+
 /** GET JSON; resolves to null instead of throwing when the endpoint answers 404/405. */
 export async function apiGetOptional(path) {
   try {

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from typing import Any
 
 from starlette.testclient import TestClient
@@ -67,26 +68,42 @@ def test_delete_track_needs_an_admin_key_when_keys_are_on(start_app: Any) -> Non
     assert r.status_code == 401
 
 
+def assert_recorded_at(client: TestClient, data: bytes, first: datetime) -> None:
+    """The preview reports ``first`` as the file's recording time and an upload without
+    recorded_at stores it; a recorded_at given with the upload wins."""
+    pv = client.post("/api/v1/views/csv-preview", files={"file": ("a.csv", data, "text/csv")})
+    assert pv.status_code == 200, pv.text
+    assert datetime.fromisoformat(pv.json()["recorded_at"]) == first, pv.json()
+    r = upload(client, data, track="Clock", start_chainage_m=12)
+    assert r.status_code in (201, 202), r.text
+    assert datetime.fromisoformat(r.json()["recorded_at"]) == first
+    given = upload(client, data, track="Clock", start_chainage_m=13,
+                   recorded_at="2025-11-20T08:00:00Z")  # fmt: skip
+    assert given.json()["recorded_at"].startswith("2025-11-20T08:00:00")
+
+
 def test_recorded_at_comes_from_the_files_epoch_timestamps(
     client: TestClient, synthetic_run: dict[str, Any]
 ) -> None:
     """A log timed in epoch seconds is stored as recorded at its first sample (the preview
     says so too); a recorded_at given with the upload wins; relative times give none."""
-    from datetime import UTC, datetime
-
     from api.api_support import RAW_EPOCH0, to_raw_imu
 
     raw = to_raw_imu(synthetic_run["csv"])
-    first = datetime.fromtimestamp(RAW_EPOCH0, UTC)
-    pv = client.post("/api/v1/views/csv-preview", files={"file": ("a.csv", raw, "text/csv")})
-    assert pv.status_code == 200, pv.text
-    assert datetime.fromisoformat(pv.json()["recorded_at"]) == first
-    r = upload(client, raw, track="Clock", start_chainage_m=12)
-    assert r.status_code in (201, 202), r.text
-    assert datetime.fromisoformat(r.json()["recorded_at"]) == first
-    given = upload(client, raw, track="Clock", start_chainage_m=13,
-                   recorded_at="2025-11-20T08:00:00Z")  # fmt: skip
-    assert given.json()["recorded_at"].startswith("2025-11-20T08:00:00")
+    assert_recorded_at(client, raw, datetime.fromtimestamp(RAW_EPOCH0, UTC))
     rel = client.post("/api/v1/views/csv-preview",
                       files={"file": ("b.csv", synthetic_run["csv"], "text/csv")})  # fmt: skip
     assert rel.json()["recorded_at"] is None
+
+
+def test_recorded_at_comes_from_an_iso_date_time_column(
+    client: TestClient, synthetic_run: dict[str, Any]
+) -> None:
+    """A log with a wall-clock column of ISO 8601 date-times beside its relative times is
+    stored as recorded at the first row's (the offset converted to UTC; the preview says so);
+    a recorded_at given with the upload still wins."""
+    lines = synthetic_run["csv"].decode().splitlines()
+    clocked = "\n".join(
+        [f"utc,{lines[0]}"] + [f"2025-11-03T10:15:00.000+01:00,{row}" for row in lines[1:]]
+    ).encode()
+    assert_recorded_at(client, clocked, datetime(2025, 11, 3, 9, 15, tzinfo=UTC))

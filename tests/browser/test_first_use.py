@@ -225,6 +225,21 @@ def test_track_page_fits_a_phone_and_explains_a_single_run(
         context.close()
 
 
+def test_track_page_at_desktop_width_is_accessible(
+    page: Any, live_server: LiveServer, example_run: dict[str, Any], axe: str
+) -> None:
+    """The track page at 1366 px, every section drawn (chainage map, zone plot, register,
+    limits card), has no serious or critical axe violation."""
+    page.goto(f"{live_server.url}/#/tracks/{example_run['track_id']}")
+    wait_for_plot(page, "#chainage-map", 2)
+    wait_for_plot(page, "#zone-plot")
+    page.wait_for_selector("#zone-table tbody tr")
+    page.wait_for_function("() => document.getElementById('limit-alert_depth_mm')?.dataset.bounds")
+    page.wait_for_load_state("networkidle")
+    assert axe_violations(page, axe) == []
+    page.watch.assert_clean()
+
+
 def test_upload_form_guides_a_first_time_user(
     page: Any, live_server: LiveServer, tmp_path: Path, axe: str
 ) -> None:
@@ -357,4 +372,55 @@ def test_vehicles_and_docs_pages_are_accessible_and_docs_lead_back(
     assert axe_violations(page, axe) == []
     page.click("#docs-back")
     page.wait_for_selector("#intro")
+    page.watch.assert_clean()
+
+
+def test_simulate_form_has_the_services_bounds(page: Any, live_server: LiveServer) -> None:
+    """The simulate form's numbers carry the service's own bounds (its OpenAPI schema: km/h
+    and % converted) and out-of-bounds values are refused in the page, in the form's words,
+    before any request."""
+    posts: list[str] = []
+    page.on("request", lambda r: posts.append(r.url) if r.method == "POST" else None)
+    page.goto(f"{live_server.url}/#/simulate")
+    page.wait_for_function("() => document.getElementById('sim-accel-noise').dataset.bounds")
+    bounds = page.evaluate(
+        """() => ['sim-length', 'sim-speed', 'sim-accel-noise', 'sim-gyro-bias'].map(id => {
+            const e = document.getElementById(id); return [e.min, e.max]; })"""
+    )
+    # SimulateRequest: 80-5000 m, 5-80 m/s (18-288 km/h); SensorSpec: noise 0-1, bias ±0.1.
+    assert bounds == [["80", "5000"], ["18", "288"], ["0", "1"], ["-0.1", "0.1"]], bounds
+    loss_max = page.eval_on_selector(".zone-loss", "e => JSON.parse(e.dataset.bounds)")
+    assert loss_max["max"] == 100 and loss_max["maxExclusive"], loss_max
+    assert "80 to 5000 m" in page.inner_text("#sim-length-hint")
+    page.fill("#sim-speed", "300")
+    page.fill("#sim-accel-noise", "2")
+    page.locator(".zone-loss").first.fill("100")
+    page.click("#simulate-button")
+    text = page.inner_text("#sim-status")
+    assert "speed (km/h) must be at least 18 and at most 288" in text, text
+    assert "accel noise must be at least 0 and at most 1" in text, text
+    assert "(%) must be at least 0 and below 100" in text, text
+    assert page.locator("#simulate-form [aria-invalid=true]").count() == 3
+    assert not [u for u in posts if "/simulate" in u], posts
+    page.watch.assert_clean()
+
+
+def test_lists_are_read_page_by_page_to_the_end(page: Any, live_server: LiveServer) -> None:
+    """The dashboard's lists (tracks on the upload and simulate forms, vehicles, a track's
+    runs) are read to the end through the API's offset paging, not cut at one page: with a
+    page of 2 items, every track the API counts comes back once, in the API's order."""
+    with live_server.api() as api:
+        for i in range(3):
+            r = api.post("/api/v1/tracks", json={"name": f"zz paging line {i}"})
+            assert r.status_code in (201, 409), r.text
+        listed = api.get("/api/v1/tracks?limit=1000").json()
+    page.goto(f"{live_server.url}/#/upload")
+    page.wait_for_selector("#upload-button")
+    names = page.evaluate(
+        "async () => (await (await import('/static/js/api.js')).apiFetchAll('tracks', 2)).map(t => t.name)"
+    )
+    assert listed["count"] >= 3 and names == [t["name"] for t in listed["data"]], names
+    page.wait_for_function(
+        "n => document.querySelectorAll('#track-list option').length === n", arg=listed["count"]
+    )
     page.watch.assert_clean()

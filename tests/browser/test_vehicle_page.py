@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from browser.harness import LiveServer, wait_for_plot
+from browser.harness import LiveServer, axe_source, axe_violations, wait_for_plot
 
 from engine.logio import write_run_csv
 from engine.synthetic import REALISTIC_SENSOR, make_run
@@ -67,7 +67,8 @@ def test_vehicle_page_shows_versions_calibrations_health_and_calibrates(
 ) -> None:
     """The page lists the parameters (version 1), both calibrations with their objective and
     the plot of the fit, health alerts on k_s1/k_s2 (from -> to, since February); the
-    Calibrate button queues a third calibration that appears when done."""
+    Calibrate button queues a third calibration that appears when done; axe finds no serious
+    or critical violation on the page."""
     with live_server.api() as api:
         r = api.post("/api/v1/vehicles", json={"name": NAME, "params": TABLE1.to_dict()})
         assert r.status_code == 201, r.text
@@ -88,6 +89,7 @@ def test_vehicle_page_shows_versions_calibrations_health_and_calibrates(
     wait_for_plot(page, "#calibration-plot", min_traces=3)
     assert page.locator("#versions-table tbody tr").count() == 1
     page.screenshot(path=str(screenshots / "vehicle.png"), full_page=True)
+    assert axe_violations(page, axe_source()) == []
 
     page.click("#calibrate")
     page.wait_for_function(

@@ -12,6 +12,7 @@ import gzip
 import io
 import json
 from collections.abc import Callable
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -834,3 +835,22 @@ def test_write_rejects_bad_digits(digits) -> None:
     """digits outside 1..17 (or not an integer) is a ParameterError."""
     with pytest.raises(ParameterError, match="digits"):
         write_run_csv(_random_log(), io.StringIO(), digits=digits)
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [
+        ("2025-11-03T10:15:02.125Z", datetime(2025, 11, 3, 10, 15, 2, 125000, tzinfo=UTC)),
+        ("2025-11-03 10:15:02+01:00", datetime(2025, 11, 3, 9, 15, 2, tzinfo=UTC)),
+        ("'2025-11-03T10:15'", datetime(2025, 11, 3, 10, 15, tzinfo=UTC)),  # no offset: UTC
+        ("2025-11-03", None),  # a day without a time
+        ("1762164902.125", None),
+        ("1890-01-01T00:00:00", None),  # implausible
+        ("2025-13-03T10:15:02", None),
+    ],
+)
+def test_iso_start_reads_iso_date_times_as_utc(value: str, expected: datetime | None) -> None:
+    """A field with an ISO 8601 date and time is a clock time (UTC); anything else is not."""
+    from engine.logio.units import iso_start
+
+    assert iso_start(value) == expected

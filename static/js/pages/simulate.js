@@ -3,7 +3,8 @@
 // service's POST /api/v1/simulate, which stores the run (track "simulated") and returns the truth.
 
 import { h, clear, append, announce, field, fmt, messageBox } from "../dom.js";
-import { ApiError, apiFetch, apiPostJson } from "../api.js";
+import { ApiError, apiFetch, apiFetchAll, apiPostJson, apiSchema } from "../api.js";
+import { applyBounds, numberProblem } from "../formerrors.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, zoomControls } from "../plots.js";
 
 const NOISE_PRESETS = {
@@ -21,14 +22,23 @@ export async function render(main) {
     "Drive the half-car model over a track with soft zones you choose, add sensor noise, and see what the engine recovers. The true loaded level under the wheels is drawn next to the recovered profile."));
 
   const form = h("form", { class: "sim-form card", id: "simulate-form", novalidate: true });
-  const lengthInput = h("input", { type: "number", id: "sim-length", value: "300", min: "80", max: "5000", step: "any", required: true });
-  const speedInput = h("input", { type: "number", id: "sim-speed", value: "80", min: "18", max: "288", step: "any", required: true });
-  const seedInput = h("input", { type: "number", id: "sim-seed", value: "1", min: "0", step: "1" });
+  // Bounds: the service's own (its schema, applied below), never copied here.
+  const lengthInput = h("input", { type: "number", id: "sim-length", value: "300", step: "any", required: true });
+  const speedInput = h("input", { type: "number", id: "sim-speed", value: "80", step: "any", required: true });
+  const seedInput = h("input", { type: "number", id: "sim-seed", value: "1", step: "1" });
   const zonesBody = h("tbody", {});
+  let zoneProps = null; // ZoneSpec's properties, once the schema is here
+  const zoneBounds = (s, e, l) => {
+    if (!zoneProps) return;
+    applyBounds(s, zoneProps.start_m);
+    applyBounds(e, zoneProps.end_m);
+    applyBounds(l, zoneProps.loss, 0.01); // % shown, a fraction sent
+  };
   const addZone = (start, end, loss) => {
     const s = h("input", { type: "number", step: "any", value: String(start), "aria-label": "Zone start (m)", class: "zone-start" });
     const e = h("input", { type: "number", step: "any", value: String(end), "aria-label": "Zone end (m)", class: "zone-end" });
-    const l = h("input", { type: "number", step: "any", min: "0", max: "95", value: String(loss), "aria-label": "Stiffness loss (%)", class: "zone-loss" });
+    const l = h("input", { type: "number", step: "any", value: String(loss), "aria-label": "Stiffness loss (%)", class: "zone-loss" });
+    zoneBounds(s, e, l);
     const row = h("tr", {}, h("td", {}, s), h("td", {}, e), h("td", {}, l),
       h("td", {}, h("button", { type: "button", class: "button small", "aria-label": "Remove this zone", onclick: () => row.remove() }, "Remove")));
     zonesBody.appendChild(row);
@@ -37,8 +47,8 @@ export async function render(main) {
   addZone(100, 106, 50);
   addZone(200, 204, 35);
   const noiseInputs = {
-    accel_noise: h("input", { type: "number", id: "sim-accel-noise", step: "any", min: "0" }),
-    gyro_noise: h("input", { type: "number", id: "sim-gyro-noise", step: "any", min: "0" }),
+    accel_noise: h("input", { type: "number", id: "sim-accel-noise", step: "any" }),
+    gyro_noise: h("input", { type: "number", id: "sim-gyro-noise", step: "any" }),
     accel_bias: h("input", { type: "number", id: "sim-accel-bias", step: "any" }),
     gyro_bias: h("input", { type: "number", id: "sim-gyro-bias", step: "any" }),
   };
@@ -65,23 +75,38 @@ export async function render(main) {
   // same physical track, so runs of different vehicles over it can be separated).
   const vehicleSel = h("select", { id: "sim-vehicle" }, h("option", { value: "table1" }, "table1"));
   const railSel = h("select", { id: "sim-rail" }, h("option", { value: "" }, "Straight rail (the paper's case)"));
-  const railSeedInput = h("input", { type: "number", id: "sim-rail-seed", value: "0", min: "0", step: "1" });
+  const railSeedInput = h("input", { type: "number", id: "sim-rail-seed", value: "0", step: "1" });
   // The track the simulated run is stored on: an existing one (its nominal properties apply)
   // or a new name; blank: "simulated" (or one track per rail spectrum and seed).
   const trackInput = h("input", { type: "text", id: "sim-track", list: "sim-track-list", maxlength: 200, autocomplete: "off", placeholder: "simulated" });
   const trackList = h("datalist", { id: "sim-track-list" });
-  apiFetch("/api/v1/tracks?limit=100").then((a) => {
-    for (const t of a.data) trackList.appendChild(h("option", { value: t.name }));
+  apiFetchAll("tracks").then((tracks) => {
+    for (const t of tracks) trackList.appendChild(h("option", { value: t.name }));
   }).catch(() => {});
   Promise.all([
     apiFetch("/api/v1/vehicles/presets").catch(() => ({})),
-    apiFetch("/api/v1/vehicles?limit=100").catch(() => null),
+    apiFetchAll("vehicles").then((data) => ({ data })).catch(() => null),
     apiFetch("/api/v1/simulate/spectra").catch(() => ({})),
   ]).then(([presets, stored, spectra]) => {
     const names = new Set([...Object.keys(presets), ...(stored ? stored.data.map((v) => v.name) : [])]);
     vehicleSel.replaceChildren(...[...names].sort().map((n) => h("option", { value: n, selected: n === "table1" }, n)));
     for (const name of Object.keys(spectra)) railSel.appendChild(h("option", { value: name }, name));
   });
+
+  const lengthHint = "At most 120 s of travel.";
+  apiSchema().then((spec) => {
+    const schemas = spec.components.schemas;
+    const req = schemas.SimulateRequest.properties;
+    const length = applyBounds(lengthInput, req.length_m);
+    applyBounds(speedInput, req.speed_mps, 1 / 3.6); // km/h shown, m/s sent
+    applyBounds(seedInput, req.seed);
+    applyBounds(railSeedInput, schemas.IrregularitySpec.properties.seed);
+    for (const [k, input] of Object.entries(noiseInputs)) applyBounds(input, schemas.SensorSpec.properties[k]);
+    zoneProps = schemas.ZoneSpec.properties;
+    for (const row of zonesBody.querySelectorAll("tr")) zoneBounds(row.querySelector(".zone-start"), row.querySelector(".zone-end"), row.querySelector(".zone-loss"));
+    const hint = document.getElementById("sim-length-hint");
+    if (hint && length.min !== undefined && length.max !== undefined) hint.textContent = `${length.min} to ${length.max} m; ${lengthHint.toLowerCase()}`;
+  }).catch(() => {});
 
   const runBtn = h("button", { type: "submit", class: "button primary", id: "simulate-button" }, "Simulate and recover");
   const bar = h("progress", { max: "1", hidden: true, "aria-label": "Simulation progress" });
@@ -92,7 +117,7 @@ export async function render(main) {
     h("div", { class: "sim-grid" },
       h("fieldset", {},
         h("legend", {}, "Track and speed"),
-        field("Track length (m)", lengthInput, "80 to 5000 m; at most 120 s of travel."),
+        field("Track length (m)", lengthInput, lengthHint),
         field("Speed (km/h)", speedInput),
         field("Random seed", seedInput, "Same seed, same noise.")),
       h("fieldset", {},
@@ -128,23 +153,31 @@ export async function render(main) {
     const length = Number(lengthInput.value);
     const speedKmh = Number(speedInput.value);
     const errors = [];
-    if (!(length >= 80 && length <= 5000)) errors.push([lengthInput, "The track length must be between 80 and 5000 m."]);
-    if (!(speedKmh >= 18 && speedKmh <= 288)) errors.push([speedInput, "The speed must be between 18 and 288 km/h (5 to 80 m/s)."]);
+    // Out of the service's bounds (its schema): "Speed (km/h) must be at least 18 and at most 288".
+    const check = (input, label, required = false) => {
+      const problem = numberProblem(input, { required });
+      if (problem) errors.push([input, `${label} ${problem}.`]);
+      return !problem;
+    };
+    check(lengthInput, "The track length (m)", true);
+    check(speedInput, "The speed (km/h)", true);
+    check(seedInput, "The random seed");
+    check(railSeedInput, "The rail seed");
     const zones = [];
     for (const row of zonesBody.querySelectorAll("tr")) {
-      const s = Number(row.querySelector(".zone-start").value);
-      const e = Number(row.querySelector(".zone-end").value);
-      const l = Number(row.querySelector(".zone-loss").value);
-      if (!(Number.isFinite(s) && Number.isFinite(e) && e > s)) errors.push([row.querySelector(".zone-end"), `A zone must end after it starts (${s}–${e} m).`]);
-      else if (!(l > 0 && l < 100)) errors.push([row.querySelector(".zone-loss"), `A stiffness loss must be between 0 and 100 % (got ${l}).`]);
-      else if (s < 0 || e > length) errors.push([row.querySelector(".zone-start"), `Zone ${s}–${e} m is outside the track (0–${length} m).`]);
+      const [si, ei, li] = [".zone-start", ".zone-end", ".zone-loss"].map((c) => row.querySelector(c));
+      const s = Number(si.value);
+      const e = Number(ei.value);
+      const l = Number(li.value);
+      if (!(si.value.trim() && ei.value.trim() && Number.isFinite(s) && Number.isFinite(e) && e > s)) errors.push([ei, `A zone must end after it starts (${s}–${e} m).`]);
+      else if (!check(li, `The stiffness loss of zone ${s}–${e} m (%)`, true)) continue;
+      else if (s < 0 || e > length) errors.push([si, `Zone ${s}–${e} m is outside the track (0–${length} m).`]);
       else zones.push({ start_m: s, end_m: e, loss: l / 100 });
     }
     const noise = {};
     for (const [k, input] of Object.entries(noiseInputs)) {
-      const v = Number(input.value || 0);
-      if (!Number.isFinite(v) || (k.endsWith("noise") && v < 0)) errors.push([input, `${k.replace("_", " ")} must be a number${k.endsWith("noise") ? " ≥ 0" : ""}.`]);
-      noise[k] = v;
+      check(input, `The ${k.replace("_", " ")}`);
+      noise[k] = Number(input.value || 0);
     }
     const seed = seedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(seedInput.value)));
     const railSeed = railSeedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(railSeedInput.value)));

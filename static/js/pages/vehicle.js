@@ -3,7 +3,7 @@
 // alerts, and a button that calibrates it from its stored runs.
 
 import { h, clear, announce, fmt, fmtDate, fmtDay, messageBox } from "../dom.js";
-import { apiFetch, apiPostJson } from "../api.js";
+import { apiFetch, apiFetchAll, apiPostJson } from "../api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly } from "../plots.js";
 
 const PARAM_LABELS = {
@@ -220,7 +220,7 @@ async function renderList(main) {
   main.appendChild(status.el);
   let vehicles;
   try {
-    vehicles = (await apiFetch("vehicles?limit=1000")).data;
+    vehicles = await apiFetchAll("vehicles");
   } catch (err) {
     status.show(`Cannot load the vehicles: ${err.message}`, "error");
     return null;

@@ -1,7 +1,7 @@
 // Track page state: which track a route names, the data the page loads for it, and the
 // severity classes the chainage map draws with.
 
-import { apiFetch, apiGetOptional } from "../../api.js";
+import { apiFetch, apiFetchAll, apiGetOptional } from "../../api.js";
 
 // Severity classes by depth (mm): the symbol and size repeat what the colour says, so the map
 // reads without colour vision.
@@ -33,7 +33,7 @@ export function loadTrackData(enc) {
   const mapP = apiFetch(`/api/v1/views/tracks/${enc}/chainage-map?bins=1200&zones=false`);
   const registerP = Promise.all([
     apiGetOptional(`/api/v1/tracks/${enc}/defects`),
-    apiFetch(`/api/v1/runs?track=${enc}&limit=1000`).catch(() => null),
+    apiFetchAll(`/api/v1/runs?track=${enc}`).then((data) => ({ data })).catch(() => null),
   ]);
   // Awaited by the caller (unless the track turns out not to exist): no unhandled rejection.
   mapP.catch(() => {});

@@ -3,7 +3,7 @@
 // processing until the run is ready.
 
 import { h, announce } from "../../dom.js";
-import { ApiError, apiFetch, apiPostJson, uploadWithProgress } from "../../api.js";
+import { ApiError, apiFetch, apiFetchAll, apiPostJson, uploadWithProgress } from "../../api.js";
 import { readHead, parseHead } from "../../csvpreview.js";
 import {
   clearFieldErrors, inFormWords, numberProblem, showFieldError, showServerErrors,
@@ -26,12 +26,12 @@ function showReading(ui, state) {
 
 export async function loadChoices(ui, state) {
   try {
-    state.tracks = (await apiFetch("tracks")).data;
+    state.tracks = await apiFetchAll("tracks");
   } catch (err) {
     ui.status.show(`Could not load the tracks: ${err.message}`, "error");
   }
   try {
-    state.vehicles = (await apiFetch("vehicles")).data;
+    state.vehicles = await apiFetchAll("vehicles");
   } catch (err) {
     ui.status.show(`Could not load the vehicles: ${err.message}`, "error");
   }

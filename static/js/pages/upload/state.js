@@ -103,7 +103,8 @@ export function canPlaceWithoutStart(state) {
   return Boolean(effectiveReading(state).mapping.chainage) || Boolean(state.gnssPlaced);
 }
 
-/** When the file says it was recorded (UTC ISO, from its epoch time column), or null. */
+/** When the file says it was recorded (UTC ISO, from its epoch time column or a column of ISO
+ * date-times), or null. */
 export function fileRecordedAt(state) {
   const s = state.preview && state.preview.serverNow;
   return s && s.answer && s.answer.recorded_at ? s.answer.recorded_at : null;
