@@ -16,7 +16,7 @@ from sqlalchemy.pool import NullPool
 from starlette.testclient import TestClient
 
 from app.core.config import Settings
-from support.samples import shared_data_dir
+from support.samples import REPO, shared_data_dir
 
 TABLES = (
     "tracks", "vehicles", "runs", "run_inputs", "run_profile_blocks", "soft_spots", "run_signals",
@@ -93,6 +93,16 @@ def sample(name: str) -> tuple[bytes, dict[str, Any]]:
     if d is None or not (d / f"{name}.csv").exists():
         pytest.skip(f"shared sample {name} not available (set SHARED_DIR to the shared folder)")
     return (d / f"{name}.csv").read_bytes(), json.loads((d / f"{name}.truth.json").read_text())
+
+
+def example() -> tuple[bytes, dict[str, Any]]:
+    """The example log shipped in the repository (``examples/example_run.csv.gz``: a logger's
+    raw format, epoch s, g with gravity, deg/s, km/h) uncompressed, and its truth. Always there:
+    tests of the raw upload path need no shared folder."""
+    import gzip
+
+    data = gzip.decompress((REPO / "examples" / "example_run.csv.gz").read_bytes())
+    return data, json.loads((REPO / "examples" / "example_run.truth.json").read_text())
 
 
 def upload(

@@ -11,6 +11,7 @@ from starlette.testclient import TestClient
 
 from api.api_support import (
     assert_zones_match,
+    example,
     row_counts,
     sample,
     stored_points,
@@ -50,11 +51,18 @@ def test_sample_upload_finds_the_true_soft_zones(client: TestClient, name: str) 
         assert abs(spot["stiffness_loss_pct"] - 100 * zone["stiffness_loss"]) <= 10
 
 
+def _renamed(raw: bytes, names: tuple[str, ...], delimiter: str) -> bytes:
+    """A raw log under other column names and another delimiter (values untouched)."""
+    header, body = raw.split(b"\n", 1)
+    assert header.count(b",") == len(names) - 1
+    return (delimiter.join(names) + "\n").encode() + body.replace(b",", delimiter.encode())
+
+
 def test_raw_imu_log_with_unit_options(client: TestClient) -> None:
     """A logger's format (epoch s, g with gravity, deg/s, km/h) under its own column names is
-    read with the column/unit options and gives the same zones as the canonical file."""
-    data, truth = sample("sample_noisy")
-    raw = to_raw_imu(data, names=("t_epoch", "acc_vert", "rate_pitch", "v"), delimiter=";")
+    read with the column/unit options and gives the true zones (the repository's example)."""
+    data, truth = example()
+    raw = _renamed(data, ("t_epoch", "acc_vert", "rate_pitch", "v"), ";")
     r = upload(
         client,
         raw,
@@ -73,14 +81,26 @@ def test_raw_imu_log_with_unit_options(client: TestClient) -> None:
     )
     assert r.status_code == 201, r.text
     run = r.json()
-    assert run["duration_s"] == pytest.approx(20.533, abs=0.01)  # epoch time shifted to 0
-    assert run["speed_max_mps"] == pytest.approx(22.0, rel=1e-6)  # km/h converted
+    # epoch time shifted to 0 (1 kHz); km/h converted
+    assert run["duration_s"] == pytest.approx((truth["n_samples"] - 1) / 1000, abs=0.01)
+    assert run["speed_max_mps"] == pytest.approx(truth["speed_mps"], rel=1e-6)
     assert run["options"]["csv"]["accel_unit"] == "g"
     assert_zones_match(client.get(f"/api/v1/runs/{run['id']}/soft-spots").json(), truth["zones"])
 
 
 def test_raw_imu_log_recognised_from_its_header(client: TestClient) -> None:
-    """The documented raw format (timestamp, az_g, gyro_y_dps, speed_kmh) needs no options."""
+    """The documented raw format (timestamp, az_g, gyro_y_dps, speed_kmh) needs no options:
+    the repository's example log gives its true zones as it is."""
+    data, truth = example()
+    r = upload(client, data, "raw.csv", track="raw", start_chainage_m=truth["start_chainage_m"])
+    assert r.status_code == 201, r.text
+    assert_zones_match(
+        client.get(f"/api/v1/runs/{r.json()['id']}/soft-spots").json(), truth["zones"]
+    )
+
+
+def test_raw_imu_from_a_canonical_sample_gives_its_zones(client: TestClient) -> None:
+    """A shared sample rewritten in the raw format gives the zones of the canonical file."""
     data, truth = sample("sample_noisy")
     r = upload(
         client, to_raw_imu(data), "raw.csv", track="raw", start_chainage_m=truth["start_chainage_m"]
@@ -94,8 +114,7 @@ def test_raw_imu_log_recognised_from_its_header(client: TestClient) -> None:
 def test_wrong_unit_option_changes_the_result(client: TestClient) -> None:
     """Unit options are applied, not ignored: reading deg/s as rad/s makes the log unusable
     (or gives different soft spots), so the options visibly matter."""
-    data, truth = sample("sample_noisy")
-    raw = to_raw_imu(data)
+    raw, truth = example()
     r = upload(
         client,
         raw,
