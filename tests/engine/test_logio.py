@@ -128,7 +128,7 @@ def test_sample_runs_load_with_every_value_exact(name: str, rows: int, speed: fl
 
 
 def _raw_imu_bytes(ref: np.ndarray) -> bytes:
-    """sample_noisy as a logger writes it: epoch s, g incl. gravity, deg/s, km/h."""
+    """A canonical run as a logger writes it: epoch s, g incl. gravity, deg/s, km/h."""
     cols = [
         1763800000.0 + ref[:, 0],
         (ref[:, 1] + GRAVITY) / GRAVITY,
@@ -138,10 +138,22 @@ def _raw_imu_bytes(ref: np.ndarray) -> bytes:
     return _csv(_repr_lines("timestamp,az_g,gyro_y_dps,speed_kmh", cols))
 
 
-def test_raw_imu_log_gives_the_canonical_run() -> None:
-    """A raw IMU log (epoch s, g with gravity, deg/s, km/h) of sample_noisy is recognised by its
+@pytest.fixture(scope="module")
+def noisy_canonical(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A realistic canonical run (simulated 120 m at 22 m/s, 1 kHz, sensor noise and bias)
+    written as CSV at full precision: the reference of the raw-format tests, in every clone."""
+    from engine.synthetic import REALISTIC_SENSOR, make_run
+
+    run = make_run(length=120.0, sensor=REALISTIC_SENSOR, speed=22.0, seed=5)
+    path = tmp_path_factory.mktemp("canonical") / "noisy.csv"
+    write_run_csv(run.log, path)
+    return path
+
+
+def test_raw_imu_log_gives_the_canonical_run(noisy_canonical: Path) -> None:
+    """A raw IMU log (epoch s, g with gravity, deg/s, km/h) of a noisy run is recognised by its
     names and values alone and reads to the canonical RunLog within float rounding."""
-    path = _sample_path("sample_noisy")
+    path = noisy_canonical
     ref = np.loadtxt(path, delimiter=",", skiprows=1)
     canonical = read_run_csv(path)
     parsed = parse_run_csv(_raw_imu_bytes(ref))
@@ -160,9 +172,9 @@ def test_raw_imu_log_gives_the_canonical_run() -> None:
     _assert_same_log(parsed.log, canonical, atol_t=5e-7, atol=1e-13)
 
 
-def test_raw_imu_log_with_explicit_options_and_unhelpful_names() -> None:
+def test_raw_imu_log_with_explicit_options_and_unhelpful_names(noisy_canonical: Path) -> None:
     """Columns named c1..c4 read right when CsvOptions names columns, units and gravity."""
-    path = _sample_path("sample_noisy")
+    path = noisy_canonical
     ref = np.loadtxt(path, delimiter=",", skiprows=1)
     data = _raw_imu_bytes(ref).replace(b"timestamp,az_g,gyro_y_dps,speed_kmh", b"c1,c2,c3,c4")
     with pytest.raises(LogFormatError, match="no time column"):
