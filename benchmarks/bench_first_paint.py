@@ -1,0 +1,116 @@
+"""Where a cold first visit's chart time goes (issue 14): the run page in Debian chromium.
+
+For each repetition a fresh browser context (empty cache) opens the run page of the example
+run (``examples/example_run.csv.gz``) and waits for its profile chart. Reported, ms from the
+navigation: DOMContentLoaded (the page's ES modules loaded), plotly.js fetched (resource
+timing: bytes on the wire and decoded), plotly.js defined (its script parsed and evaluated:
+``window.Plotly`` set), and the chart drawn. With ``--trace`` chromium's own trace adds the
+time V8 spent on the plotly script (``v8.parseOnBackground``: streaming compile off the main
+thread; ``EvaluateScript``: running its top level, lazy compiles included).
+
+    python benchmarks/bench_first_paint.py [--reps 3] [--full] [--trace]
+
+``--full`` makes the service serve the plotly package's full bundle (as without the partial
+bundle installed by scripts/_plotly.sh), for a before/after on the same machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO), str(REPO / "tests")]
+
+from browser.harness import (  # noqa: E402
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    VIEWPORT,
+    ensure_plotly_partial,
+    start_server,
+    stop_server,
+)
+
+EXAMPLE = REPO / "examples" / "example_run.csv.gz"
+TRUTH = json.loads((REPO / "examples" / "example_run.truth.json").read_text())
+MARK_PLOTLY = """(() => { let v; Object.defineProperty(window, 'Plotly', { configurable: true,
+  get() { return v; }, set(x) { v = x; performance.mark('plotly-defined'); } }); })();"""
+READY = (
+    "() => { const gd = document.getElementById('profile-plot');"
+    " return gd && gd._fullLayout && gd.querySelector('.main-svg'); }"
+)
+TIMES = """() => {
+  const n = performance.getEntriesByType('navigation')[0];
+  const r = performance.getEntriesByType('resource').find(e => e.name.includes('plotly'));
+  const m = performance.getEntriesByName('plotly-defined')[0];
+  return { dom_content_loaded: n.domContentLoadedEventEnd, plotly_fetch_start: r.startTime,
+           plotly_fetched: r.responseEnd, plotly_wire_bytes: r.transferSize,
+           plotly_decoded_bytes: r.decodedBodySize, plotly_defined: m ? m.startTime : null,
+           chart_drawn: performance.now() }; }"""
+TRACE_CATEGORIES = ["devtools.timeline", "v8", "disabled-by-default-v8.compile"]
+
+
+def v8_times(trace: Path) -> dict[str, float]:
+    """ms of each complete trace event on plotly's script (parse, evaluate)."""
+    events = json.loads(trace.read_text())
+    events = events["traceEvents"] if isinstance(events, dict) else events
+    out: dict[str, float] = {}
+    for e in events:
+        data = (e.get("args") or {}).get("data") or {}
+        if e.get("ph") == "X" and "plotly" in str(data.get("url", "")):
+            out[e["name"]] = out.get(e["name"], 0.0) + e.get("dur", 0) / 1000
+    return {k: round(v, 1) for k, v in out.items() if v >= 1}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--full", action="store_true", help="serve the full plotly.js bundle")
+    ap.add_argument("--trace", action="store_true", help="add V8's parse/evaluate times")
+    args = ap.parse_args()
+    from playwright.sync_api import sync_playwright
+
+    ensure_plotly_partial()
+    tmp = Path(tempfile.mkdtemp())
+    full = {"TRACKPROFILE_PLOTLY_PARTIAL_JS": str(tmp / "none.js")} if args.full else None
+    server = start_server(tmp, settings=full)
+    try:
+        with server.api() as api:
+            r = api.post(
+                "/api/v1/runs?wait=true",
+                files={"file": (EXAMPLE.name, EXAMPLE.read_bytes(), "application/gzip")},
+                data={"track": "bench", "start_chainage_m": str(TRUTH["start_chainage_m"])},
+            )
+            r.raise_for_status()
+            url = f"{server.url}/#/runs/{r.json()['id']}"
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+            for rep in range(args.reps):
+                context = browser.new_context(viewport=VIEWPORT)
+                page = context.new_page()
+                page.add_init_script(MARK_PLOTLY)
+                trace = tmp / f"trace{rep}.json"
+                if args.trace:
+                    browser.start_tracing(page=page, path=str(trace), categories=TRACE_CATEGORIES)
+                t = time.perf_counter()
+                page.goto(url)
+                page.wait_for_function(READY)
+                total = time.perf_counter() - t
+                times = page.evaluate(TIMES)
+                if args.trace:
+                    browser.stop_tracing()
+                    times["v8_ms"] = v8_times(trace)
+                ms = {k: round(v) if isinstance(v, float) else v for k, v in times.items()}
+                print(f"rep {rep}: chart in {total:.2f} s", json.dumps(ms))
+                context.close()
+            browser.close()
+    finally:
+        stop_server(server)
+
+
+if __name__ == "__main__":
+    main()
