@@ -1,4 +1,5 @@
-"""Numbers: the fast path (numpy's C tokenizer) and the careful line-by-line path."""
+"""Numbers: the threaded path (pyarrow, :mod:`.threaded`), the reference fast path (numpy's
+C tokenizer) and the careful line-by-line path that names the bad line."""
 
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from .header import (
 from .source import (
     _Source,
 )
+from .threaded import parse_arrow
 
 
 class _Table:
@@ -171,6 +173,17 @@ def _field_count_error(s: str, k: int, n: int, ln: int, header: _Header) -> LogF
 def _parse_table(
     src: _Source, header: _Header, needed: list[int], sparse: frozenset[int] = frozenset()
 ) -> _Table:
+    got = parse_arrow(src, header, needed, sparse)
+    if got is not None:
+        columns, n = got
+        return _Table(columns, n, src, header, None)
+    return _parse_reference(src, header, needed, sparse)
+
+
+def _parse_reference(
+    src: _Source, header: _Header, needed: list[int], sparse: frozenset[int] = frozenset()
+) -> _Table:
+    """The reference reading: numpy's tokenizer, else line by line (naming a bad line)."""
     arr = _parse_fast(src, header, sparse)
     if arr is None:
         return _parse_careful(src, header, needed, sparse)
