@@ -11,10 +11,11 @@ Accepted input: bytes, a path or a binary file object; gzip-compressed or plain;
 without BOM), UTF-16 with BOM, or Windows-1252 text; ``\\n``, ``\\r\\n`` or ``\\r`` line ends;
 ``,``, ``;``, tab or whitespace delimiters; ``#`` comment lines. Decimal commas are refused.
 
-Large files take the fast path (numpy's C tokenizer streaming over the decoded text, about a
-second per 150 MB); only a file the fast path rejects is re-read line by line, which either
-reads it (text in columns that are not used, trailing delimiters) or finds the exact line that
-is wrong.
+The numbers are read by pyarrow's multi-threaded CSV parser straight from the bytes (UTF-8,
+``,``/``;``/tab, no comments: the common case) and otherwise, or when it refuses the file, by
+the reference reader: numpy's C tokenizer over the decoded text, and only for a file that
+rejects, line by line, which either reads it (text in columns that are not used, trailing
+delimiters) or finds the exact line that is wrong. Both give the same numbers bit for bit.
 
 The package, one module per step (each imports only from the ones above it):
 
@@ -23,7 +24,8 @@ The package, one module per step (each imports only from the ones above it):
 - :mod:`.source`: bytes, gzip and text encoding;
 - :mod:`.header`: header line, delimiter, fields;
 - :mod:`.columns`: which header name plays which role;
-- :mod:`.table`: the numbers (fast and careful paths);
+- :mod:`.threaded`: the numbers by pyarrow, where it reads them exactly as the reference;
+- :mod:`.table`: the numbers (threaded, fast and careful paths);
 - :mod:`.units`: the one unit resolution shared by parsing and preview, plausibility limits;
 - :mod:`.parse`: :func:`parse_run_csv`, :func:`read_run_csv`;
 - :mod:`.preview`: :func:`preview_csv`;
