@@ -10,6 +10,7 @@ the engine's defaults.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import fields
@@ -152,9 +153,13 @@ def stiffness_notes(
     ``(None, NOT_SEPARABLE)`` for a dip listed by depth only because one load cannot tell.
     """
     intervals = separable_intervals(session, track_id)
+    starts = [a for a, _ in intervals]
 
     def separable(d: Defect) -> bool:
-        return any(a <= d.start_m and b >= d.end_m for a, b in intervals)
+        # the stretches are ordered and disjoint: only the last one starting at or before the
+        # defect can hold it
+        i = bisect.bisect_right(starts, d.start_m) - 1
+        return i >= 0 and intervals[i][1] >= d.end_m
 
     out: list[tuple[str | None, str | None]] = []
     for d in defects:

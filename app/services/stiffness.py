@@ -408,23 +408,38 @@ def read_stiffness(
 
 
 def separable_intervals(session: Session, track_id: int) -> list[tuple[float, float]]:
-    """Stretches (aligned m, inclusive) where the track's separation holds, in order."""
-    window = read_stiffness(session, track_id)
-    x = np.asarray(window.columns["chainage_m"], dtype=np.float64)
-    sep = np.asarray(window.columns["separable"], dtype=bool)
-    out: list[tuple[float, float]] = []
-    if x.size == 0:
-        return out
-    gap = np.diff(x) > GRID_STEP_M * 1.5
-    start: float | None = None
-    for i in range(x.size):
-        if sep[i] and start is None:
-            start = float(x[i])
-        ends = i == x.size - 1 or not sep[i + 1] or gap[i]
-        if start is not None and sep[i] and ends:
-            out.append((start, float(x[i])))
-            start = None
-    return out
+    """Stretches (aligned m, inclusive) where the track's separation holds, in order.
+
+    A stretch is a maximal run of separable grid points some pass covers, broken where a
+    point is not separable or where no pass covers the grid (a gap). Only the ``separable``
+    and ``n_passes`` rows of each stored chunk are decoded: the register asks for this on
+    every request, over the whole line.
+    """
+    t = TrackStiffness.__table__
+    rows = session.execute(
+        select(t.c.chunk, t.c.data).where(t.c.track_id == track_id).order_by(t.c.chunk)
+    ).all()
+    k = len(STIFFNESS_ARRAYS)
+    i_sep, i_n = STIFFNESS_ARRAYS.index("separable"), STIFFNESS_ARRAYS.index("n_passes")
+    xs: list[NDArray[np.float64]] = []
+    seps: list[NDArray[np.bool_]] = []
+    for chunk, data in rows:
+        block = np.frombuffer(data, dtype=_DTYPE).reshape(k, CHUNK_POINTS)
+        keep = block[i_n] > 0
+        if keep.any():
+            x = (chunk * CHUNK_POINTS + np.arange(CHUNK_POINTS)) * GRID_STEP_M
+            xs.append(x[keep])
+            seps.append(block[i_sep][keep] > 0.5)
+    if not xs:
+        return []
+    x = np.concatenate(xs)
+    sep = np.concatenate(seps)
+    # a break after point i: the next covered point is not separable, or not the next one
+    brk = np.ones(x.size, dtype=bool)
+    brk[:-1] = ~sep[1:] | (np.diff(x) > GRID_STEP_M * 1.5)
+    starts = np.flatnonzero(sep & np.concatenate(([True], brk[:-1] | ~sep[:-1])))
+    ends = np.flatnonzero(sep & brk)
+    return [(float(x[a]), float(x[b])) for a, b in zip(starts, ends, strict=True)]
 
 
 def stiffness_with_vehicles(
