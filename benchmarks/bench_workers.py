@@ -27,13 +27,17 @@ Everything stays on this machine. A throwaway PostgreSQL server is started on 12
    spots stored once, and as many of them as in the other configurations.
 4. Database size per run-km (``pg_total_relation_size`` of every table) after processing.
 
-The load average is printed with every configuration: the machine's cores are shared.
+The load average is printed with every configuration: the machine's cores are shared, and
+on a loaded machine more processes also take a larger share of it from the other users.
+The CPU time each run costs (the worker processes' and the database server's) does not
+depend on that share: runs per core-hour come from it.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -119,9 +123,37 @@ def queue_runs(url: str, csvs: list[tuple[bytes, float]], tracks: int, port: int
     return ids
 
 
-def process(url: str, n_workers: int, n_runs: int, tmp: Path) -> dict[str, Any]:
+def pg_cpu_s(pg_dir: str | None) -> float:
+    """CPU time (s) the PostgreSQL server in ``pg_dir`` has used: the postmaster's own and
+    its finished children's, plus its live children's (backends); NaN when unknown."""
+    if pg_dir is None:
+        return float("nan")
+    try:
+        pid = int((Path(pg_dir) / "data" / "postmaster.pid").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return float("nan")
+
+    def fields(p: Path) -> list[str]:
+        return p.read_text().rsplit(")", 1)[1].split()
+
+    tick = os.sysconf("SC_CLK_TCK")
+    own = fields(Path(f"/proc/{pid}/stat"))
+    total = sum(int(v) for v in own[11:15])  # utime, stime, cutime, cstime
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            f = fields(stat)
+        except OSError:
+            continue
+        if int(f[1]) == pid:
+            total += int(f[11]) + int(f[12])
+    return total / tick
+
+
+def process(url: str, n_workers: int, n_runs: int, tmp: Path,
+            pg_dir: str | None) -> dict[str, Any]:  # fmt: skip
     """Start ``n_workers`` worker processes on ``url``, wait until no run is queued, stop
-    them; timings (s) and the load average."""
+    them; timings (s), the CPU time of the workers and of the database server (s) and the
+    load average."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("TRACKPROFILE_")}
     env |= SINGLE_THREAD | {
         "DATABASE_URL": url, "TRACKPROFILE_WORKERS": "1", "TRACKPROFILE_DATA_DIR": str(tmp),
@@ -129,6 +161,8 @@ def process(url: str, n_workers: int, n_runs: int, tmp: Path) -> dict[str, Any]:
     }  # fmt: skip
     eng = create_engine(url)
     load0 = os.getloadavg()
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    pg0 = pg_cpu_s(pg_dir)
     t0 = time.time()
     logs = [open(tmp / f"worker-{n_workers}-{i}.log", "wb") for i in range(n_workers)]  # noqa: SIM115
     procs = [
@@ -169,6 +203,8 @@ def process(url: str, n_workers: int, n_runs: int, tmp: Path) -> dict[str, Any]:
                 p.wait(30)
             except subprocess.TimeoutExpired:
                 p.kill()
+        cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        pg1 = pg_cpu_s(pg_dir)
         for f in logs:
             f.close()
     with eng.connect() as conn:
@@ -180,7 +216,9 @@ def process(url: str, n_workers: int, n_runs: int, tmp: Path) -> dict[str, Any]:
         ).one()
     eng.dispose()
     wall = float(last) - t0
-    return {"wall_s": wall, "startup_s": ready if ready is not None else float("nan"),
+    return {"worker_cpu_s": cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime,
+            "pg_cpu_s": pg1 - pg0, "wall_s": wall,
+            "startup_s": ready if ready is not None else float("nan"),
             "span_s": wall - (ready if ready is not None else 0.0), "load_before": load0,
             "load_max": max(loads), "load_mean": float(np.mean(loads)),
             "first_done_s": float(first) - t0}  # fmt: skip
@@ -221,7 +259,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="bench-workers-") as tmp_s:
         tmp = Path(tmp_s)
         if a.database_url:
-            return bench(a, counts, csvs, a.database_url, tmp)
+            return bench(a, counts, csvs, a.database_url, tmp, None)
         # a directory of its own: pg_server.sh hands it to the postgres user
         pg_dir = tempfile.mkdtemp(prefix="bench-workers-pg-")
         try:
@@ -229,7 +267,7 @@ def main() -> int:
                 ["bash", "scripts/pg_server.sh", "start", pg_dir, str(a.pg_port)],
                 cwd=REPO, check=True, capture_output=True, text=True,
             ).stdout.strip()  # fmt: skip
-            return bench(a, counts, csvs, base, tmp)
+            return bench(a, counts, csvs, base, tmp, pg_dir)
         finally:
             subprocess.run(["bash", "scripts/pg_server.sh", "stop", pg_dir], cwd=REPO,
                            check=False, capture_output=True)  # fmt: skip
@@ -237,11 +275,11 @@ def main() -> int:
 
 
 def bench(a: argparse.Namespace, counts: list[int], csvs: list[tuple[bytes, float]], base: str,
-          tmp: Path) -> int:  # fmt: skip
+          tmp: Path, pg_dir: str | None) -> int:  # fmt: skip
     admin(base, "DROP DATABASE IF EXISTS bench_queued", "CREATE DATABASE bench_queued")
     queued_url = with_db(base, "bench_queued")
     ids = queue_runs(queued_url, csvs, a.tracks, a.port, tmp)
-    queued_tables = table_bytes(Database(queued_url))
+    queued_tables = sizes(queued_url)
     results = {}
     censuses = {}
     for n in counts:
@@ -250,9 +288,9 @@ def bench(a: argparse.Namespace, counts: list[int], csvs: list[tuple[bytes, floa
               f"CREATE DATABASE {name} TEMPLATE bench_queued")  # fmt: skip
         url = with_db(base, name)
         print(f"{n} worker process(es): processing {len(ids)} queued runs ...", flush=True)
-        r = process(url, n, len(ids), tmp)
+        r = process(url, n, len(ids), tmp, pg_dir)
         censuses[n] = census(url)
-        r["tables"] = table_bytes(Database(url))
+        r["tables"] = sizes(url)
         results[n] = r
         run_km = sum(c[2] for c in censuses[n].values()) / 1e3
         print(f"  started in {r['startup_s']:.1f} s, processed in {r['span_s']:.1f} s: "
@@ -284,15 +322,22 @@ def bench(a: argparse.Namespace, counts: list[int], csvs: list[tuple[bytes, floa
           f"{a.tracks} tracks, PostgreSQL {pg_version(base)}")  # fmt: skip
     print()
     print("| worker processes | start-up (imports, connect) | processing (all started -> last "
-          "run done) | runs per hour | run-km per s | speed-up | load average (before / mean "
-          "/ max) |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|")
+          "run done) | runs per hour | run-km per s | speed-up | CPU per run: workers + "
+          "PostgreSQL | runs per core-hour | load average (before / mean / max) |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
     base_rate = len(ids) / results[counts[0]]["span_s"]
     for n, r in results.items():
         rate = len(ids) / r["span_s"]
         load = f"{r['load_before'][0]:.1f} / {r['load_mean']:.1f} / {r['load_max']:.1f}"
+        w_cpu, pg_cpu = r["worker_cpu_s"] / len(ids), r["pg_cpu_s"] / len(ids)
+        per_core = 3600 / (w_cpu + (pg_cpu if np.isfinite(pg_cpu) else 0.0))
         print(f"| {n} | {r['startup_s']:.1f} s | {r['span_s']:.1f} s | {3600 * rate:.0f} | "
-              f"{run_km / r['span_s']:.2f} | {rate / base_rate:.2f}x | {load} |")  # fmt: skip
+              f"{run_km / r['span_s']:.2f} | {rate / base_rate:.2f}x | {w_cpu:.2f} + "
+              f"{pg_cpu:.2f} s | {per_core:.0f} | {load} |")  # fmt: skip
+    print(
+        "(CPU: the worker processes' user + system time, start-up and idle polling included,"
+        " and the database server's; runs per core-hour = 3600 s / their sum per run)"
+    )
     print()
     tables = results[counts[-1]]["tables"]
     print(
@@ -316,6 +361,16 @@ def bench(a: argparse.Namespace, counts: list[int], csvs: list[tuple[bytes, floa
         f"stored once and the same with {', '.join(map(str, counts))} worker processes"
     )
     return 0
+
+
+def sizes(url: str) -> dict[str, int]:
+    """Bytes per table of the database at ``url`` (its connections closed after: it may be
+    the template of the next copy)."""
+    db = Database(url)
+    try:
+        return table_bytes(db)
+    finally:
+        db.dispose()
 
 
 def pg_version(url: str) -> str:
