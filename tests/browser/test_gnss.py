@@ -70,9 +70,9 @@ def test_centerline_upload_gnss_run_and_plan_view(
     expect(page.locator("#preview-table thead")).to_contain_text("Longitude")
     page.fill("#track-input", TRACK)
     page.dispatch_event("#track-input", "input")
-    note = page.locator("#gnss-note")
-    note.wait_for(state="visible")
-    assert "placed by its fixes" in note.inner_text()
+    # the note first says the log has fixes (the preview), then, once the track's centerline
+    # is known (debounced request), that the run is placed by them
+    expect(page.locator("#gnss-note")).to_contain_text("placed by its fixes", timeout=30_000)
     assert page.input_value("#start-chainage") == ""
     page.click("#upload-button")
     page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
