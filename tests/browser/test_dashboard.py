@@ -87,6 +87,11 @@ def test_upload_page_previews_and_recognises_columns(
     page.goto(f"{live_server.url}/#/upload")
     page.set_input_files("#file-input", str(sample_csv))
     page.wait_for_selector("#preview-table")
+    # The role badges come with the service's answer, after the table's first drawing.
+    page.wait_for_function(
+        "() => document.querySelector('#recognised-note')"
+        "?.textContent.includes('Recognised by the service')"
+    )
     headers = page.locator("#preview-table thead th").all_inner_texts()
     assert len(headers) == 4
     joined = " | ".join(headers)
