@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from browser.bigtrack import BigTrack, fill_big_track
 from browser.harness import LiveServer, start_server, stop_server, wait_for_plot
@@ -78,24 +79,78 @@ def test_browser_opens_the_100km_map_within_two_seconds(
         page.wait_for_function(
             """() => {
                 const gd = document.getElementById('chainage-map');
-                return gd && gd.querySelector('.scatterlayer .point')
+                return gd && gd.data && gd.data.some(d => d.meta === 'spot-cells')
+                       && gd.querySelector('.heatmaplayer image')
                        && document.querySelector('#zone-table tbody tr');
             }"""
         )
         times.append(time.perf_counter() - t)
-    n_markers = page.evaluate(
-        """() => document.getElementById('chainage-map').data
-                 .find(d => d.meta === 'spots').x.length"""
-    )
-    assert n_markers == track.n_spots
-    # At ~100 m per pixel a spot's few metres are not a pixel: no extent bars (thousands of
-    # invisible SVG paths were a third of the drawing time).
-    assert page.evaluate(
-        "() => !document.getElementById('chainage-map').data.some(d => d.meta === 'extents')"
-    )
+    # ~7 000 spots are merged per run into cells of a few pixels (two heatmap images), not drawn
+    # as ~7 000 SVG markers (and no extent bars: a spot's few metres are not a pixel here).
+    metas = page.evaluate("() => document.getElementById('chainage-map').data.map(d => d.meta)")
+    assert metas == ["spot-frames", "spot-cells"]
     print(f"\n100 km chainage map opened in {min(times):.2f} s (tries: {times})")
     assert min(times) <= CEILING_S, f"chainage map opened in {min(times):.2f} s (tries: {times})"
     page.screenshot(path=str(screenshots / "track-100km.png"), full_page=False)
+    page.watch.assert_clean()
+
+
+def test_whole_line_map_merges_spots_into_cells_that_cover_every_spot(
+    page: Any, big: tuple[LiveServer, BigTrack, int]
+) -> None:
+    """The overview's cells: few DOM nodes, yet every soft spot lies in a drawn cell of its run
+    whose colour is the deepest of the spots in it and whose hover counts them all."""
+    server, track, track_id = big
+    page.goto(f"{server.url}/#/tracks/{track_id}")
+    page.wait_for_function(
+        "() => document.querySelector('#chainage-map .heatmaplayer image')"
+        " && document.getElementById('chainage-map').data.some(d => d.meta === 'spot-cells')"
+    )
+    drawn = page.evaluate(
+        """() => { const gd = document.getElementById('chainage-map');
+                   const t = gd.data.find(d => d.meta === 'spot-cells');
+                   const f = gd.data.find(d => d.meta === 'spot-frames');
+                   return {x: t.x, z: t.z, text: t.text, cd: t.customdata, y: t.y, frames: f.z,
+                           rows: gd.layout.yaxis.categoryarray.slice().reverse(),
+                           width: gd._fullLayout.xaxis._length,
+                           range: gd._fullLayout.xaxis.range,
+                           nodes: gd.querySelectorAll('*').length}; }"""
+    )
+    with server.api() as api:
+        spots = api.get(
+            f"/api/v1/views/tracks/{track_id}/chainage-map?bins=1200&zones=false"
+        ).json()["spots"]
+    assert drawn["nodes"] < 1000, f"{drawn['nodes']} DOM nodes in the overview map"
+    x = np.asarray(drawn["x"])
+    z = np.array([[np.nan if v is None else v for v in row] for row in drawn["z"]])
+    assert drawn["y"] == drawn["rows"] and z.shape == (track.n_runs, x.size)
+    # Cells are CELL_PX (5) pixels wide at the drawn scale: a mark, not a stretch of line.
+    width = float(x[1] - x[0])
+    metres_per_px = (drawn["range"][1] - drawn["range"][0]) / drawn["width"]
+    assert np.allclose(np.diff(x), width) and 4 <= width / metres_per_px <= 6
+    peak = np.asarray(spots["peak_m"])
+    row = np.asarray(spots["run_index"])
+    depth = np.asarray(spots["depth_mm"])
+    col = np.floor((peak - (x[0] - width / 2)) / width).astype(int)
+    assert np.all((col >= 0) & (col < x.size))
+    deepest = np.full(z.shape, np.nan)
+    count = np.zeros(z.shape, dtype=int)
+    for r, c, d in zip(row, col, depth, strict=True):
+        count[r, c] += 1
+        deepest[r, c] = d if np.isnan(deepest[r, c]) else max(deepest[r, c], d)
+    # Every spot is in a drawn cell; only cells holding spots are drawn (framed); each cell's
+    # colour is its deepest spot's depth and its hover names how many spots it holds.
+    assert np.array_equal(np.isnan(z), count == 0)
+    assert np.array_equal(np.array([[v is None for v in r] for r in drawn["frames"]]), count == 0)
+    assert np.allclose(z[count > 0], deepest[count > 0])
+    for r, c in zip(*np.nonzero(count), strict=True):
+        k = int(count[r, c])
+        assert drawn["text"][r][c] == (f"{k} soft spot" if k == 1 else f"{k} soft spots")
+        held = (row == r) & (col == c)
+        start, end, at_m, _ = drawn["cd"][r][c]
+        assert start <= peak[held].min() and end >= peak[held].max()
+        assert at_m == pytest.approx(peak[held][np.argmax(depth[held])])
+    assert count.sum() == track.n_spots and count.max() >= 2  # merged, none lost
     page.watch.assert_clean()
 
 
@@ -131,6 +186,15 @@ def test_zooming_into_the_line_draws_the_level_heatmap(
                    return e ? [e.x.length, s.x.length] : null; }"""
     )
     assert bars is not None and bars[1] > 0 and bars[0] == 3 * bars[1]
+    # Zoomed in, the window's spots are markers again: one per soft spot, none merged.
+    with server.api() as api:
+        window = api.get(
+            f"/api/v1/views/tracks/{track_id}/chainage-map?zones=false&from_m=42000&to_m=47000"
+        ).json()["spots"]
+    assert bars[1] == len(window["peak_m"])
+    assert page.evaluate(
+        "() => !document.getElementById('chainage-map').data.some(d => d.meta === 'spot-cells')"
+    )
     print(f"\nzoomed 5 km heatmap drawn in {elapsed:.2f} s")
     assert elapsed <= CEILING_S, f"zoomed heatmap drawn in {elapsed:.2f} s"
     page.watch.assert_clean()

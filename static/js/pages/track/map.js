@@ -1,6 +1,7 @@
 // The track page's chainage map: every run along chainage, soft spots as markers (x chainage,
-// y run, colour + size + symbol = severity) over an optional level background. Zooming asks
-// the server for that window only.
+// y run, colour + size + symbol = severity) over an optional level background; thousands of
+// spots (a long line) merged per run into cells of a few pixels. Zooming asks the server for
+// that window only.
 
 import { h, fmt, fmtDate, plural } from "../../dom.js";
 import { apiFetch } from "../../api.js";
@@ -27,11 +28,79 @@ function medianExtent(s) {
   return ext.length ? ext[ext.length >> 1] : 0;
 }
 
+/** Above this many soft spots the map merges them into cells (see `spotCells`): each SVG
+ * marker is a DOM node styled one by one, and ~7 000 of them (a 100 km line) took plotly
+ * 1.5-3 s to draw, a grid of cells 0.3-0.6 s. A zoomed window with fewer spots gets markers. */
+export const MAX_MARKERS = 1500;
+
+/** Width of a merged cell, px: its coloured core is `CELL_PX - 2`, framed by 1 px of dark on
+ * each side like a marker's outline (the pale end of the colour scale on white needs it). */
+export const CELL_PX = 5;
+
+/**
+ * The soft spots merged per run (row) and per `CELL_PX` pixels of chainage, for a map drawn at
+ * `metresPerPixel`. Cells are aligned to multiples of their width (m). Returns
+ * {width_m, x, z, count, customdata}: x the cells' centres (m), and per row (run index) and
+ * column z the deepest spot's depth (mm, null where no spot is), count the number of spots,
+ * customdata [first start (m), last end (m), deepest's peak (m), its stiffness loss (%)].
+ */
+export function spotCells(s, nRows, metresPerPixel) {
+  const width = CELL_PX * metresPerPixel;
+  const col = s.peak_m.map((p) => Math.floor(p / width));
+  const c0 = Math.min(...col);
+  const nCols = Math.max(...col) - c0 + 1;
+  const z = Array.from({ length: nRows }, () => new Array(nCols).fill(null));
+  const count = Array.from({ length: nRows }, () => new Array(nCols).fill(0));
+  const customdata = Array.from({ length: nRows }, () => new Array(nCols).fill(null));
+  s.peak_m.forEach((p, i) => {
+    const r = s.run_index[i];
+    const c = col[i] - c0;
+    const cd = customdata[r][c];
+    count[r][c] += 1;
+    if (cd === null) customdata[r][c] = [s.start_m[i], s.end_m[i], p, s.stiffness_loss_pct[i]];
+    else {
+      cd[0] = Math.min(cd[0], s.start_m[i]);
+      cd[1] = Math.max(cd[1], s.end_m[i]);
+    }
+    if (z[r][c] === null || s.depth_mm[i] > z[r][c]) {
+      z[r][c] = s.depth_mm[i];
+      customdata[r][c][2] = p;
+      customdata[r][c][3] = s.stiffness_loss_pct[i];
+    }
+  });
+  const x = Array.from({ length: nCols }, (_, c) => (c0 + c + 0.5) * width);
+  return { width_m: width, x, z, count, customdata };
+}
+
+function depthColorbar(narrow) {
+  return narrow
+    ? { title: { text: "Depth (mm)", side: "top" }, orientation: "h", thickness: 10, len: 1, x: 0.5, xanchor: "center", y: -0.18, yanchor: "top" }
+    : { title: { text: "Depth (mm)" }, thickness: 14, len: 0.9 };
+}
+
+/** The merged overview: a dark frame layer under the coloured cells (two heatmap images). */
+function cellTraces(s, labels, depthMax, narrow, metresPerPixel) {
+  const cells = spotCells(s, labels.length, metresPerPixel);
+  const text = cells.count.map((row) => row.map((k) => (k ? plural(k, "soft spot") : "")));
+  return [
+    {
+      type: "heatmap", meta: "spot-frames", x: cells.x, y: labels, z: cells.z.map((row) => row.map((v) => (v === null ? null : 1))),
+      colorscale: [[0, "#1b1f24"], [1, "#1b1f24"]], showscale: false, hoverinfo: "skip", ygap: 2,
+    },
+    {
+      type: "heatmap", meta: "spot-cells", name: "Soft spots", x: cells.x, y: labels, z: cells.z, text, customdata: cells.customdata,
+      colorscale: "Viridis", reversescale: true, zmin: 0, zmax: depthMax, xgap: 2, ygap: 4, hoverongaps: false,
+      colorbar: depthColorbar(narrow),
+      hovertemplate: "%{y}<br>%{text} in %{customdata[0]:.0f}–%{customdata[1]:.0f} m<br>deepest %{z:.2f} mm at %{customdata[2]:.0f} m, stiffness loss %{customdata[3]:.0f} %<extra></extra>",
+    },
+  ];
+}
+
 /**
  * The chainage map's traces. `metresPerPixel` is the drawn scale: the extent bars are drawn
  * only when a typical soft spot is at least a pixel long. Over a whole line (100 km on ~1 000
  * px, ~100 m per pixel) they would be thousands of invisible SVG paths, as costly to draw as
- * the markers themselves.
+ * the markers themselves. More than `MAX_MARKERS` spots are drawn merged into cells.
  */
 export function mapTraces(map, heat, narrow = false, metresPerPixel = 0) {
   const labels = narrow ? rowLabels(map.runs || [], true) : runLabels(map);
@@ -39,6 +108,8 @@ export function mapTraces(map, heat, narrow = false, metresPerPixel = 0) {
   if (map.heatmap) traces.push(heatmapTrace(map.heatmap, labels, heat));
   const s = map.spots || { run_index: [], start_m: [], end_m: [], peak_m: [], depth_mm: [], stiffness_loss_pct: [] };
   const n = s.peak_m.length;
+  const depthMax = Math.max(0.5, ...s.depth_mm);
+  if (n > MAX_MARKERS && metresPerPixel > 0) return traces.concat(cellTraces(s, labels, depthMax, narrow, metresPerPixel));
   if (n && medianExtent(s) >= metresPerPixel) {
     const segX = [];
     const segY = [];
@@ -53,19 +124,16 @@ export function mapTraces(map, heat, narrow = false, metresPerPixel = 0) {
     });
   }
   if (n) {
-    const depthMax = Math.max(0.5, ...s.depth_mm);
     traces.push({
       type: "scatter", mode: "markers", name: "Soft spots", meta: "spots",
       x: s.peak_m, y: s.run_index.map((i) => labels[i]),
       marker: {
         color: s.depth_mm, colorscale: "Viridis", reversescale: true, cmin: 0, cmax: depthMax,
-        // Dense overviews (a whole line) get smaller markers so that zones stay apart.
-        size: s.depth_mm.map((d) => (n > 1500 ? 5 + 8 * Math.min(d / depthMax, 1) : 8 + 14 * Math.min(d / depthMax, 1))),
+        // Dense maps (drawn without a known scale) get smaller markers so that zones stay apart.
+        size: s.depth_mm.map((d) => (n > MAX_MARKERS ? 5 + 8 * Math.min(d / depthMax, 1) : 8 + 14 * Math.min(d / depthMax, 1))),
         symbol: s.depth_mm.map((d) => CLASSES[severityClass(d)].symbol),
         line: { color: "#1b1f24", width: 1 },
-        colorbar: narrow
-          ? { title: { text: "Depth (mm)", side: "top" }, orientation: "h", thickness: 10, len: 1, x: 0.5, xanchor: "center", y: -0.18, yanchor: "top" }
-          : { title: { text: "Depth (mm)" }, thickness: 14, len: 0.9 },
+        colorbar: depthColorbar(narrow),
       },
       customdata: s.peak_m.map((_, i) => [s.start_m[i], s.end_m[i], s.depth_mm[i], s.stiffness_loss_pct[i]]),
       hovertemplate: "%{y}<br>%{customdata[0]:.1f}–%{customdata[1]:.1f} m, depth %{customdata[2]:.2f} mm, stiffness loss %{customdata[3]:.0f} %<extra></extra>",
@@ -124,7 +192,7 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
     h("div", { class: "section-head" },
       h("h2", { id: "map-h" }, "Chainage map"),
       h("label", { class: "check" }, heatToggle, " Profile level as background")),
-    h("p", { class: "hint" }, "Each row is a run (newest at the top). Markers are soft spots at their deepest point; zoomed in far enough to see it, a bar shows their extent. Darker, larger and more angular markers are deeper. Drag to zoom; the background is recomputed for the zoomed window."),
+    h("p", { class: "hint" }, "Each row is a run (newest at the top). Markers are soft spots at their deepest point; zoomed in far enough to see it, a bar shows their extent. Darker, larger and more angular markers are deeper. With too many to draw one by one (a long line), a run's spots are merged per few pixels of chainage into a framed cell coloured by the deepest (hover: how many, the deepest); zoom in to see each. Drag to zoom; the background is recomputed for the zoomed window."),
     mapDiv,
     legend,
     mapNote,
