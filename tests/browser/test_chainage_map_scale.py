@@ -23,8 +23,8 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 BUDGET_S = 2.0
 """The issue-5 target for opening the map in the browser. Measured, not asserted, in the suite:
-on a quiet 2-core machine the register-as-only-zone-model change (issue 13) put it at
-2.2-2.4 s (docs/benchmarks.md); the suite guards against gross regressions only."""
+with the overview's spots merged into cells (issue 13) ~1.0 s at load 9-10 with CPU priority,
+markers 2.5-3.1 s (docs/benchmarks.md); the suite guards against gross regressions only."""
 CEILING_S = 3 * BUDGET_S
 """What the browser checks assert: a gross regression (or a hang) fails, machine load does not."""
 
@@ -68,7 +68,7 @@ def test_whole_line_map_answer_is_fast_and_complete(big: tuple[LiveServer, BigTr
 def test_browser_opens_the_100km_map_within_two_seconds(
     page: Any, big: tuple[LiveServer, BigTrack, int], screenshots: Path
 ) -> None:
-    """From a click on the track to the drawn map (markers) and the zone table: at most 2 s."""
+    """From a click on the track to the drawn map (merged cells) and the zone table: at most 2 s."""
     server, track, track_id = big
     times = []
     for _ in range(2):  # best of two: the machine is shared with other work
@@ -110,7 +110,8 @@ def test_whole_line_map_merges_spots_into_cells_that_cover_every_spot(
         """() => { const gd = document.getElementById('chainage-map');
                    const t = gd.data.find(d => d.meta === 'spot-cells');
                    const f = gd.data.find(d => d.meta === 'spot-frames');
-                   return {x: t.x, z: t.z, text: t.text, cd: t.customdata, y: t.y, frames: f.z,
+                   return {x0: t.x0, dx: t.dx, z: t.z, text: t.text, cd: t.customdata,
+                           y: t.y, frames: f.z,
                            rows: gd.layout.yaxis.categoryarray.slice().reverse(),
                            width: gd._fullLayout.xaxis._length,
                            range: gd._fullLayout.xaxis.range,
@@ -121,18 +122,18 @@ def test_whole_line_map_merges_spots_into_cells_that_cover_every_spot(
             f"/api/v1/views/tracks/{track_id}/chainage-map?bins=1200&zones=false"
         ).json()["spots"]
     assert drawn["nodes"] < 1000, f"{drawn['nodes']} DOM nodes in the overview map"
-    x = np.asarray(drawn["x"])
     z = np.array([[np.nan if v is None else v for v in row] for row in drawn["z"]])
-    assert drawn["y"] == drawn["rows"] and z.shape == (track.n_runs, x.size)
+    assert drawn["y"] == drawn["rows"] and z.shape[0] == track.n_runs
     # Cells are CELL_PX (5) pixels wide at the drawn scale: a mark, not a stretch of line.
-    width = float(x[1] - x[0])
+    width = float(drawn["dx"])
     metres_per_px = (drawn["range"][1] - drawn["range"][0]) / drawn["width"]
-    assert np.allclose(np.diff(x), width) and 4 <= width / metres_per_px <= 6
+    assert 4 <= width / metres_per_px <= 6
     peak = np.asarray(spots["peak_m"])
     row = np.asarray(spots["run_index"])
     depth = np.asarray(spots["depth_mm"])
-    col = np.floor((peak - (x[0] - width / 2)) / width).astype(int)
-    assert np.all((col >= 0) & (col < x.size))
+    # as the page bins: cells aligned to multiples of their width
+    col = (np.floor(peak / width) - round(drawn["x0"] / width - 0.5)).astype(int)
+    assert np.all((col >= 0) & (col < z.shape[1]))
     deepest = np.full(z.shape, np.nan)
     count = np.zeros(z.shape, dtype=int)
     for r, c, d in zip(row, col, depth, strict=True):

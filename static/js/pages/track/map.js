@@ -40,15 +40,16 @@ export const CELL_PX = 5;
 /**
  * The soft spots merged per run (row) and per `CELL_PX` pixels of chainage, for a map drawn at
  * `metresPerPixel`. Cells are aligned to multiples of their width (m). Returns
- * {width_m, x, z, count, customdata}: x the cells' centres (m), and per row (run index) and
- * column z the deepest spot's depth (mm, null where no spot is), count the number of spots,
- * customdata [first start (m), last end (m), deepest's peak (m), its stiffness loss (%)].
+ * {x0, dx, z, count, customdata}: x0 the first column's centre and dx the cells' width (m),
+ * and per row (run index) and column z the deepest spot's depth (mm, null where no spot is),
+ * count the number of spots, customdata [first start (m), last end (m), the deepest's peak (m),
+ * its stiffness loss (%)].
  */
 export function spotCells(s, nRows, metresPerPixel) {
   const width = CELL_PX * metresPerPixel;
   const col = s.peak_m.map((p) => Math.floor(p / width));
-  const c0 = Math.min(...col);
-  const nCols = Math.max(...col) - c0 + 1;
+  const c0 = col.reduce((a, c) => Math.min(a, c), Infinity);
+  const nCols = col.reduce((a, c) => Math.max(a, c), -Infinity) - c0 + 1;
   const z = Array.from({ length: nRows }, () => new Array(nCols).fill(null));
   const count = Array.from({ length: nRows }, () => new Array(nCols).fill(0));
   const customdata = Array.from({ length: nRows }, () => new Array(nCols).fill(null));
@@ -68,8 +69,7 @@ export function spotCells(s, nRows, metresPerPixel) {
       customdata[r][c][3] = s.stiffness_loss_pct[i];
     }
   });
-  const x = Array.from({ length: nCols }, (_, c) => (c0 + c + 0.5) * width);
-  return { width_m: width, x, z, count, customdata };
+  return { x0: (c0 + 0.5) * width, dx: width, z, count, customdata };
 }
 
 function depthColorbar(narrow) {
@@ -84,11 +84,11 @@ function cellTraces(s, labels, depthMax, narrow, metresPerPixel) {
   const text = cells.count.map((row) => row.map((k) => (k ? plural(k, "soft spot") : "")));
   return [
     {
-      type: "heatmap", meta: "spot-frames", x: cells.x, y: labels, z: cells.z.map((row) => row.map((v) => (v === null ? null : 1))),
+      type: "heatmap", meta: "spot-frames", x0: cells.x0, dx: cells.dx, y: labels, z: cells.z.map((row) => row.map((v) => (v === null ? null : 1))),
       colorscale: [[0, "#1b1f24"], [1, "#1b1f24"]], showscale: false, hoverinfo: "skip", ygap: 2,
     },
     {
-      type: "heatmap", meta: "spot-cells", name: "Soft spots", x: cells.x, y: labels, z: cells.z, text, customdata: cells.customdata,
+      type: "heatmap", meta: "spot-cells", name: "Soft spots", x0: cells.x0, dx: cells.dx, y: labels, z: cells.z, text, customdata: cells.customdata,
       colorscale: "Viridis", reversescale: true, zmin: 0, zmax: depthMax, xgap: 2, ygap: 4, hoverongaps: false,
       colorbar: depthColorbar(narrow),
       hovertemplate: "%{y}<br>%{text} in %{customdata[0]:.0f}–%{customdata[1]:.0f} m<br>deepest %{z:.2f} mm at %{customdata[2]:.0f} m, stiffness loss %{customdata[3]:.0f} %<extra></extra>",
