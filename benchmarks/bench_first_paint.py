@@ -1,17 +1,21 @@
-"""Where a cold first visit's chart time goes (issue 14): the run page in Debian chromium.
+"""Where a cold first visit's chart time goes (issue 14): run and track page in Debian chromium.
 
 For each repetition a fresh browser context (empty cache) opens the run page of the example
-run (``examples/example_run.csv.gz``) and waits for its profile chart. Reported, ms from the
-navigation: DOMContentLoaded (the page's ES modules loaded), plotly.js fetched (resource
-timing: bytes on the wire and decoded), plotly.js defined (its script parsed and evaluated:
-``window.Plotly`` set), and the chart drawn. With ``--trace`` chromium's own trace adds the
-time V8 spent on the plotly script (``v8.parseOnBackground``: streaming compile off the main
-thread; ``EvaluateScript``: running its top level, lazy compiles included).
+run (``examples/example_run.csv.gz``) and waits for its profile chart, then another fresh
+context at 390x844 (a phone) opens its track page and waits for the chainage map. Reported
+for the run page, ms from the navigation: DOMContentLoaded (the shell's ES modules loaded),
+plotly.js requested and fetched (resource timing: bytes on the wire and decoded), plotly.js
+defined (its script parsed and evaluated: ``window.Plotly`` set), and the chart drawn. With
+``--trace`` chromium's own trace adds the time V8 spent on the plotly script
+(``v8.parseOnBackground``: streaming compile off the main thread; ``EvaluateScript``: running
+its top level, lazy compiles included).
 
-    python benchmarks/bench_first_paint.py [--reps 3] [--full] [--trace]
+    python benchmarks/bench_first_paint.py [--reps 3] [--full] [--trace] [--static DIR]
 
 ``--full`` makes the service serve the plotly package's full bundle (as without the partial
-bundle installed by scripts/_plotly.sh), for a before/after on the same machine.
+bundle installed by scripts/_plotly.sh), ``--static DIR`` another dashboard (e.g. an older
+commit's ``static/``: ``git archive COMMIT static | tar -x -C DIR/..``), for a before/after
+on the same machine.
 """
 
 from __future__ import annotations
@@ -39,6 +43,12 @@ EXAMPLE = REPO / "examples" / "example_run.csv.gz"
 TRUTH = json.loads((REPO / "examples" / "example_run.truth.json").read_text())
 MARK_PLOTLY = """(() => { let v; Object.defineProperty(window, 'Plotly', { configurable: true,
   get() { return v; }, set(x) { v = x; performance.mark('plotly-defined'); } }); })();"""
+PHONE = {"width": 390, "height": 844}
+TRACK_READY = (
+    "() => { const gd = document.getElementById('chainage-map');"
+    " return gd && gd.data && gd.data.length >= 2 && gd._fullLayout"
+    " && gd.querySelector('.main-svg'); }"
+)
 READY = (
     "() => { const gd = document.getElementById('profile-plot');"
     " return gd && gd._fullLayout && gd.querySelector('.main-svg'); }"
@@ -71,13 +81,16 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--full", action="store_true", help="serve the full plotly.js bundle")
     ap.add_argument("--trace", action="store_true", help="add V8's parse/evaluate times")
+    ap.add_argument("--static", type=Path, help="serve this dashboard directory instead")
     args = ap.parse_args()
     from playwright.sync_api import sync_playwright
 
     ensure_plotly_partial()
     tmp = Path(tempfile.mkdtemp())
-    full = {"TRACKPROFILE_PLOTLY_PARTIAL_JS": str(tmp / "none.js")} if args.full else None
-    server = start_server(tmp, settings=full)
+    settings = {"TRACKPROFILE_PLOTLY_PARTIAL_JS": str(tmp / "none.js")} if args.full else {}
+    if args.static:
+        settings["TRACKPROFILE_STATIC_DIR"] = str(args.static.resolve())
+    server = start_server(tmp, settings=settings)
     try:
         with server.api() as api:
             r = api.post(
@@ -87,6 +100,7 @@ def main() -> None:
             )
             r.raise_for_status()
             url = f"{server.url}/#/runs/{r.json()['id']}"
+            track_url = f"{server.url}/#/tracks/{r.json()['track_id']}"
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
             for rep in range(args.reps):
@@ -105,8 +119,19 @@ def main() -> None:
                     browser.stop_tracing()
                     times["v8_ms"] = v8_times(trace)
                 ms = {k: round(v) if isinstance(v, float) else v for k, v in times.items()}
-                print(f"rep {rep}: chart in {total:.2f} s", json.dumps(ms))
                 context.close()
+                context = browser.new_context(viewport=PHONE)
+                page = context.new_page()
+                t = time.perf_counter()
+                page.goto(track_url)
+                page.wait_for_function(TRACK_READY)
+                phone = time.perf_counter() - t
+                context.close()
+                print(
+                    f"rep {rep}: run chart in {total:.2f} s,"
+                    f" track chart at 390 px in {phone:.2f} s",
+                    json.dumps(ms),
+                )
             browser.close()
     finally:
         stop_server(server)

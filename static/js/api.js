@@ -22,6 +22,13 @@ function locName(loc) {
   return parts.join(".");
 }
 
+/** The readable message of a stored run error (text or structured). */
+export function runErrorMessage(error) {
+  if (!error) return "unknown error";
+  if (typeof error === "string") return error;
+  return error.message || JSON.stringify(error);
+}
+
 /**
  * Turn an API error detail into {message, items, fields}: a one-line message, a list of
  * specific facts (column, row, unit, field) to show, and the form fields concerned.

@@ -95,6 +95,28 @@ def assert_no_cloud_links(page: Any) -> None:
     assert configs and all(c == [False, ""] for c in configs), configs
 
 
+PAGE_MODULES = ("/static/js/pages/",)
+
+
+def assert_plotly_loads_with_the_page_module(page: Any, own: str) -> None:
+    """On a cold visit of a page with charts, plotly.js is requested while the page's module
+    graph still loads (not after it: static/js/app.js imports a page's module when it is
+    shown), and no other page's module is fetched. ``own`` is the page's module directory or
+    file under static/js/pages/."""
+    entries = page.evaluate(
+        """() => performance.getEntriesByType('resource').map(e =>
+            [new URL(e.name).pathname, e.startTime, e.responseEnd])"""
+    )
+    plotly_start = next(start for path, start, _ in entries if "/vendor/plotly" in path)
+    modules = [(path, end) for path, _, end in entries if path.startswith("/static/js/")]
+    others = [p for p, _ in modules if p.startswith(PAGE_MODULES) and not p.startswith(own)]
+    assert not others, f"modules of other pages loaded: {others}"
+    last = max(end for _, end in modules)
+    assert plotly_start < last, (
+        f"plotly.js requested at {plotly_start:.0f} ms, after the module graph ({last:.0f} ms)"
+    )
+
+
 def timed_goto(page: Any, url: str, ready: str) -> float:
     """Seconds from navigation to `ready` (a JS predicate) holding."""
     t = time.perf_counter()
@@ -147,6 +169,7 @@ def test_run_page_chart_is_fast_cached_local_explained_and_accessible(
     url = f"{live_server.url}/#/runs/{example_run['id']}"
     ready = "() => { const gd = document.getElementById('profile-plot'); return gd && gd._fullLayout && gd.querySelector('.main-svg'); }"
     cold = timed_goto(page, url, ready)
+    assert_plotly_loads_with_the_page_module(page, "/static/js/pages/run.js")
     warm = min(
         timed_goto(page, f"{live_server.url}/?t={i}#/runs/{example_run['id']}", ready)
         for i in range(2)
@@ -205,6 +228,7 @@ def test_track_page_fits_a_phone_and_explains_a_single_run(
         page.goto(url)
         wait_for_plot(page, "#chainage-map", 2)
         TIMINGS["track chart at 390 px, first visit (s)"] = time.perf_counter() - t
+        assert_plotly_loads_with_the_page_module(page, "/static/js/pages/track/")
         wait_for_plot(page, "#zone-plot")
         width = page.evaluate("() => document.getElementById('chainage-map')._fullLayout._size.w")
         assert width >= 240, f"chainage map plot area only {width:.0f} px wide at 390 px"

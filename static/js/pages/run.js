@@ -2,9 +2,8 @@
 // demand; raw signals against time; metadata and quality; downloads.
 
 import { h, clear, append, announce, fmt, fmtDate, downloadBlob, messageBox, plural } from "../dom.js";
-import { ApiError, apiFetch, apiGetOptional } from "../api.js";
+import { ApiError, apiFetch, apiGetOptional, runErrorMessage } from "../api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, TERMS, zoomControls, zoomTo } from "../plots.js";
-import { runErrorMessage } from "./upload/index.js";
 
 const META_FIELDS = [
   ["recorded_at", "Recorded", (v) => fmtDate(v)],

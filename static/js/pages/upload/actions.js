@@ -3,13 +3,13 @@
 // processing until the run is ready.
 
 import { h, announce } from "../../dom.js";
-import { ApiError, apiFetch, apiFetchAll, apiPostJson, uploadWithProgress } from "../../api.js";
+import { ApiError, apiFetch, apiFetchAll, apiPostJson, runErrorMessage, uploadWithProgress } from "../../api.js";
 import { readHead, parseHead } from "../../csvpreview.js";
 import {
   clearFieldErrors, inFormWords, numberProblem, showFieldError, showServerErrors,
 } from "../../formerrors.js";
 import {
-  canPlaceWithoutStart, fileRecordedAt, formatBytes, localInputValue, runErrorMessage,
+  canPlaceWithoutStart, fileRecordedAt, formatBytes, localInputValue,
 } from "./state.js";
 import {
   errorFactsOfRun, errorList, errorText, highlightFields, markFailed, previewProblems,

@@ -9,8 +9,6 @@ import { buildForm, updateNewTrack } from "./view.js";
 import { bind, loadChoices } from "./actions.js";
 import { bindGnss } from "./gnss.js";
 
-export { runErrorMessage } from "./state.js";
-
 export async function render(main) {
   main.appendChild(h("h1", {}, "Upload a run"));
   let state;

@@ -123,10 +123,3 @@ export function formatBytes(n) {
   if (n < 1024 * 1024) return `${(n / 1024).toFixed(1)} KB`;
   return `${(n / 1024 / 1024).toFixed(1)} MB`;
 }
-
-/** The readable message of a stored run error (text or structured). */
-export function runErrorMessage(error) {
-  if (!error) return "unknown error";
-  if (typeof error === "string") return error;
-  return error.message || JSON.stringify(error);
-}
