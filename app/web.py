@@ -58,6 +58,11 @@ def bundle_version(path: Path) -> str | None:
 
 
 IMMUTABLE_CACHE = "public, max-age=31536000, immutable"
+COMPILE_HINT = b"//# allFunctionsCalledOnLoad\n"
+"""V8's explicit compile hint (chromium >= 136), put before plotly.js as served: V8 compiles
+all its functions while the script streams in, on a background thread, instead of lazily on
+the main thread during its evaluation and the first chart's draw, which a cold first visit
+waits for (docs/benchmarks.md, issue 14). Other browsers read a comment."""
 PLOTLY_SRC_META = '<meta name="plotly-src" content="/static/vendor/plotly.min.js">'
 """The line of ``static/index.html`` that tells the dashboard where plotly.js is; the page
 served at ``/`` names the versioned (immutable) URL there instead."""
@@ -85,7 +90,7 @@ class PlotlyBundle:
 
     @cached_property
     def raw(self) -> bytes:
-        return self.path.read_bytes()
+        return COMPILE_HINT + self.path.read_bytes()
 
     @cached_property
     def etag(self) -> str:
