@@ -26,9 +26,9 @@ def force_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDArra
     force of the front and rear axle (N, compression positive) for unit rail level (m) under
     axle 1 and axle 2, from the DOF response :func:`engine.spectral.dof_response`.
     """
-    X = dof_response(vehicle, omega)
+    X = dof_response(vehicle, omega, slice(2, 4))  # the axles only
     kt = np.array([vehicle.kt1, vehicle.kt2])
-    G = -kt[None, :, None] * X[:, 2:4, :]
+    G = -kt[None, :, None] * X
     G[:, 0, 0] += kt[0]
     G[:, 1, 1] += kt[1]
     return G
