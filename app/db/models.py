@@ -355,24 +355,24 @@ class TrackRunLevels(Base):
     force_n: Mapped[bytes | None] = mapped_column(LargeBinary)
 
 
-class TrackProfilePoint(Base):
-    """The aggregated profile of a track at one 0.25 m grid point (aligned chainage, m).
+class TrackProfileChunk(Base):
+    """The aggregated profile of a track over one chunk of its 0.25 m grid.
 
-    ``level_mm`` is the median over the aligned runs covering the point, ``spread_mm`` their
-    robust spread (1.4826 x MAD), ``n_runs`` how many there are. Keyed ``(track_id,
-    chainage_m)``: a chainage window is one range scan.
+    ``data`` holds, packed by ``app.services.aggregate.pack_chunk``, the ``CHUNK_POINTS``
+    grid points ``chunk * CHUNK_POINTS ... + CHUNK_POINTS - 1`` (chainage = index x 0.25 m):
+    ``level_mm`` the median over the aligned runs covering the point, ``spread_mm`` their
+    robust spread (1.4826 x MAD), ``n_runs`` how many there are (0 and NaN: no run). The
+    chunks are those of ``track_run_levels`` they are computed from; a chainage window is one
+    range scan over a few rows. Only chunks with at least one covered point are stored.
     """
 
-    __tablename__ = "track_profile_points"
-    __table_args__ = {"sqlite_with_rowid": False}
+    __tablename__ = "track_profile_chunks"
 
     track_id: Mapped[int] = mapped_column(
         ForeignKey("tracks.id", ondelete="CASCADE"), primary_key=True
     )
-    chainage_m: Mapped[float] = mapped_column(Float, primary_key=True)
-    level_mm: Mapped[float] = mapped_column(Float)
-    spread_mm: Mapped[float] = mapped_column(Float)
-    n_runs: Mapped[int] = mapped_column(Integer)
+    chunk: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    data: Mapped[bytes] = mapped_column(LargeBinary)
 
 
 class TrackLimits(Base):

@@ -3,12 +3,15 @@
 Each aligned run's level is kept on the track grid (0.25 m, multiples of 0.25 m) in chunks of
 :data:`CHUNK_POINTS` points (``track_run_levels``); when a run arrives or is deleted only the
 chunks it covers are recomputed (``engine.aggregate.aggregate_levels``) and rewritten in
-``track_profile_points``, inside the caller's transaction. Chainage in m, levels in mm.
+``track_profile_chunks`` (the same chunks, one packed row each), inside the caller's
+transaction. Chainage in m, levels in mm.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -16,12 +19,12 @@ from numpy.typing import NDArray
 from sqlalchemy import delete, func, insert, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Track, TrackProfilePoint, TrackRunLevels
+from app.db.models import Track, TrackProfileChunk, TrackRunLevels
 from engine.aggregate import AggregateProfile, aggregate_levels
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
 
-from .packing import pack_f4, unpack_f4
+from .packing import pack_f4, pack_named, unpack_f4, unpack_named
 from .window import Window
 
 CHUNK_POINTS = 1000
@@ -30,8 +33,10 @@ CHUNK_POINTS = 1000
 BATCH_CHUNKS = 40
 """Chunks recomputed at once (10 km: 50 runs x 40 000 points stay a few MB)."""
 
+AGGREGATE_COLUMNS = ("level_mm", "spread_mm", "n_runs")
+"""What a stored chunk of the aggregate holds per grid point (:func:`pack_chunk`)."""
+
 _DTYPE = np.dtype("<f4")
-_PLACEHOLDER = {"qmark": "?", "format": "%s", "pyformat": "%s"}
 
 
 def chunked(
@@ -124,57 +129,107 @@ def expected_points(
     return grid, (aggregate_levels(grid, levels) if rows else None)
 
 
+def pack_chunk(
+    level_mm: NDArray[np.float64], spread_mm: NDArray[np.float64], n_runs: NDArray[np.int64]
+) -> bytes:
+    """A chunk of the aggregate packed for ``track_profile_chunks.data``: level and spread
+    (mm) and run count per grid point, float64 (the median of float32 levels is exact in
+    float64: the stored aggregate is what the engine computed), compressed."""
+    cols = {"level_mm": level_mm, "spread_mm": spread_mm, "n_runs": n_runs.astype(np.float64)}
+    return pack_named(cols, AGGREGATE_COLUMNS)
+
+
+def unpack_chunk(
+    blob: bytes,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+    """Inverse of :func:`pack_chunk`: level (mm), spread (mm), run count."""
+    cols = unpack_named(bytes(blob), AGGREGATE_COLUMNS)
+    return cols["level_mm"], cols["spread_mm"], cols["n_runs"].astype(np.int64)
+
+
 def recompute_aggregate(session: Session, track_id: int, c_lo: int, c_hi: int) -> int:
     """Rebuild the aggregated profile of chunks ``c_lo..c_hi`` from the runs' levels.
 
     Returns the number of grid points with data written.
     """
+    t = TrackProfileChunk.__table__
     written = 0
     for a, b in _batches(c_lo, c_hi):
-        grid, agg = expected_points(session, track_id, a, b)
+        _, agg = expected_points(session, track_id, a, b)
         session.execute(
-            delete(TrackProfilePoint).where(
-                TrackProfilePoint.track_id == track_id,
-                TrackProfilePoint.chainage_m >= grid[0] - 1e-6,
-                TrackProfilePoint.chainage_m <= grid[-1] + 1e-6,
-            )
+            delete(TrackProfileChunk).where(t.c.track_id == track_id, t.c.chunk.between(a, b))
         )
         if agg is None:
             continue
-        keep = np.flatnonzero(agg.n_runs > 0)
-        _insert_points(
-            session, track_id, grid[keep], agg.level_mm[keep], agg.spread_mm[keep],
-            agg.n_runs[keep],
-        )  # fmt: skip
-        written += int(keep.size)
+        rows = []
+        for chunk in range(a, b + 1):
+            part = slice((chunk - a) * CHUNK_POINTS, (chunk - a + 1) * CHUNK_POINTS)
+            n = agg.n_runs[part]
+            covered = int(np.count_nonzero(n))
+            if covered:
+                data = pack_chunk(agg.level_mm[part], agg.spread_mm[part], n)
+                rows.append({"track_id": track_id, "chunk": chunk, "data": data})
+                written += covered
+        if rows:
+            session.execute(insert(TrackProfileChunk), rows)
     return written
 
 
-def _insert_points(
-    session: Session,
-    track_id: int,
-    chainage: NDArray[np.float64],
-    level: NDArray[np.float64],
-    spread: NDArray[np.float64],
-    n_runs: NDArray[np.int64],
-) -> None:
-    if chainage.size == 0:
-        return
-    conn = session.connection()
-    mark = _PLACEHOLDER.get(conn.dialect.paramstyle)
-    columns = [chainage.tolist(), level.tolist(), spread.tolist(), n_runs.tolist()]
-    if mark is None:
-        names = ("track_id", "chainage_m", "level_mm", "spread_mm", "n_runs")
-        dict_rows = [
-            dict(zip(names, (track_id, *r), strict=True)) for r in zip(*columns, strict=True)
-        ]
-        conn.execute(insert(TrackProfilePoint), dict_rows)
-        return
-    sql = (
-        f"INSERT INTO {TrackProfilePoint.__tablename__} "
-        f"(track_id, chainage_m, level_mm, spread_mm, n_runs) VALUES ({', '.join([mark] * 5)})"
-    )
-    conn.exec_driver_sql(sql, list(zip([track_id] * chainage.size, *columns, strict=True)))
+@dataclass(frozen=True)
+class AggregateSpan:
+    """The stored aggregate over consecutive grid points ``i_lo ...`` (chainage =
+    index x :data:`~engine.chainage.GRID_STEP_M`): level and spread in mm (NaN and
+    ``n_runs`` 0 where no run covers a point)."""
+
+    i_lo: int
+    level_mm: NDArray[np.float64]
+    spread_mm: NDArray[np.float64]
+    n_runs: NDArray[np.int64]
+
+    def chainage_m(self) -> NDArray[np.float64]:
+        """Chainage of each point, m."""
+        return (self.i_lo + np.arange(self.n_runs.size, dtype=np.float64)) * GRID_STEP_M
+
+
+def read_aggregate(session: Session, track_id: int, i_lo: int, i_hi: int) -> AggregateSpan:
+    """The stored aggregate at grid points ``i_lo..i_hi`` (inclusive): one range scan over the
+    chunks holding them."""
+    t = TrackProfileChunk.__table__
+    n = max(0, i_hi - i_lo + 1)
+    span = AggregateSpan(i_lo, np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, dtype=np.int64))
+    if n == 0:
+        return span
+    rows = session.execute(
+        select(t.c.chunk, t.c.data).where(
+            t.c.track_id == track_id,
+            t.c.chunk >= i_lo // CHUNK_POINTS,
+            t.c.chunk <= i_hi // CHUNK_POINTS,
+        )
+    ).all()
+    for chunk, blob in rows:
+        first = chunk * CHUNK_POINTS
+        a, b = max(first, i_lo), min(first + CHUNK_POINTS, i_hi + 1)
+        level, spread, count = unpack_chunk(blob)
+        span.level_mm[a - i_lo : b - i_lo] = level[a - first : b - first]
+        span.spread_mm[a - i_lo : b - i_lo] = spread[a - first : b - first]
+        span.n_runs[a - i_lo : b - i_lo] = count[a - first : b - first]
+    return span
+
+
+def aggregate_chunk_range(session: Session, track_id: int) -> tuple[int, int] | None:
+    """First and last stored chunk of a track's aggregate (None: it has none)."""
+    t = TrackProfileChunk.__table__
+    lo, hi = session.execute(
+        select(func.min(t.c.chunk), func.max(t.c.chunk)).where(t.c.track_id == track_id)
+    ).one()
+    return None if lo is None else (int(lo), int(hi))
+
+
+def read_aggregate_grid(
+    session: Session, track_id: int, i_lo: int, i_hi: int
+) -> NDArray[np.float64]:
+    """The track's aggregated level at grid points ``i_lo..i_hi`` (mm; NaN where no run)."""
+    return read_aggregate(session, track_id, i_lo, i_hi).level_mm
 
 
 def read_track_profile(
@@ -185,26 +240,23 @@ def read_track_profile(
     Columns ``chainage_m`` (m), ``level_mm``, ``spread_mm`` (mm) and ``n_runs``; only grid
     points that at least one aligned run covers.
     """
-    t = TrackProfilePoint.__table__
     names = ("chainage_m", "level_mm", "spread_mm", "n_runs")
-    stmt = select(*(t.c[k] for k in names)).where(t.c.track_id == track_id)
-    if from_m is not None:
-        stmt = stmt.where(t.c.chainage_m >= from_m)
-    if to_m is not None:
-        stmt = stmt.where(t.c.chainage_m <= to_m)
-    rows = session.execute(stmt.order_by(t.c.chainage_m)).all()
-    if not rows:
+    stored = aggregate_chunk_range(session, track_id)
+    if stored is None:
         return {k: [] for k in names}
-    return {k: list(col) for k, col in zip(names, zip(*rows, strict=True), strict=True)}
-
-
-def track_profile_extent(session: Session, track_id: int) -> tuple[float | None, float | None]:
-    """First and last chainage of the aggregated profile, m (None, None when empty)."""
-    t = TrackProfilePoint.__table__
-    lo, hi = session.execute(
-        select(func.min(t.c.chainage_m), func.max(t.c.chainage_m)).where(t.c.track_id == track_id)
-    ).one()
-    return lo, hi
+    i_lo, i_hi = stored[0] * CHUNK_POINTS, (stored[1] + 1) * CHUNK_POINTS - 1
+    if from_m is not None:
+        i_lo = max(i_lo, math.ceil(from_m / GRID_STEP_M))
+    if to_m is not None:
+        i_hi = min(i_hi, math.floor(to_m / GRID_STEP_M))
+    span = read_aggregate(session, track_id, i_lo, i_hi)
+    keep = np.flatnonzero(span.n_runs > 0)
+    return {
+        "chainage_m": span.chainage_m()[keep].tolist(),
+        "level_mm": span.level_mm[keep].tolist(),
+        "spread_mm": span.spread_mm[keep].tolist(),
+        "n_runs": span.n_runs[keep].tolist(),
+    }
 
 
 def aggregated_profile_view(

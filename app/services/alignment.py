@@ -17,13 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.db.models import TrackProfilePoint
 from engine.align import align_profiles
 from engine.chainage import GRID_STEP_M
 from engine.errors import EngineError
+
+from .aggregate import read_aggregate_grid
 
 # The track grid: grid point ``i`` is at chainage ``i * GRID_STEP_M`` (the engine's step).
 
@@ -126,27 +126,6 @@ def on_track_grid(
         return i_lo, np.empty(0)
     x = np.arange(i_lo, i_hi + 1, dtype=np.float64) * GRID_STEP_M
     return i_lo, sample_at(c + offset_m, v, x)
-
-
-def read_aggregate_grid(
-    session: Session, track_id: int, i_lo: int, i_hi: int
-) -> NDArray[np.float64]:
-    """The track's aggregated level at grid points ``i_lo..i_hi`` (mm; NaN where no run)."""
-    t = TrackProfilePoint.__table__
-    rows = session.execute(
-        select(t.c.chainage_m, t.c.level_mm).where(
-            t.c.track_id == track_id,
-            t.c.chainage_m >= i_lo * GRID_STEP_M - 1e-6,
-            t.c.chainage_m <= i_hi * GRID_STEP_M + 1e-6,
-        )
-    ).all()
-    out = np.full(i_hi - i_lo + 1, np.nan)
-    if rows:
-        n = len(rows)
-        chainage = np.fromiter((r[0] for r in rows), dtype=np.float64, count=n)
-        idx = np.rint(chainage / GRID_STEP_M).astype(np.int64) - i_lo
-        out[idx] = np.fromiter((r[1] for r in rows), dtype=np.float64, count=n)
-    return out
 
 
 def align_to_track(

@@ -1,6 +1,6 @@
 """Consistency of stored derived data: a track's aggregated profile is what its runs make.
 
-The aggregate (``track_profile_points``) is kept incrementally: each stored, aligned run adds
+The aggregate (``track_profile_chunks``) is kept incrementally: each stored, aligned run adds
 its levels, each deleted one removes them. :func:`check_aggregate` recomputes it from the
 runs' stored levels (read only) and compares, so a run that left data behind (the probe's
 delete racing a store) or a missing contribution is found; ``python -m app check-aggregates``
@@ -15,10 +15,16 @@ import numpy as np
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Run, TrackProfilePoint, TrackRunLevels
-from engine.chainage import GRID_STEP_M
+from app.db.models import Run, TrackRunLevels
 
-from .aggregate import CHUNK_POINTS, _batches, expected_points, recompute_aggregate
+from .aggregate import (
+    CHUNK_POINTS,
+    _batches,
+    aggregate_chunk_range,
+    expected_points,
+    read_aggregate,
+    recompute_aggregate,
+)
 
 LEVEL_TOLERANCE_MM = 1e-3
 """Largest difference between a stored and a recomputed aggregate level, mm (float32)."""
@@ -59,15 +65,9 @@ def _chunk_range(session: Session, track_id: int) -> tuple[int, int] | None:
     c_lo, c_hi = session.execute(
         select(func.min(lv.c.chunk), func.max(lv.c.chunk)).where(lv.c.track_id == track_id)
     ).one()
-    x_lo, x_hi = session.execute(
-        select(func.min(TrackProfilePoint.chainage_m), func.max(TrackProfilePoint.chainage_m))
-        .where(TrackProfilePoint.track_id == track_id)
-    ).one()  # fmt: skip
-    los = [v for v in (c_lo, None if x_lo is None else int(x_lo / GRID_STEP_M) // CHUNK_POINTS)
-           if v is not None]  # fmt: skip
-    his = [v for v in (c_hi, None if x_hi is None else int(x_hi / GRID_STEP_M) // CHUNK_POINTS)
-           if v is not None]  # fmt: skip
-    return (min(los), max(his)) if los else None
+    levels = None if c_lo is None else (int(c_lo), int(c_hi))
+    ranges = [r for r in (levels, aggregate_chunk_range(session, track_id)) if r is not None]
+    return (min(r[0] for r in ranges), max(r[1] for r in ranges)) if ranges else None
 
 
 def check_aggregate(session: Session, track_id: int) -> AggregateCheck:
@@ -82,30 +82,15 @@ def check_aggregate(session: Session, track_id: int) -> AggregateCheck:
     if chunks is not None:
         for a, b in _batches(*chunks):
             grid, agg = expected_points(session, track_id, a, b)
-            rows = session.execute(
-                select(TrackProfilePoint.chainage_m, TrackProfilePoint.level_mm,
-                       TrackProfilePoint.n_runs)
-                .where(TrackProfilePoint.track_id == track_id,
-                       TrackProfilePoint.chainage_m >= grid[0] - 1e-6,
-                       TrackProfilePoint.chainage_m <= grid[-1] + 1e-6)
-            ).all()  # fmt: skip
-            stored = {int(round(c / GRID_STEP_M)): (lvl, n) for c, lvl, n in rows}
-            expected: dict[int, tuple[float, int]] = {}
-            if agg is not None:
-                for k in np.flatnonzero(agg.n_runs > 0).tolist():
-                    i = int(round(grid[k] / GRID_STEP_M))
-                    expected[i] = (float(agg.level_mm[k]), int(agg.n_runs[k]))
-            stored_n += len(stored)
-            expected_n += len(expected)
-            for i in stored.keys() | expected.keys():
-                s, e = stored.get(i), expected.get(i)
-                if (
-                    s is None
-                    or e is None
-                    or s[1] != e[1]
-                    or not abs(s[0] - e[0]) <= LEVEL_TOLERANCE_MM
-                ):
-                    differing += 1
+            stored = read_aggregate(session, track_id, a * CHUNK_POINTS, (b + 1) * CHUNK_POINTS - 1)
+            n_want = np.zeros(grid.size, dtype=np.int64) if agg is None else agg.n_runs
+            level_want = np.full(grid.size, np.nan) if agg is None else agg.level_mm
+            stored_n += int(np.count_nonzero(stored.n_runs))
+            expected_n += int(np.count_nonzero(n_want))
+            both = (stored.n_runs > 0) & (n_want > 0)
+            close = np.abs(stored.level_mm - level_want) <= LEVEL_TOLERANCE_MM
+            bad = (stored.n_runs != n_want) | (both & ~close)
+            differing += int(np.count_nonzero(bad))
     return AggregateCheck(track_id, stored_n, expected_n, differing, orphans, chunks)
 
 

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
-from app.db.models import Run, Track, TrackProfilePoint, TrackRunLevels
+from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
 
 from .aggregate import drop_run_levels, recompute_aggregate, store_run_levels
 from .alignment import RunAlignment, align_to_track, on_track_grid
@@ -109,7 +109,7 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
     lock_track(session, track_id)
     with_detail = select(Run.id).where(Run.track_id == track_id, Run.detail_expired_at.is_(None))
     session.execute(delete(TrackRunLevels).where(TrackRunLevels.run_id.in_(with_detail)))
-    session.execute(delete(TrackProfilePoint).where(TrackProfilePoint.track_id == track_id))
+    session.execute(delete(TrackProfileChunk).where(TrackProfileChunk.track_id == track_id))
     runs = session.scalars(
         select(Run)
         .where(Run.track_id == track_id, Run.status == "done", Run.detail_expired_at.is_(None))
