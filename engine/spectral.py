@@ -24,6 +24,11 @@ MODAL_COND_MAX = 1e8
 """Largest condition number of the state matrix's eigenvectors for which :func:`dof_response`
 sums the modes; a vehicle beyond it (nearly defective) is solved bin by bin."""
 
+BINS_PER_BLOCK = 16384
+"""Frequency bins evaluated at once by :func:`dof_response` and the wheel force: a block's
+temporaries (a few MB) stay in cache, where a whole hour's spectrum (~2 M bins) would cost
+hundreds of MB of fresh memory per temporary."""
+
 
 def _solve_by_bin(
     M: NDArray[np.float64],
@@ -79,9 +84,14 @@ def dof_response(
         return _solve_by_bin(M, C, K, F, w)[:, dofs, :]
     W = np.linalg.solve(V, B.astype(np.complex128))  # (8, 2): each mode's share of the input
     Vq = V[dofs, :]  # (d, 8)
-    R = 1.0 / (1j * w[:, None] - lam[None, :])  # (m, 8)
-    # X[k, q, c] = sum_j Vq[q, j] R[k, j] W[j, c]
-    return np.asarray(np.einsum("kj,qj,jc->kqc", R, Vq, W, optimize=True), dtype=np.complex128)
+    # X[k, q, c] = sum_j R[k, j] Vq[q, j] W[j, c], R[k, j] = 1 / (i w_k - lam_j): one product
+    P = (Vq.T[:, :, None] * W[:, None, :]).reshape(lam.size, -1)  # (8, d * 2)
+    out = np.empty((w.size, Vq.shape[0], 2), dtype=np.complex128)
+    flat = out.reshape(w.size, -1)
+    for k0 in range(0, w.size, BINS_PER_BLOCK):
+        blk = slice(k0, k0 + BINS_PER_BLOCK)
+        flat[blk] = (1.0 / (1j * w[blk, None] - lam[None, :])) @ P
+    return out
 
 
 def vehicle_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
@@ -182,18 +192,27 @@ def edge_padding(n: int, dt: float, f_lo: float, taper: float) -> int:
     return int(min(n, 2.0 / (f_lo / (1 + taper)) / dt))
 
 
+FFT_WORKERS = 2
+"""Threads of a batched FFT (two channels, two axles): both cores of a small server."""
+
+
 def padded_spectrum(x: NDArray[np.float64], pad: int, nfft: int) -> NDArray[np.complex128]:
-    """Real FFT of ``x`` detrended (line through its ends) and mirror-padded by ``pad``."""
-    n = x.size
+    """Real FFT of ``x`` detrended (line through its ends) and mirror-padded by ``pad``.
+
+    ``x`` is one signal (n,) or several along the last axis (k, n), transformed at once on
+    :data:`FFT_WORKERS` threads (the same numbers as one by one).
+    """
+    n = x.shape[-1]
     # remove the straight line through the ends, so the periodic extension is continuous
-    xx = x - np.linspace(x[:64].mean(), x[-64:].mean(), n)
-    buf = np.zeros(nfft)
-    buf[pad : pad + n] = xx
+    xx = x - np.linspace(x[..., :64].mean(axis=-1), x[..., -64:].mean(axis=-1), n, axis=-1)
+    buf = np.zeros(x.shape[:-1] + (nfft,))
+    buf[..., pad : pad + n] = xx
     # mirror-pad with a taper to soften the edges
     ramp = 0.5 - 0.5 * np.cos(np.linspace(0, np.pi, pad)) if pad > 0 else np.zeros(0)
-    buf[:pad] = xx[pad:0:-1][:pad] * ramp if pad < n else 0.0
-    buf[pad + n : pad + n + pad] = xx[-2 : -pad - 2 : -1] * ramp[::-1] if pad < n - 1 else 0.0
-    return sfft.rfft(buf)
+    buf[..., :pad] = xx[..., pad:0:-1][..., :pad] * ramp if pad < n else 0.0
+    if pad < n - 1:
+        buf[..., pad + n : pad + n + pad] = xx[..., -2 : -pad - 2 : -1] * ramp[::-1]
+    return sfft.rfft(buf, axis=-1, workers=FFT_WORKERS)
 
 
 TYPICAL_NOISE_ACCEL = 5e-3
@@ -295,18 +314,15 @@ def spectral_inverse(
     sg = estimate_white_noise(pitch_rate, dt)
     pad = edge_padding(n, dt, f_lo, taper)
     nfft = sfft.next_fast_len(n + 2 * pad, real=True)
-    A = padded_spectrum(accel, pad, nfft)
-    Q = padded_spectrum(pitch_rate, pad, nfft)
+    A, Q = padded_spectrum(np.stack([accel, pitch_rate]), pad, nfft)
     f = sfft.rfftfreq(nfft, dt)
     wband = band_window(f, f_lo, f_hi, taper)
     sel = wband > 0
     H = vehicle_response(vehicle, 2 * np.pi * f[sel])
     Y = solve_bins(H, A[sel], Q[sel], sa, sg, regularisation / nfft)
-    out = []
-    for j in range(2):
-        spec = np.zeros(f.size, dtype=complex)
-        spec[sel] = Y[:, j] * wband[sel]
-        out.append(sfft.irfft(spec, nfft)[pad : pad + n])
+    spec = np.zeros((2, f.size), dtype=complex)
+    spec[:, sel] = (Y * wband[sel, None]).T
+    out = sfft.irfft(spec, nfft, axis=-1, workers=FFT_WORKERS)[:, pad : pad + n]
     return SpectralInverse(
         y_front=out[0], y_rear=out[1], f_lo=f_lo, f_hi=f_hi, noise_accel=sa, noise_gyro=sg
     )

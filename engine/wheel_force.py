@@ -15,7 +15,7 @@ import numpy as np
 import scipy.fft as sfft
 from numpy.typing import NDArray
 
-from .spectral import dof_response
+from .spectral import BINS_PER_BLOCK, FFT_WORKERS, dof_response
 from .vehicle import VehicleParams
 
 
@@ -61,15 +61,19 @@ def dynamic_wheel_forces(
     pad = min(n, 4096)
     nfft = sfft.next_fast_len(n + 2 * pad, real=True)
 
-    def spectrum(y: NDArray[np.float64]) -> NDArray[np.complex128]:
-        yy = y - np.linspace(y[:64].mean(), y[-64:].mean(), n)
-        buf = np.zeros(nfft)
-        buf[pad : pad + n] = yy
-        return sfft.rfft(buf)
-
-    Y = np.stack([spectrum(y_front), spectrum(y_rear)], axis=-1)  # (m, 2)
-    G = force_response(vehicle, 2 * np.pi * sfft.rfftfreq(nfft, dt))
-    Fw = np.einsum("kij,kj->ki", G, Y)
-    f1 = sfft.irfft(Fw[:, 0], nfft)[pad : pad + n]
-    f2 = sfft.irfft(Fw[:, 1], nfft)[pad : pad + n]
+    y = np.stack([y_front, y_rear])
+    buf = np.zeros((2, nfft))
+    buf[:, pad : pad + n] = y - np.linspace(
+        y[:, :64].mean(axis=1), y[:, -64:].mean(axis=1), n, axis=-1
+    )
+    Y1, Y2 = sfft.rfft(buf, axis=-1, workers=FFT_WORKERS)
+    omega = 2 * np.pi * sfft.rfftfreq(nfft, dt)
+    F = np.empty((2, omega.size), dtype=np.complex128)
+    # block by block: the (m, 2, 2) response of a whole hour would be ~100 MB per temporary
+    for k0 in range(0, omega.size, BINS_PER_BLOCK):
+        blk = slice(k0, k0 + BINS_PER_BLOCK)
+        G = force_response(vehicle, omega[blk])
+        F[0, blk] = G[:, 0, 0] * Y1[blk] + G[:, 0, 1] * Y2[blk]
+        F[1, blk] = G[:, 1, 0] * Y1[blk] + G[:, 1, 1] * Y2[blk]
+    f1, f2 = sfft.irfft(F, nfft, axis=-1, workers=FFT_WORKERS)[:, pad : pad + n]
     return f1, f2
