@@ -143,6 +143,10 @@ class RunCheck:
         Time-frequency band the inversion will use, Hz.
     travelled_m : float
         Distance covered by the run, m.
+    log : RunLog
+        The log checked (this object).
+    inputs : tuple
+        ``(start_chainage_m, direction, vehicle, config)`` it was checked with.
     """
 
     positions: AxlePositions
@@ -150,6 +154,19 @@ class RunCheck:
     f_lo_hz: float
     f_hi_hz: float
     travelled_m: float
+    log: RunLog = field(repr=False, compare=False)
+    inputs: tuple[object, ...] = field(repr=False, compare=False)
+
+    def is_for(
+        self,
+        log: RunLog,
+        start_chainage_m: float | None,
+        direction: str,
+        vehicle: VehicleParams,
+        config: ProcessConfig,
+    ) -> bool:
+        """Whether this check stands for ``log`` (the same object) with these parameters."""
+        return log is self.log and self.inputs == (start_chainage_m, direction, vehicle, config)
 
 
 def _no_budget(_stage: str) -> None:
@@ -196,7 +213,9 @@ def check_run(
             f"a {1 / dt:.0f} Hz log cannot resolve {cfg.lambda_min_m} m wavelengths at "
             f"{v_max:.1f} m/s (needs > {2 * f_hi * tp:.0f} Hz)"
         )
-    return RunCheck(pos, speed, f_lo, f_hi, float(travelled))
+    return RunCheck(
+        pos, speed, f_lo, f_hi, float(travelled), log, (start_chainage_m, direction, vehicle, cfg)
+    )
 
 
 def process_run(
@@ -208,6 +227,7 @@ def process_run(
     track: TrackParams | None = None,
     config: ProcessConfig | None = None,
     budget: TimeBudget | None = None,
+    checked: RunCheck | None = None,
 ) -> ProcessResult:
     """Invert a run log into a loaded profile along chainage and find its soft spots.
 
@@ -228,6 +248,10 @@ def process_run(
     budget : TimeBudget, optional
         Wall-time budget, checked between the stages (checks, inversion, wheel forces,
         detection).
+    checked : RunCheck, optional
+        What :func:`check_run` found for this log and these parameters (a service's
+        pre-flight): not checked again. Ignored (the log is checked) unless it
+        :meth:`~RunCheck.is_for` this very log, start chainage, direction, vehicle and config.
 
     Returns
     -------
@@ -245,9 +269,13 @@ def process_run(
     cfg = config or ProcessConfig()
     trk = track or TrackParams()
     dt = log.dt
-    chk = check_run(
-        log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle, config=cfg
-    )
+    if checked is not None and checked.is_for(log, start_chainage_m, direction, vehicle, cfg):
+        chk = checked
+    else:
+        chk = check_run(
+            log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle,
+            config=cfg,
+        )  # fmt: skip
     pos, speed, f_lo, f_hi = chk.positions, chk.speed, chk.f_lo_hz, chk.f_hi_hz
     spent("the checks of the log")
 

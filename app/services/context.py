@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 from app.core.config import Settings
 from app.db.session import Database
 
+from .handover import Handover
+
 
 def _nobody() -> None:
     """No worker in this process: queued runs are found by the workers' polling."""
@@ -26,12 +28,16 @@ class AppContext:
         each holds a few hundred MB for a long log.
     on_queued : callable
         Called after a run is queued for the background (the app sets its worker's ``wake``).
+    handover : Handover or None
+        Where queued runs' parsed logs wait for this process's worker (set while it runs;
+        None without a worker: the logs are read back from the database).
     """
 
     settings: Settings
     db: Database
     slots: threading.BoundedSemaphore = field(init=False)
     on_queued: Callable[[], None] = _nobody
+    handover: Handover | None = None
 
     def __post_init__(self) -> None:
         self.slots = threading.BoundedSemaphore(self.settings.workers)

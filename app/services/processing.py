@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 from app.db.base import utcnow
 from app.db.models import Run, SoftSpot
 from engine.budget import TimeBudget
-from engine.pipeline import process_run
+from engine.pipeline import RunCheck, process_run
 from engine.results import ProcessResult
 from engine.runlog import RunLog
 from engine.track import TrackParams
@@ -39,10 +39,12 @@ def invert(
     vehicle: VehicleParams,
     track: TrackParams,
     budget_s: float | None = None,
+    checked: RunCheck | None = None,
 ) -> Processed:
     """Invert and detect (engine pipeline); raises the engine's errors unchanged, and
     :class:`~engine.errors.BudgetExceeded` past ``budget_s`` of wall time (s;
-    ``TRACKPROFILE_PROCESSING_BUDGET_S``)."""
+    ``TRACKPROFILE_PROCESSING_BUDGET_S``). ``checked``: the submission's pre-flight of this
+    log with these parameters (not repeated; see :func:`engine.pipeline.process_run`)."""
     t0 = time.perf_counter()
     budget = (
         TimeBudget(budget_s, "processing", "TRACKPROFILE_PROCESSING_BUDGET_S")
@@ -51,7 +53,7 @@ def invert(
     )
     result = process_run(
         log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle,
-        track=track, budget=budget,
+        track=track, budget=budget, checked=checked,
     )  # fmt: skip
     return Processed(result, time.perf_counter() - t0)
 

@@ -26,7 +26,7 @@ from app.db.models import Run, RunInput, RunSignals, Track, Vehicle
 from app.schemas.common import url_name_problem
 from app.schemas.tracks import TrackParamsFields
 from engine.errors import EngineError, LogFormatError
-from engine.pipeline import check_run
+from engine.pipeline import RunCheck, check_run
 from engine.runlog import RunLog
 from engine.track import TrackParams
 from engine.vehicle import PRESETS, VehicleParams
@@ -201,7 +201,7 @@ def _new_track_columns(given: dict[str, Any]) -> dict[str, Any]:
     return columns
 
 
-def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
+def _preflight(sub: Submission, vehicle: VehicleParams) -> RunCheck:
     # Everything that can be known about a log without inverting it (the engine's O(n)
     # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
     # queued run does not fail later for a reason the client could have been told now.
@@ -219,7 +219,7 @@ def _preflight(sub: Submission, vehicle: VehicleParams) -> None:
             field="start_chainage_m",
         )
     try:
-        check_run(
+        return check_run(
             sub.log,
             start_chainage_m=sub.start_chainage_m,
             direction=sub.direction,
@@ -294,7 +294,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
     new_track = _new_track_columns(sub.new_track) if track is None else {}
     tp = TrackParams.from_dict(track_fields or _track_params(new_track))
 
-    _preflight(sub, vp)
+    check = _preflight(sub, vp)
     summary = summarize(sub.log)
     signals, decimated = log_signals(sub.log)
     signals |= sub.extra_signals
@@ -310,6 +310,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
                     vehicle=vp,
                     track=tp,
                     budget_s=settings.processing_budget_s,
+                    checked=check,
                 )
             except EngineError as exc:
                 raise Invalid.from_engine(exc) from None
@@ -366,8 +367,17 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         s.add(RunInput(run_id=run.id, data=packed))
         if processed is not None:
             store_result(s, run, processed, vehicle_version)
-        s.commit()
         run_id = run.id
+        handover = ctx.handover if processed is None else None
+        if handover is not None:
+            # Before the commit: this process's worker may claim the run at once.
+            handover.put(run_id, identity, sub.log, check)
+        try:
+            s.commit()
+        except BaseException:
+            if handover is not None:
+                handover.take(run_id)
+            raise
         if processed is not None:
             maybe_auto_calibrate(s, vehicle_id, settings.auto_calibrate_runs)
     if processed is None or settings.auto_calibrate_runs:

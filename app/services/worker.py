@@ -37,6 +37,7 @@ from .calibration import (
     store_calibration,
 )
 from .context import AppContext
+from .handover import Handover
 from .loads import loaded_vehicle
 from .logs import unpack_log
 from .processing import Processed, invert, store_result
@@ -117,6 +118,7 @@ class Worker:
     def start(self) -> None:
         """Release claims of dead local processes, then start the processing threads."""
         self.recover()
+        self.ctx.handover = Handover()
         for i in range(self.ctx.settings.workers):
             t = threading.Thread(target=self._loop, name=f"run-worker-{i}", daemon=True)
             t.start()
@@ -129,6 +131,7 @@ class Worker:
         for t in self._threads:
             t.join(timeout)
         self._threads.clear()
+        self.ctx.handover = None
 
     def wake(self) -> None:
         """Look for queued runs now instead of at the next poll."""
@@ -380,7 +383,14 @@ class Worker:
                     },
                 )
                 return
-            data = s.scalar(select(RunInput.data).where(RunInput.run_id == run_id))
+            # The log the request of this process parsed and checked, else the stored one.
+            handover = self.ctx.handover
+            handed = None if handover is None else handover.take(run_id, run.content_hash)
+            data = (
+                None
+                if handed is not None
+                else s.scalar(select(RunInput.data).where(RunInput.run_id == run_id))
+            )
             vp = loaded_vehicle(
                 VehicleParams.from_dict(run.vehicle.params_dict()), run.payload_kg,
                 run.static_wheel_load_n,
@@ -388,7 +398,7 @@ class Worker:
             vehicle_version, vehicle_id = run.vehicle.version, run.vehicle_id
             tp = TrackParams.from_dict(run.track.params_dict())
             start, direction = run.start_chainage_m, run.direction
-        if data is None:
+        if data is None and handed is None:
             with self.ctx.db.session() as s:
                 self._fail(
                     s, run_id, {"message": "the run's stored input is missing", "kind": "Lost"}
@@ -399,9 +409,18 @@ class Worker:
 
         def work() -> Processed:
             with Heartbeat(self.ctx, run_id, self.id, max(0.5, settings.lease_s / 4)):
+                if handed is not None:
+                    # Checked by the submission for these parameters (a changed vehicle
+                    # version or start makes process_run check again).
+                    runlog, checked = handed.log, handed.check
+                else:
+                    packed = held.pop()
+                    assert packed is not None
+                    runlog, checked = unpack_log(packed), None
+                    del packed
                 return invert(
-                    unpack_log(held.pop()), start_chainage_m=start, direction=direction,
-                    vehicle=vp, track=tp, budget_s=settings.processing_budget_s,
+                    runlog, start_chainage_m=start, direction=direction, vehicle=vp, track=tp,
+                    budget_s=settings.processing_budget_s, checked=checked,
                 )  # fmt: skip
 
         processed = self._attempt("processing", run_id, self._fail, work)

@@ -185,6 +185,34 @@ def test_check_run_refuses_up_front_what_process_run_would():
     assert 0 < chk.f_lo_hz < chk.f_hi_hz < 500
 
 
+def test_a_check_is_reused_only_for_its_log_and_parameters(monkeypatch):
+    """process_run takes the pre-flight's RunCheck instead of checking again, but only for
+    the very log and parameters it was made with (a new vehicle version, another start or
+    another log is checked again)."""
+    import engine.pipeline as pipeline_mod
+    from engine.vehicle import TABLE1
+
+    t = np.arange(0, 20.0, 1e-3)
+    log = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 25.0))
+    chk = pipeline_mod.check_run(log, start_chainage_m=10.0)
+    calls: list[int] = []
+    real = pipeline_mod.check_run
+    monkeypatch.setattr(pipeline_mod, "check_run",
+                        lambda *a, **k: calls.append(1) or real(*a, **k))  # fmt: skip
+    process_run(log, start_chainage_m=10.0, checked=chk)
+    assert calls == []
+    heavier = dataclasses.replace(TABLE1, ms=TABLE1.ms * 1.1)
+    copy = RunLog(log.time_s, log.accel_z_mps2, log.pitch_rate_radps, log.speed_mps)
+    for kwargs in (
+        {"start_chainage_m": 11.0},
+        {"start_chainage_m": 10.0, "vehicle": heavier},
+        {"start_chainage_m": 10.0, "config": ProcessConfig(lambda_max_m=30.0)},
+    ):
+        process_run(log, checked=chk, **kwargs)  # type: ignore[arg-type]
+    process_run(copy, start_chainage_m=10.0, checked=chk)
+    assert len(calls) == 4
+
+
 def test_csv_option_errors_name_the_option():
     """A bad CSV option raises ParameterError whose .field names the option."""
     from engine.logio import CsvOptions

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+import io
+
 import numpy as np
 import pytest
 
+import engine.plausibility as plausibility_mod
 from engine.errors import LogFormatError
+from engine.logio import read_run_csv, write_run_csv
 from engine.pipeline import check_run
 from engine.plausibility import check_plausible
 from engine.runlog import RunLog
@@ -64,6 +69,34 @@ def test_implausible_logs_are_refused_naming_column_and_row(make, column, row, w
             check(log)
         assert (e.value.column, e.value.row) == (column, row)
         assert words in str(e.value)
+    # The CSV reader's column checks stand for this check (it marks its logs as checked):
+    # the same log written as a CSV is refused at the same column and line.
+    buf = io.StringIO()
+    write_run_csv(log, buf, digits=17)
+    with pytest.raises(LogFormatError) as e:
+        read_run_csv(buf.getvalue().encode())
+    assert (e.value.column, e.value.row) == (column, row)
+
+
+def test_a_log_is_checked_once(monkeypatch) -> None:
+    """A log that passed (or was read from a CSV, whose column checks are the same) is not
+    checked again; a log derived from it is."""
+    calls: list[int] = []
+    real = plausibility_mod.check_time_steps
+    monkeypatch.setattr(plausibility_mod, "check_time_steps",
+                        lambda *a, **k: calls.append(1) or real(*a, **k))  # fmt: skip
+    log = _log()
+    check_plausible(log)
+    check_plausible(log)
+    check_run(log, start_chainage_m=12.0)
+    assert len(calls) == 1
+    buf = io.StringIO()
+    write_run_csv(log, buf)
+    parsed = read_run_csv(buf.getvalue().encode())
+    check_run(parsed, start_chainage_m=12.0)
+    assert len(calls) == 1
+    check_plausible(dataclasses.replace(parsed, chainage_m=12.0 + 25.0 * parsed.time_s))
+    assert len(calls) == 2
 
 
 def test_names_and_rows_can_be_the_files() -> None:

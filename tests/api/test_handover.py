@@ -1,0 +1,142 @@
+"""A queued upload is checked once and handed to this process's worker in memory; other
+processes' workers and reprocessing read the stored log and check it again."""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+
+import pytest
+
+import app.services.submit as submit_mod
+import app.services.worker as worker_mod
+import engine.pipeline as pipeline_mod
+import engine.plausibility as plausibility_mod
+from api.api_support import row_counts, upload, wait_done
+from app.services.handover import Handover
+from engine.pipeline import check_run
+from engine.runlog import RunLog
+from engine.vehicle import TABLE1
+
+
+@pytest.fixture
+def calls(monkeypatch) -> Counter:
+    """Counts of check_run (pre-flight and inversion), of full plausibility checks (not the
+    CSV reader's own column checks) and of stored logs unpacked by the worker."""
+    seen: Counter = Counter()
+
+    def spy(name, real):
+        def wrapped(*args, **kwargs):
+            seen[name] += 1
+            return real(*args, **kwargs)
+
+        return wrapped
+
+    check = spy("check_run", pipeline_mod.check_run)
+    monkeypatch.setattr(pipeline_mod, "check_run", check)
+    monkeypatch.setattr(submit_mod, "check_run", check)
+    monkeypatch.setattr(
+        plausibility_mod, "check_time_steps", spy("plausible", plausibility_mod.check_time_steps)
+    )
+    monkeypatch.setattr(worker_mod, "unpack_log", spy("unpack", worker_mod.unpack_log))
+    return seen
+
+
+def _queue(c, synthetic_run, **fields) -> int:
+    r = upload(c, synthetic_run["csv"], track="T",
+               start_chainage_m=synthetic_run["start_chainage_m"], **fields)  # fmt: skip
+    assert r.status_code == 202, r.text
+    return int(r.json()["id"])
+
+
+def test_queued_upload_is_checked_once_and_reprocessing_checks_again(
+    start_app, settings, synthetic_run, calls
+) -> None:
+    """One pre-flight check per upload: the CSV reader's column checks stand for the
+    plausibility check, the worker takes the parsed log and its check from memory (nothing
+    unpacked) while the input is stored all the same; a new vehicle version reprocesses the
+    stored log and checks it again."""
+    c = start_app(inline_max_samples=0)
+    r = c.post("/api/v1/vehicles", json={"name": "coach", "params": TABLE1.to_dict()})
+    assert r.status_code == 201, r.text
+    run_id = _queue(c, synthetic_run, vehicle="coach")
+    assert wait_done(c, run_id)["status"] == "done"
+    assert calls == {"check_run": 1}
+    assert row_counts(settings)["run_inputs"] == 1
+    assert len(c.app.state.ctx.handover) == 0
+
+    r = c.patch("/api/v1/vehicles/coach", json={"params": {"ms": 17000.0}})
+    assert r.status_code == 200, r.text
+    deadline = time.monotonic() + 60
+    while (run := c.get(f"/api/v1/runs/{run_id}").json())["vehicle_version"] != 2:
+        assert time.monotonic() < deadline, run
+        time.sleep(0.05)
+    assert run["status"] == "done"
+    assert calls == {"check_run": 2, "plausible": 1, "unpack": 1}
+
+
+def test_short_upload_processed_inline_is_checked_once(start_app, synthetic_run, calls) -> None:
+    c = start_app()
+    r = upload(c, synthetic_run["csv"], track="T",
+               start_chainage_m=synthetic_run["start_chainage_m"])  # fmt: skip
+    assert r.status_code == 201, r.text
+    assert calls == {"check_run": 1}
+
+
+def test_json_columns_are_checked_once(start_app, synthetic_run, calls) -> None:
+    """Arrays sent as JSON have no reader's column checks: the pre-flight's plausibility check
+    runs, once; the worker does not repeat it."""
+    from engine.logio import read_run_csv
+
+    log = read_run_csv(synthetic_run["csv"])
+    columns = {k: getattr(log, k).tolist() for k in ("time_s", "accel_z_mps2",
+                                                     "pitch_rate_radps", "speed_mps")}  # fmt: skip
+    c = start_app(inline_max_samples=0)
+    calls.clear()
+    start = synthetic_run["start_chainage_m"]
+    r = c.post("/api/v1/runs", json={"track": "T", "columns": columns, "start_chainage_m": start})
+    assert r.status_code == 202, r.text
+    assert wait_done(c, r.json()["id"])["status"] == "done"
+    assert calls == {"check_run": 1, "plausible": 1}
+
+
+def test_another_process_processes_from_the_stored_input(start_app, synthetic_run, calls) -> None:
+    """Queued by a process without a worker (nothing held in memory), the run is processed by
+    another app process from its stored input, checked there."""
+    c = start_app(inline_max_samples=0, start_worker=False)
+    assert c.app.state.ctx.handover is None
+    run_id = _queue(c, synthetic_run)
+    other = start_app(inline_max_samples=0)
+    assert wait_done(other, run_id)["status"] == "done"
+    assert calls == {"check_run": 2, "plausible": 1, "unpack": 1}
+
+
+def _check(log: RunLog):
+    return check_run(log, start_chainage_m=12.0)
+
+
+def _small_log() -> RunLog:
+    import numpy as np
+
+    t = np.arange(20_000) / 1000.0
+    return RunLog(time_s=t, accel_z_mps2=np.zeros_like(t), pitch_rate_radps=np.zeros_like(t),
+                  speed_mps=np.full_like(t, 20.0))  # fmt: skip
+
+
+def test_handover_is_bounded_taken_once_and_guarded_by_identity(monkeypatch) -> None:
+    log = _small_log()
+    chk = _check(log)
+    h = Handover(capacity=2, ttl_s=60.0)
+    for run_id in (1, 2, 3):
+        h.put(run_id, f"id{run_id}", log, chk)
+    assert len(h) == 2
+    assert h.take(1, "id1") is None  # pushed out by newer ones
+    assert h.take(2, "other content") is None  # another run stored under the same id
+    assert h.take(2, "id2") is None  # ... and the entry is gone
+    handed = h.take(3, "id3")
+    assert handed is not None and handed.log is log and handed.check is chk
+    assert h.take(3, "id3") is None and len(h) == 0
+    h.put(4, "id4", log, chk)
+    now = time.monotonic()
+    monkeypatch.setattr(time, "monotonic", lambda: now + 61.0)
+    assert h.take(4, "id4") is None  # waited too long
