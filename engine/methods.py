@@ -18,7 +18,7 @@ from .chainage import AxlePositions, bandpass_distance, to_grid
 from .direct import direct_inverse, filtered_direct_inverse
 from .optimisation import windowed_least_squares
 from .runlog import RunLog
-from .spectral import estimate_white_noise, spectral_inverse
+from .spectral import BandSpectrum, estimate_white_noise, spectral_inverse
 from .vehicle import VehicleParams
 
 
@@ -76,6 +76,9 @@ class Inversion:
         The same on the grid, band-passed, mm (NaN where the axle did not pass).
     noise_accel_mps2, noise_pitch_rate_radps : float
         White-noise level of the two signals, RMS.
+    band : BandSpectrum or None
+        The levels' spectrum when the method worked in the frequency domain (the wheel
+        forces are then taken from it, :func:`engine.wheel_force.dynamic_wheel_forces`).
     """
 
     y_front: NDArray[np.float64]
@@ -84,6 +87,7 @@ class Inversion:
     rear_mm: NDArray[np.float64]
     noise_accel_mps2: float
     noise_pitch_rate_radps: float
+    band: BandSpectrum | None = None
 
 
 Inverter = Callable[[MethodInput], Inversion]
@@ -91,12 +95,17 @@ Inverter = Callable[[MethodInput], Inversion]
 
 
 def _from_samples(
-    m: MethodInput, y1: NDArray[np.float64], y2: NDArray[np.float64], sa: float, sg: float
+    m: MethodInput,
+    y1: NDArray[np.float64],
+    y2: NDArray[np.float64],
+    sa: float,
+    sg: float,
+    band: BandSpectrum | None = None,
 ) -> Inversion:
     # levels per sample (m) put on the grid per axle (mm) and band-passed
     front = m.bandpass(to_grid(m.positions.front, y1 * 1e3, m.grid))
     rear = m.bandpass(to_grid(m.positions.rear, y2 * 1e3, m.grid))
-    return Inversion(y1, y2, front, rear, sa, sg)
+    return Inversion(y1, y2, front, rear, sa, sg, band)
 
 
 def _noise(log: RunLog) -> tuple[float, float]:
@@ -113,7 +122,7 @@ def spectral(m: MethodInput) -> Inversion:
         log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
         taper=m.taper,
     )  # fmt: skip
-    return _from_samples(m, inv.y_front, inv.y_rear, inv.noise_accel, inv.noise_gyro)
+    return _from_samples(m, inv.y_front, inv.y_rear, inv.noise_accel, inv.noise_gyro, inv.band)
 
 
 def filtered_direct(m: MethodInput) -> Inversion:

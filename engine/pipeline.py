@@ -295,7 +295,7 @@ def process_run(
     sa, sg = inv.noise_accel_mps2, inv.noise_pitch_rate_radps
     # wheel force per axle: static load + dynamic part from the vehicle equations, on the grid
     static = vehicle.static_axle_loads()
-    f1, f2 = dynamic_wheel_forces(y1, y2, dt, vehicle)
+    f1, f2 = dynamic_wheel_forces(y1, y2, dt, vehicle, band=inv.band)
     front_force = static[0] + to_grid(pos.front, f1, grid)
     rear_force = static[1] + to_grid(pos.rear, f2, grid)
     both = np.isfinite(front) & np.isfinite(rear)

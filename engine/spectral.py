@@ -141,6 +141,43 @@ def band_window(
 
 
 @dataclass(frozen=True)
+class BandSpectrum:
+    """Spectrum of signals that are zero outside one contiguous band of bins.
+
+    What the inverse computes before going back to time: the levels' (or any linear response
+    of them, e.g. the wheel forces) unnormalised real FFT over the padded length ``nfft``,
+    kept only at the bins ``bins`` where the band window is not zero.
+
+    Attributes
+    ----------
+    values : ndarray, shape (k, m)
+        Spectrum of ``k`` signals at the band's ``m`` bins (their units times samples).
+    bins : slice
+        The band's bins in the real FFT of length ``nfft``.
+    omega : ndarray, shape (m,)
+        Angular frequency of each band bin, rad/s.
+    nfft, pad, n : int
+        FFT length, samples padded before the signal, samples of the signal.
+    """
+
+    values: NDArray[np.complex128]
+    bins: slice
+    omega: NDArray[np.float64]
+    nfft: int
+    pad: int
+    n: int
+
+    def to_time(self, values: NDArray[np.complex128] | None = None) -> NDArray[np.float64]:
+        """The signals in time, shape (k, n): these ``values`` (default: the stored ones) at
+        the band's bins, zero elsewhere, inverse-transformed and cut to the signal."""
+        vals = self.values if values is None else values
+        spec = np.zeros(vals.shape[:-1] + (self.nfft // 2 + 1,), dtype=np.complex128)
+        spec[..., self.bins] = vals
+        out = sfft.irfft(spec, self.nfft, axis=-1, workers=FFT_WORKERS)
+        return np.asarray(out[..., self.pad : self.pad + self.n])
+
+
+@dataclass(frozen=True)
 class SpectralInverse:
     """Rail levels under each axle in time, band-limited.
 
@@ -152,6 +189,10 @@ class SpectralInverse:
         Time-frequency band used, Hz.
     noise_accel, noise_gyro : float
         Estimated white-noise standard deviations at the sample rate, m/s² and rad/s.
+    band : BandSpectrum
+        The levels' spectrum in the band (m times samples), ``y_front``/``y_rear`` being its
+        :meth:`BandSpectrum.to_time`: linear responses of the levels (the wheel forces) are
+        taken from it without transforming the levels again.
     """
 
     y_front: NDArray[np.float64]
@@ -160,6 +201,7 @@ class SpectralInverse:
     f_hi: float
     noise_accel: float
     noise_gyro: float
+    band: BandSpectrum
 
 
 def estimate_white_noise(x: NDArray[np.float64], dt: float, f_min: float = 150.0) -> float:
@@ -203,10 +245,15 @@ def padded_spectrum(x: NDArray[np.float64], pad: int, nfft: int) -> NDArray[np.c
     :data:`FFT_WORKERS` threads (the same numbers as one by one).
     """
     n = x.shape[-1]
-    # remove the straight line through the ends, so the periodic extension is continuous
-    xx = x - np.linspace(x[..., :64].mean(axis=-1), x[..., -64:].mean(axis=-1), n, axis=-1)
     buf = np.zeros(x.shape[:-1] + (nfft,))
-    buf[..., pad : pad + n] = xx
+    xx = buf[..., pad : pad + n]
+    # remove the straight line through the ends, so the periodic extension is continuous
+    # (built in place: np.linspace along the last axis of a batch is several times slower)
+    first = x[..., :64].mean(axis=-1)[..., None]
+    last = x[..., -64:].mean(axis=-1)[..., None]
+    np.multiply(last - first, np.arange(n) / max(n - 1, 1), out=xx)
+    np.subtract(x, xx, out=xx)
+    xx -= first
     # mirror-pad with a taper to soften the edges
     ramp = 0.5 - 0.5 * np.cos(np.linspace(0, np.pi, pad)) if pad > 0 else np.zeros(0)
     buf[..., :pad] = xx[..., pad:0:-1][..., :pad] * ramp if pad < n else 0.0
@@ -317,12 +364,14 @@ def spectral_inverse(
     A, Q = padded_spectrum(np.stack([accel, pitch_rate]), pad, nfft)
     f = sfft.rfftfreq(nfft, dt)
     wband = band_window(f, f_lo, f_hi, taper)
-    sel = wband > 0
-    H = vehicle_response(vehicle, 2 * np.pi * f[sel])
-    Y = solve_bins(H, A[sel], Q[sel], sa, sg, regularisation / nfft)
-    spec = np.zeros((2, f.size), dtype=complex)
-    spec[:, sel] = (Y * wband[sel, None]).T
-    out = sfft.irfft(spec, nfft, axis=-1, workers=FFT_WORKERS)[:, pad : pad + n]
+    inside = np.flatnonzero(wband > 0)  # one run of bins: the window is 0 outside its edges
+    bins = slice(int(inside[0]), int(inside[-1]) + 1) if inside.size else slice(0, 0)
+    omega = 2 * np.pi * f[bins]
+    H = vehicle_response(vehicle, omega)
+    Y = solve_bins(H, A[bins], Q[bins], sa, sg, regularisation / nfft)
+    band = BandSpectrum((Y * wband[bins, None]).T, bins, omega, nfft, pad, n)
+    out = band.to_time()
     return SpectralInverse(
-        y_front=out[0], y_rear=out[1], f_lo=f_lo, f_hi=f_hi, noise_accel=sa, noise_gyro=sg
-    )
+        y_front=out[0], y_rear=out[1], f_lo=f_lo, f_hi=f_hi, noise_accel=sa, noise_gyro=sg,
+        band=band,
+    )  # fmt: skip

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.fft as sfft
 from numpy.typing import NDArray
 
-from .spectral import BINS_PER_BLOCK, FFT_WORKERS, dof_response
+from .spectral import BINS_PER_BLOCK, FFT_WORKERS, BandSpectrum, dof_response
 from .vehicle import VehicleParams
 
 
@@ -39,6 +39,7 @@ def dynamic_wheel_forces(
     y_rear: NDArray[np.float64],
     dt: float,
     vehicle: VehicleParams,
+    band: BandSpectrum | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Dynamic part of each axle's contact force from the rail levels under the axles.
 
@@ -51,12 +52,20 @@ def dynamic_wheel_forces(
         Sample step, s.
     vehicle : VehicleParams
         The half-car.
+    band : BandSpectrum, optional
+        The levels' spectrum as the spectral inverse made them (``y_front``/``y_rear`` being
+        its inverse transform): the forces are then its product with the force response at
+        the band's bins, transformed once, instead of transforming the levels again (the
+        same forces, to rounding, away from the log's first and last seconds, where the
+        inverse's mirrored padding replaces zero padding).
 
     Returns
     -------
     f_front, f_rear : ndarray
         Contact force minus the static axle load, N, compression positive.
     """
+    if band is not None:
+        return _band_forces(band, vehicle)
     n = y_front.size
     pad = min(n, 4096)
     nfft = sfft.next_fast_len(n + 2 * pad, real=True)
@@ -76,4 +85,16 @@ def dynamic_wheel_forces(
         F[0, blk] = G[:, 0, 0] * Y1[blk] + G[:, 0, 1] * Y2[blk]
         F[1, blk] = G[:, 1, 0] * Y1[blk] + G[:, 1, 1] * Y2[blk]
     f1, f2 = sfft.irfft(F, nfft, axis=-1, workers=FFT_WORKERS)[:, pad : pad + n]
+    return f1, f2
+
+
+def _band_forces(
+    band: BandSpectrum, vehicle: VehicleParams
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    F = np.empty_like(band.values)
+    for k0 in range(0, band.omega.size, BINS_PER_BLOCK):
+        blk = slice(k0, k0 + BINS_PER_BLOCK)
+        G = force_response(vehicle, band.omega[blk])
+        F[:, blk] = np.einsum("mij,jm->im", G, band.values[:, blk])
+    f1, f2 = band.to_time(F)
     return f1, f2
