@@ -268,7 +268,16 @@ def fit_zone(
         # n^T K^-1 n - n^T K0^-1 n = -b^T (D^-1 + F)^-1 b; the level is -P times that
         return np.einsum("lg,gw->lw", corr, bp_fit) * (load * 1e3)
 
+    tried: dict[tuple[float, float], tuple[float, float]] = {}
+
     def best_loss(a: float, b: float) -> tuple[float, float]:
+        # the extent search below revisits its neighbours' extents: each is fitted once
+        key = (round(a / s), round(b / s))
+        if key not in tried:
+            tried[key] = _best_loss(a, b)
+        return tried[key]
+
+    def _best_loss(a: float, b: float) -> tuple[float, float]:
         losses = np.linspace(0.02, MAX_LOSS, 32)
         for _ in range(2):
             d = dips(a, b, losses)
