@@ -13,6 +13,7 @@ import json
 import re
 import threading
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -295,27 +296,30 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
     tp = TrackParams.from_dict(track_fields or _track_params(new_track))
 
     check = _preflight(sub, vp)
-    summary = summarize(sub.log)
-    signals, decimated = log_signals(sub.log)
-    signals |= sub.extra_signals
+    # The log is kept either way (reprocessing with a new vehicle version, calibration):
+    # packed on a second thread meanwhile (Zstandard and numpy's copies release the GIL).
+    with ThreadPoolExecutor(1, thread_name_prefix="pack-log") as pool:
+        packing = pool.submit(pack_log, sub.log)
+        summary = summarize(sub.log)
+        signals, decimated = log_signals(sub.log)
+        signals |= sub.extra_signals
 
-    processed: Processed | None = None
-    if sub.log.n <= settings.inline_max_samples:
-        with ctx.slots:
-            try:
-                processed = invert(
-                    sub.log,
-                    start_chainage_m=sub.start_chainage_m,
-                    direction=sub.direction,
-                    vehicle=vp,
-                    track=tp,
-                    budget_s=settings.processing_budget_s,
-                    checked=check,
-                )
-            except EngineError as exc:
-                raise Invalid.from_engine(exc) from None
-    # the log is kept either way: reprocessing with a new vehicle version and calibration
-    packed = pack_log(sub.log)
+        processed: Processed | None = None
+        if sub.log.n <= settings.inline_max_samples:
+            with ctx.slots:
+                try:
+                    processed = invert(
+                        sub.log,
+                        start_chainage_m=sub.start_chainage_m,
+                        direction=sub.direction,
+                        vehicle=vp,
+                        track=tp,
+                        budget_s=settings.processing_budget_s,
+                        checked=check,
+                    )
+                except EngineError as exc:
+                    raise Invalid.from_engine(exc) from None
+        packed = packing.result()
 
     with ctx.db.session() as s:
         if failed_id is not None:

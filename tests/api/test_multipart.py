@@ -1,0 +1,48 @@
+"""The multipart upload's file part is read into memory (no temporary file, no copy back),
+with Starlette's limits and messages on everything else."""
+
+from __future__ import annotations
+
+import starlette.formparsers as formparsers
+
+from api.api_support import row_counts, upload
+
+
+def test_file_part_is_read_into_memory_not_spooled(client, settings, synthetic_run, monkeypatch):
+    written: list[int] = []
+
+    class Spy(formparsers.SpooledTemporaryFile):  # type: ignore[misc]
+        def write(self, data):  # noqa: ANN001, ANN202
+            written.append(len(data))
+            return super().write(data)
+
+    monkeypatch.setattr(formparsers, "SpooledTemporaryFile", Spy)
+    data = synthetic_run["csv"]
+    r = upload(
+        client, data, "run.csv", track="T", start_chainage_m=synthetic_run["start_chainage_m"]
+    )
+    assert r.status_code == 201, r.text
+    assert r.json()["n_samples"] > 0 and r.json()["original_filename"] == "run.csv"
+    assert written == []
+
+
+def test_form_limits_keep_their_messages(client, settings) -> None:
+    before = row_counts(settings)
+    cases = {
+        "Too many fields. Maximum number of fields is 64.": client.post(
+            "/api/v1/runs", files={"file": ("a.csv", b"x")}, data={f"f{i}": "x" for i in range(65)}
+        ),
+        "Too many files. Maximum number of files is 1.": client.post(
+            "/api/v1/runs", files=[("file", ("a.csv", b"x")), ("other", ("b.csv", b"y"))]
+        ),
+        "Part exceeded maximum size of 1024KB.": client.post(
+            "/api/v1/runs", files={"file": ("a.csv", b"x")}, data={"track": "t" * (1 << 21)}
+        ),
+        "Missing boundary in multipart.": client.post(
+            "/api/v1/runs", content=b"abc", headers={"content-type": "multipart/form-data"}
+        ),
+    }  # fmt: skip
+    for message, r in cases.items():
+        assert r.status_code == 400, (message, r.text)
+        assert r.json()["detail"]["message"] == message
+    assert row_counts(settings) == before
