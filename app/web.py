@@ -1,9 +1,10 @@
 """The browser side: dashboard page, its static files, plotly.js and the API docs, all local.
 
-Nothing is fetched from a CDN, so the service works without internet. plotly.js is plotly's
-partial "cartesian" bundle (1.5 MB: every trace type the dashboard draws) when it was installed
-from npm at install time (scripts/serve.sh, scripts/test.sh, the Dockerfile), else the full
-bundle (4.8 MB) of the installed ``plotly`` package; Swagger UI comes from ``swagger-ui-bundle``.
+Nothing is fetched from a CDN, so the service works without internet. plotly.js is a bundle of
+plotly's core and heatmap (1.1 MB: every trace type the dashboard draws) or plotly's partial
+"cartesian" bundle (1.5 MB) when it was built or installed from npm at install time
+(scripts/serve.sh, scripts/test.sh, the Dockerfile), else the full bundle (4.8 MB) of the
+installed ``plotly`` package; Swagger UI comes from ``swagger-ui-bundle``.
 """
 
 from __future__ import annotations
@@ -126,33 +127,38 @@ DOCS_BACK_LINK = (
 )
 
 
-PARTIAL_FLAVOUR = "cartesian"
-"""plotly's partial bundle served when installed (npm ``plotly.js-cartesian-dist-min``): its
-trace types (scatter, heatmap, bar, box, contour, histogram, pie, ...) cover every chart of the
-dashboard, which uses only SVG traces (plots.js)."""
+BUNDLE_FLAVOURS = ("dashboard", "cartesian")
+"""The smaller plotly.js bundles, in the order they are preferred, each served when installed
+(scripts/_plotly.sh) at the plotly package's plotly.js version: "dashboard", plotly's core and
+heatmap (scripts/plotly-dashboard.js, 1.1 MB), and "cartesian", plotly's partial bundle (npm
+``plotly.js-cartesian-dist-min``, 1.5 MB: scatter, heatmap, bar, box, contour, histogram,
+pie, ...). Both cover every chart of the dashboard, which uses only SVG traces (plots.js)."""
 
 
 @functools.cache
-def plotly_bundle(partial: Path) -> PlotlyBundle:
-    """The plotly.js bundle to serve: the partial bundle at ``partial`` when it is installed
-    and of the plotly package's plotly.js version (the one the dashboard is written and tested
-    against), else the package's full bundle. One per process and path (the apps of a process
-    share its compressed bytes), compressed in a background thread from the first call on, so
-    that the first chart does not wait for it.
+def plotly_bundle(*candidates: Path) -> PlotlyBundle:
+    """The plotly.js bundle to serve: the first of ``candidates`` (one per flavour of
+    ``BUNDLE_FLAVOURS``) installed and of the plotly package's plotly.js version (the one the
+    dashboard is written and tested against), else the package's full bundle. One per process
+    and paths (the apps of a process share its compressed bytes), compressed in a background
+    thread from the first call on, so that the first chart does not wait for it.
 
     Its load time is what a first visit waits for: chromium evaluates the full bundle in ~4 s
-    on a loaded 2-core machine, the partial one in ~1 s (docs/benchmarks.md, issue 14)."""
+    on a loaded 2-core machine, the cartesian one in ~1 s and the dashboard's in ~0.5 s
+    (docs/benchmarks.md, issue 14)."""
     version = plotly_js_version()
-    found = bundle_version(partial)
-    if found == version:
-        bundle = PlotlyBundle(partial, version, flavour=PARTIAL_FLAVOUR)
-    else:
-        if partial.exists():
+    for path, flavour in zip(candidates, BUNDLE_FLAVOURS, strict=True):
+        found = bundle_version(path)
+        if found == version:
+            bundle = PlotlyBundle(path, version, flavour=flavour)
+            break
+        if path.exists():
             log.warning(
-                "%s is plotly.js %s, not %s (the plotly package's): serving the full bundle; "
+                "%s is plotly.js %s, not %s (the plotly package's): not served; "
                 "scripts/serve.sh installs the matching one",
-                partial, found, version,
+                path, found, version,
             )  # fmt: skip
+    else:
         bundle = PlotlyBundle(plotly_js_path(), version)
     threading.Thread(target=lambda: bundle.gzipped, name="plotly-gzip", daemon=True).start()
     return bundle
@@ -169,7 +175,7 @@ def install_web(app: FastAPI, settings: Settings) -> None:
     """Routes for ``/``, ``/static``, plotly.js (``/static/vendor/plotly[-VERSION].min.js``)
     and ``/docs``."""
     static_dir = settings.static_dir
-    bundle = plotly_bundle(settings.plotly_partial_js)
+    bundle = plotly_bundle(settings.plotly_dashboard_js, settings.plotly_partial_js)
 
     @app.api_route("/", methods=["GET", "HEAD"], include_in_schema=False)
     def dashboard() -> HTMLResponse:

@@ -10,10 +10,11 @@ defined (its script parsed and evaluated: ``window.Plotly`` set), and the chart 
 (``v8.parseOnBackground``: streaming compile off the main thread; ``EvaluateScript``: running
 its top level, lazy compiles included).
 
-    python benchmarks/bench_first_paint.py [--reps 3] [--full] [--trace] [--static DIR]
+    python benchmarks/bench_first_paint.py [--reps 3] [--bundle B] [--trace] [--static DIR]
 
-``--full`` makes the service serve the plotly package's full bundle (as without the partial
-bundle installed by scripts/_plotly.sh), ``--static DIR`` another dashboard (e.g. an older
+``--bundle cartesian`` makes the service serve plotly's partial bundle (as when the dashboard's
+own bundle cannot be built by scripts/_plotly.sh), ``--bundle full`` the plotly package's full
+bundle (as without npm), ``--static DIR`` another dashboard (e.g. an older
 commit's ``static/``: ``git archive COMMIT static | tar -x -C DIR/..``), for a before/after
 on the same machine.
 """
@@ -34,7 +35,7 @@ from browser.harness import (  # noqa: E402
     CHROMIUM,
     CHROMIUM_ARGS,
     VIEWPORT,
-    ensure_plotly_partial,
+    ensure_plotly_bundle,
     start_server,
     stop_server,
 )
@@ -42,7 +43,10 @@ from browser.harness import (  # noqa: E402
 EXAMPLE = REPO / "examples" / "example_run.csv.gz"
 TRUTH = json.loads((REPO / "examples" / "example_run.truth.json").read_text())
 MARK_PLOTLY = """(() => { let v; Object.defineProperty(window, 'Plotly', { configurable: true,
-  get() { return v; }, set(x) { v = x; performance.mark('plotly-defined'); } }); })();"""
+  get() { return v; }, set(x) { v = x; performance.mark('plotly-defined');
+    for (const f of ['newPlot', 'react']) { const g = x[f]; if (!g) continue;
+      x[f] = function (...a) { if (!performance.getEntriesByName('first-draw').length)
+        performance.mark('first-draw'); return g.apply(this, a); }; } } }); })();"""
 PHONE = {"width": 390, "height": 844}
 TRACK_READY = (
     "() => { const gd = document.getElementById('chainage-map');"
@@ -60,6 +64,12 @@ TIMES = """() => {
   return { dom_content_loaded: n.domContentLoadedEventEnd, plotly_fetch_start: r.startTime,
            plotly_fetched: r.responseEnd, plotly_wire_bytes: r.transferSize,
            plotly_decoded_bytes: r.decodedBodySize, plotly_defined: m ? m.startTime : null,
+           first_draw_called: (performance.getEntriesByName('first-draw')[0] || {}).startTime,
+           html_fetched: n.responseEnd, html_first_byte: n.responseStart,
+           page_module_fetched: Math.max(0, ...performance.getEntriesByType('resource')
+             .filter(e => e.name.includes('/pages/')).map(e => e.responseEnd)),
+           data_fetched: Math.max(0, ...performance.getEntriesByType('resource')
+             .filter(e => e.name.includes('/api/')).map(e => e.responseEnd)),
            chart_drawn: performance.now() }; }"""
 TRACE_CATEGORIES = ["devtools.timeline", "v8", "disabled-by-default-v8.compile"]
 
@@ -79,15 +89,22 @@ def v8_times(trace: Path) -> dict[str, float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=3)
-    ap.add_argument("--full", action="store_true", help="serve the full plotly.js bundle")
+    ap.add_argument(
+        "--bundle", choices=["dashboard", "cartesian", "full"], default="dashboard",
+        help="plotly.js served: core+heatmap (built), plotly's partial bundle, the full one",
+    )  # fmt: skip
     ap.add_argument("--trace", action="store_true", help="add V8's parse/evaluate times")
     ap.add_argument("--static", type=Path, help="serve this dashboard directory instead")
     args = ap.parse_args()
     from playwright.sync_api import sync_playwright
 
-    ensure_plotly_partial()
+    ensure_plotly_bundle()
     tmp = Path(tempfile.mkdtemp())
-    settings = {"TRACKPROFILE_PLOTLY_PARTIAL_JS": str(tmp / "none.js")} if args.full else {}
+    settings = {}
+    if args.bundle != "dashboard":
+        settings["TRACKPROFILE_PLOTLY_DASHBOARD_JS"] = str(tmp / "none.js")
+    if args.bundle == "full":
+        settings["TRACKPROFILE_PLOTLY_PARTIAL_JS"] = str(tmp / "none.js")
     if args.static:
         settings["TRACKPROFILE_STATIC_DIR"] = str(args.static.resolve())
     server = start_server(tmp, settings=settings)
@@ -122,15 +139,22 @@ def main() -> None:
                 context.close()
                 context = browser.new_context(viewport=PHONE)
                 page = context.new_page()
+                page.add_init_script(MARK_PLOTLY)
                 t = time.perf_counter()
                 page.goto(track_url)
                 page.wait_for_function(TRACK_READY)
                 phone = time.perf_counter() - t
+                track_ms = {
+                    k: round(v) if isinstance(v, float) else v
+                    for k, v in page.evaluate(TIMES).items()
+                }
                 context.close()
                 print(
                     f"rep {rep}: run chart in {total:.2f} s,"
                     f" track chart at 390 px in {phone:.2f} s",
                     json.dumps(ms),
+                    "track:",
+                    json.dumps(track_ms),
                 )
             browser.close()
     finally:

@@ -69,10 +69,14 @@ class Settings(BaseSettings):
         Longest simulated run ``POST /api/v1/simulate`` accepts, s of travel.
     static_dir : Path
         The dashboard's files, served at ``/static`` (``index.html`` at ``/``).
+    plotly_dashboard_js : Path
+        plotly.js with only the dashboard's trace types (core and heatmap), bundled by
+        ``scripts/serve.sh`` and ``scripts/test.sh`` from npm: served to the dashboard when
+        present and of the plotly package's plotly.js version, else ``plotly_partial_js``.
     plotly_partial_js : Path
-        plotly's partial bundle (npm ``plotly.js-cartesian-dist-min``, installed by
-        ``scripts/serve.sh`` and ``scripts/test.sh`` from npm): served to the dashboard when
-        present and of the plotly package's plotly.js version, else the package's full bundle.
+        plotly's partial bundle (npm ``plotly.js-cartesian-dist-min``, installed by the same
+        scripts when the first cannot be built): served when present and of the plotly
+        package's plotly.js version, else the package's full bundle.
     run_migrations : bool
         Apply the Alembic migrations when the app starts.
     start_worker : bool
@@ -121,6 +125,7 @@ class Settings(BaseSettings):
     wait_timeout_s: float = Field(default=300.0, gt=0)
     simulate_max_duration_s: float = Field(default=120.0, gt=0)
     static_dir: Path = REPO_ROOT / "static"
+    plotly_dashboard_js: Path = REPO_ROOT / ".cache/plotly/plotly-dashboard.min.js"
     plotly_partial_js: Path = (
         REPO_ROOT
         / ".cache/plotly/node_modules/plotly.js-cartesian-dist-min"

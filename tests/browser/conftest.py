@@ -22,7 +22,7 @@ from browser.harness import (
     VIEWPORT,
     LiveServer,
     PageWatch,
-    ensure_plotly_partial,
+    ensure_plotly_bundle,
     start_server,
     stop_server,
 )
@@ -32,9 +32,10 @@ from support.samples import shared_data_dir
 
 @pytest.fixture(scope="session")
 def live_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveServer]:
-    """The service on an empty database, shared by the tests of the session; it serves plotly's
-    partial bundle (installed from npm when missing), so every chart test draws with it."""
-    ensure_plotly_partial()
+    """The service on an empty database, shared by the tests of the session; it serves the
+    dashboard's plotly.js bundle (built from npm when missing), so every chart test draws
+    with it."""
+    ensure_plotly_bundle()
     server = start_server(tmp_path_factory.mktemp("browser-service"))
     try:
         yield server

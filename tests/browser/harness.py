@@ -158,26 +158,15 @@ def axe_source() -> str:
     return AXE_JS.read_text()
 
 
-PLOTLY_PREFIX = REPO / ".cache" / "plotly"
-PLOTLY_PARTIAL_JS = (
-    PLOTLY_PREFIX / "node_modules" / "plotly.js-cartesian-dist-min" / "plotly-cartesian.min.js"
-)
-
-
-def ensure_plotly_partial() -> Path:
-    """plotly's partial bundle at the plotly package's plotly.js version, which the service
-    serves when present: installed from npm by scripts/test.sh (and here, when a test session
-    starts without it), as scripts/_plotly.sh does."""
-    from app.web import bundle_version, plotly_js_version
-
-    version = plotly_js_version()
-    if bundle_version(PLOTLY_PARTIAL_JS) != version:
-        subprocess.run(
-            ["npm", "install", "--no-save", "--no-audit", "--no-fund", "--no-package-lock",
-             "--prefix", str(PLOTLY_PREFIX), f"plotly.js-cartesian-dist-min@{version}"],
-            check=True, capture_output=True, timeout=300,
-        )  # fmt: skip
-    return PLOTLY_PARTIAL_JS
+def ensure_plotly_bundle() -> None:
+    """The dashboard's plotly.js bundle (or plotly's partial bundle when it cannot be built) at
+    the plotly package's plotly.js version, which the service serves when present: made by
+    scripts/_plotly.sh, run by scripts/test.sh (and here, when a test session starts without
+    it; the script does nothing when it is there)."""
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    subprocess.run(
+        ["bash", "-c", ". scripts/_plotly.sh"], cwd=REPO, env=env, check=True, timeout=600
+    )
 
 
 def axe_violations(
