@@ -11,7 +11,8 @@ cd "$(dirname "$0")/.."
 . scripts/_venv.sh '.[test]'
 
 # Debian packages the tests need when missing: chromium (browser tests), npm (axe-core and
-# plotly's partial bundle). Needs root or sudo; without it the browser tests are skipped.
+# the dashboard's plotly.js: _plotly.sh). Needs root or sudo; without it the browser tests are
+# skipped.
 missing=""
 [ -x /usr/bin/chromium ] || missing="$missing chromium"
 command -v npm >/dev/null 2>&1 || missing="$missing npm"
