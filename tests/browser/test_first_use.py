@@ -410,7 +410,10 @@ def test_simulate_form_has_the_services_bounds(page: Any, live_server: LiveServe
     posts: list[str] = []
     page.on("request", lambda r: posts.append(r.url) if r.method == "POST" else None)
     page.goto(f"{live_server.url}/#/simulate")
-    page.wait_for_function("() => document.getElementById('sim-accel-noise').dataset.bounds")
+    # The form is drawn after the page's module loads, which may come after the load event.
+    page.wait_for_function(
+        "() => { const e = document.getElementById('sim-accel-noise'); return e && e.dataset.bounds; }"
+    )
     bounds = page.evaluate(
         """() => ['sim-length', 'sim-speed', 'sim-accel-noise', 'sim-gyro-bias'].map(id => {
             const e = document.getElementById(id); return [e.min, e.max]; })"""
