@@ -173,6 +173,14 @@ def test_run_page_chart_is_fast_cached_local_explained_and_accessible(
     ready = "() => { const gd = document.getElementById('profile-plot'); return gd && gd._fullLayout && gd.querySelector('.main-svg'); }"
     cold = timed_goto(page, url, ready)
     assert_plotly_loads_with_the_page_module(page, "/static/js/pages/run.js")
+    # The chart's data is asked for with the run (static/js/pages/run.js), not after its answer.
+    api = page.evaluate(
+        """() => performance.getEntriesByType('resource').filter(e => e.name.includes('/api/v1/'))
+            .map(e => [new URL(e.name).pathname, e.startTime, e.responseEnd])"""
+    )
+    run_end = next(end for p, _, end in api if p == f"/api/v1/runs/{example_run['id']}")
+    chart_starts = [s for p, s, _ in api if "/views/runs/" in p or p.endswith("/soft-spots")]
+    assert len(chart_starts) == 2 and max(chart_starts) < run_end, api
     warm = min(
         timed_goto(page, f"{live_server.url}/?t={i}#/runs/{example_run['id']}", ready)
         for i in range(2)

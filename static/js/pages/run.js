@@ -52,6 +52,15 @@ export async function render(main, [id]) {
   const status = messageBox("info");
   main.append(heading, subtitle, status.el);
 
+  // The chart's data is asked for with the run, not after it: on a cold first visit both are
+  // in flight before plotly.js's evaluation holds the main thread, and the chart waits for the
+  // longest of them (docs/benchmarks.md, issue 14). Unused while the run is not processed
+  // (their 409 answers are ignored then).
+  const chartData = Promise.all([
+    apiFetch(`/api/v1/views/runs/${encId}/profile?max_points=${MAX_POINTS}`),
+    apiFetch(`runs/${encId}/soft-spots`),
+  ]);
+  chartData.catch(() => {});
   let run;
   try {
     run = await apiFetch(`runs/${encId}`);
@@ -101,10 +110,7 @@ export async function render(main, [id]) {
     return null;
   }
 
-  const [profile, spotsAnswer] = await Promise.all([
-    apiFetch(`/api/v1/views/runs/${encId}/profile?max_points=${MAX_POINTS}`),
-    apiFetch(`runs/${encId}/soft-spots`),
-  ]);
+  const [profile, spotsAnswer] = await chartData;
   const spots = (spotsAnswer || []).slice().sort((a, b) => a.start_m - b.start_m);
 
   // ---- summary -------------------------------------------------------------------------------
