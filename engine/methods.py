@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,6 +58,14 @@ class MethodInput:
     lambda_max_m: float
     taper: float
 
+    @cached_property
+    def axle_times(self) -> NDArray[np.float64]:
+        """When the front (row 0) and rear axle (row 1) pass each grid point, s from the
+        first sample (NaN where the axle does not pass), shape (2, grid size)."""
+        t = np.arange(self.log.n, dtype=np.float64) * self.log.dt
+        return np.stack([to_grid(self.positions.front, t, self.grid),
+                         to_grid(self.positions.rear, t, self.grid)])  # fmt: skip
+
     def bandpass(self, level_mm: NDArray[np.float64]) -> NDArray[np.float64]:
         """A level on the grid (mm) limited to the wavelength band."""
         return bandpass_distance(
@@ -70,19 +79,20 @@ class Inversion:
 
     Attributes
     ----------
-    y_front, y_rear : ndarray
-        Loaded level under each axle at every sample, m.
+    y_front, y_rear : ndarray or None
+        Loaded level under each axle at every sample, m (None when the method kept them as
+        ``band``).
     front_mm, rear_mm : ndarray
         The same on the grid, band-passed, mm (NaN where the axle did not pass).
     noise_accel_mps2, noise_pitch_rate_radps : float
         White-noise level of the two signals, RMS.
     band : BandSpectrum or None
-        The levels' spectrum when the method worked in the frequency domain (the wheel
-        forces are then taken from it, :func:`engine.wheel_force.dynamic_wheel_forces`).
+        The levels' spectrum when the method worked in the frequency domain (the profile and
+        the wheel forces on the grid are then evaluated from it).
     """
 
-    y_front: NDArray[np.float64]
-    y_rear: NDArray[np.float64]
+    y_front: NDArray[np.float64] | None
+    y_rear: NDArray[np.float64] | None
     front_mm: NDArray[np.float64]
     rear_mm: NDArray[np.float64]
     noise_accel_mps2: float
@@ -95,17 +105,12 @@ Inverter = Callable[[MethodInput], Inversion]
 
 
 def _from_samples(
-    m: MethodInput,
-    y1: NDArray[np.float64],
-    y2: NDArray[np.float64],
-    sa: float,
-    sg: float,
-    band: BandSpectrum | None = None,
+    m: MethodInput, y1: NDArray[np.float64], y2: NDArray[np.float64], sa: float, sg: float
 ) -> Inversion:
     # levels per sample (m) put on the grid per axle (mm) and band-passed
     front = m.bandpass(to_grid(m.positions.front, y1 * 1e3, m.grid))
     rear = m.bandpass(to_grid(m.positions.rear, y2 * 1e3, m.grid))
-    return Inversion(y1, y2, front, rear, sa, sg, band)
+    return Inversion(y1, y2, front, rear, sa, sg)
 
 
 def _noise(log: RunLog) -> tuple[float, float]:
@@ -122,7 +127,13 @@ def spectral(m: MethodInput) -> Inversion:
         log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
         taper=m.taper,
     )  # fmt: skip
-    return _from_samples(m, inv.y_front, inv.y_rear, inv.noise_accel, inv.noise_gyro, inv.band)
+    # the levels where the axles pass the grid points, straight from the band spectrum
+    # (no full-rate transform of an hour's samples), then band-passed in distance as above
+    front, rear = inv.band.at_times(m.axle_times) * 1e3
+    return Inversion(
+        None, None, m.bandpass(front), m.bandpass(rear), inv.noise_accel, inv.noise_gyro,
+        inv.band,
+    )  # fmt: skip
 
 
 def filtered_direct(m: MethodInput) -> Inversion:

@@ -21,7 +21,7 @@ from .runlog import RunLog
 from .stiffness import fit_zone
 from .track import TrackParams
 from .vehicle import TABLE1, VehicleParams
-from .wheel_force import dynamic_wheel_forces
+from .wheel_force import dynamic_wheel_forces, force_spectrum
 
 Method = Literal["spectral", "filtered-direct", "least-squares", "direct"]
 
@@ -283,21 +283,25 @@ def process_run(
     lo = min(pos.front.min(), pos.rear.min())
     hi = max(pos.front.max(), pos.rear.max())
     grid = np.arange(np.ceil(lo / step) * step, hi + 1e-9, step)
-    inv = METHODS[cfg.method](
-        MethodInput(
-            log=log, positions=pos, grid=grid, step_m=step, vehicle=vehicle, f_lo_hz=f_lo,
-            f_hi_hz=f_hi, lambda_min_m=cfg.lambda_min_m, lambda_max_m=cfg.lambda_max_m,
-            taper=cfg.taper,
-        )
+    given = MethodInput(
+        log=log, positions=pos, grid=grid, step_m=step, vehicle=vehicle, f_lo_hz=f_lo,
+        f_hi_hz=f_hi, lambda_min_m=cfg.lambda_min_m, lambda_max_m=cfg.lambda_max_m,
+        taper=cfg.taper,
     )  # fmt: skip
+    inv = METHODS[cfg.method](given)
     spent(f"the {cfg.method} inversion")
-    y1, y2, front, rear = inv.y_front, inv.y_rear, inv.front_mm, inv.rear_mm
+    front, rear = inv.front_mm, inv.rear_mm
     sa, sg = inv.noise_accel_mps2, inv.noise_pitch_rate_radps
     # wheel force per axle: static load + dynamic part from the vehicle equations, on the grid
     static = vehicle.static_axle_loads()
-    f1, f2 = dynamic_wheel_forces(y1, y2, dt, vehicle, band=inv.band)
-    front_force = static[0] + to_grid(pos.front, f1, grid)
-    rear_force = static[1] + to_grid(pos.rear, f2, grid)
+    if inv.band is not None:
+        dyn = force_spectrum(inv.band, vehicle).at_times(given.axle_times)
+    else:
+        assert inv.y_front is not None and inv.y_rear is not None
+        f1, f2 = dynamic_wheel_forces(inv.y_front, inv.y_rear, dt, vehicle)
+        dyn = np.stack([to_grid(pos.front, f1, grid), to_grid(pos.rear, f2, grid)])
+    front_force = static[0] + dyn[0]
+    rear_force = static[1] + dyn[1]
     both = np.isfinite(front) & np.isfinite(rear)
     with np.errstate(invalid="ignore"):
         fused = np.where(both, 0.5 * (front + rear), np.where(np.isfinite(front), front, rear))

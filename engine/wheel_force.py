@@ -65,7 +65,8 @@ def dynamic_wheel_forces(
         Contact force minus the static axle load, N, compression positive.
     """
     if band is not None:
-        return _band_forces(band, vehicle)
+        f1, f2 = force_spectrum(band, vehicle).to_time()
+        return f1, f2
     n = y_front.size
     pad = min(n, 4096)
     nfft = sfft.next_fast_len(n + 2 * pad, real=True)
@@ -88,13 +89,13 @@ def dynamic_wheel_forces(
     return f1, f2
 
 
-def _band_forces(
-    band: BandSpectrum, vehicle: VehicleParams
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def force_spectrum(band: BandSpectrum, vehicle: VehicleParams) -> BandSpectrum:
+    """Dynamic contact force of each axle (N; compression positive, the static load not
+    included) as a band spectrum, from the rail levels' band spectrum (m) of the spectral
+    inverse: the force response at the band's bins only."""
     F = np.empty_like(band.values)
     for k0 in range(0, band.omega.size, BINS_PER_BLOCK):
         blk = slice(k0, k0 + BINS_PER_BLOCK)
         G = force_response(vehicle, band.omega[blk])
         F[:, blk] = np.einsum("mij,jm->im", G, band.values[:, blk])
-    f1, f2 = band.to_time(F)
-    return f1, f2
+    return band.with_values(F)
