@@ -39,7 +39,6 @@ def dynamic_wheel_forces(
     y_rear: NDArray[np.float64],
     dt: float,
     vehicle: VehicleParams,
-    band: BandSpectrum | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Dynamic part of each axle's contact force from the rail levels under the axles.
 
@@ -52,21 +51,11 @@ def dynamic_wheel_forces(
         Sample step, s.
     vehicle : VehicleParams
         The half-car.
-    band : BandSpectrum, optional
-        The levels' spectrum as the spectral inverse made them (``y_front``/``y_rear`` being
-        its inverse transform): the forces are then its product with the force response at
-        the band's bins, transformed once, instead of transforming the levels again (the
-        same forces, to rounding, away from the log's first and last seconds, where the
-        inverse's mirrored padding replaces zero padding).
-
     Returns
     -------
     f_front, f_rear : ndarray
         Contact force minus the static axle load, N, compression positive.
     """
-    if band is not None:
-        f1, f2 = force_spectrum(band, vehicle).to_time()
-        return f1, f2
     n = y_front.size
     pad = min(n, 4096)
     nfft = sfft.next_fast_len(n + 2 * pad, real=True)
@@ -92,7 +81,9 @@ def dynamic_wheel_forces(
 def force_spectrum(band: BandSpectrum, vehicle: VehicleParams) -> BandSpectrum:
     """Dynamic contact force of each axle (N; compression positive, the static load not
     included) as a band spectrum, from the rail levels' band spectrum (m) of the spectral
-    inverse: the force response at the band's bins only."""
+    inverse: the force response at the band's bins only, without transforming the levels
+    again (the same forces as :func:`dynamic_wheel_forces` away from the log's first and
+    last seconds, where the inverse's mirrored padding replaces zero padding)."""
     F = np.empty_like(band.values)
     for k0 in range(0, band.omega.size, BINS_PER_BLOCK):
         blk = slice(k0, k0 + BINS_PER_BLOCK)

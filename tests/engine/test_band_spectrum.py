@@ -101,12 +101,12 @@ def test_profile_on_the_grid_matches_the_full_rate_levels_gridded(inverted):
 def test_pipeline_forces_match_the_full_rate_forces_gridded(inverted):
     """process_run's wheel forces (band spectrum, decimated) are the full-rate forces on the
     grid within 5 N (their dynamic part spreads over ~1 kN)."""
-    from engine.wheel_force import dynamic_wheel_forces
+    from engine.wheel_force import force_spectrum
 
     run, chk, inv = inverted
     direction = "increasing" if chk.positions.sign > 0 else "decreasing"
     res = process_run(run.log, start_chainage_m=run.logged_start_chainage_m, direction=direction)
-    f1, f2 = dynamic_wheel_forces(inv.y_front, inv.y_rear, run.log.dt, TABLE1, band=inv.band)
+    f1, f2 = force_spectrum(inv.band, TABLE1).to_time()
     static = TABLE1.static_axle_loads()
     pos = chk.positions
     for have, axle, f, s in ((res.front_force_n, pos.front, f1, static[0]),
