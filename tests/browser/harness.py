@@ -35,6 +35,46 @@ SAMPLE_ZONES = ((140.0, 146.0), (333.0, 337.0))
 """Soft zones of sample_noisy (and of the generated stand-in), m."""
 SAMPLE_START_M = 24.13
 
+CHART_MARKS = """(() => {
+  const painted = new Set();
+  const tick = () => {
+    for (const gd of document.querySelectorAll('.js-plotly-plot')) {
+      if (gd.id && !painted.has(gd.id) && gd._fullLayout && gd.querySelector('.main-svg')) {
+        painted.add(gd.id);
+        // Marked in the first task after this frame: its layout and paint are done by then.
+        const ch = new MessageChannel();
+        ch.port1.onmessage = () => performance.mark('chart-painted:' + gd.id);
+        ch.port2.postMessage(0);
+      }
+    }
+    requestAnimationFrame(tick);
+  };
+  requestAnimationFrame(tick);
+  let v;
+  Object.defineProperty(window, 'Plotly', { configurable: true, get() { return v; }, set(x) {
+    v = x;
+    performance.mark('plotly-defined');
+    for (const f of ['newPlot', 'react']) {
+      const g = x[f];
+      if (!g) continue;
+      x[f] = function (...args) {
+        if (!performance.getEntriesByName('first-draw').length) performance.mark('first-draw');
+        return g.apply(this, args);
+      };
+    }
+  } });
+})();"""
+"""An init script (``page.add_init_script``) timing a page's charts in the browser itself:
+``chart-painted:<id>`` marks the end of the animation frame in which the chart with that
+element id first has its SVG (the first task after the frame that lays it out and paints it:
+a browser-measured first paint, free of the test driver's own delay in noticing it),
+``plotly-defined`` when plotly.js has run, ``first-draw`` the first ``newPlot``/``react``
+call."""
+
+PAINTED_S = "id => (performance.getEntriesByName('chart-painted:' + id)[0] || {}).startTime / 1000"
+"""A predicate-free read of a chart's paint time: seconds from the navigation (``page.evaluate``
+with the element id; NaN before it is painted)."""
+
 
 def free_port() -> int:
     """A TCP port on 127.0.0.1 that nothing listens on right now."""

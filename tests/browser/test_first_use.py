@@ -17,7 +17,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from browser.harness import LiveServer, axe_source, axe_violations, wait_for_plot
+from browser.harness import (
+    CHART_MARKS,
+    PAINTED_S,
+    LiveServer,
+    axe_source,
+    axe_violations,
+    wait_for_plot,
+)
 
 from support.samples import REPO
 
@@ -121,11 +128,23 @@ def assert_plotly_loads_with_the_page_module(page: Any, own: str) -> None:
 
 
 def timed_goto(page: Any, url: str, ready: str) -> float:
-    """Seconds from navigation to `ready` (a JS predicate) holding."""
+    """Seconds from navigation to `ready` (a JS predicate) holding, as the test driver sees it."""
     t = time.perf_counter()
     page.goto(url)
     page.wait_for_function(ready)
     return time.perf_counter() - t
+
+
+def painted(page: Any, chart_id: str) -> float:
+    """Seconds from the navigation to the frame that first painted the chart ``chart_id``, as
+    the browser measured it (``CHART_MARKS``, added to the page before the navigation): the
+    figure the targets are about. The driver's own wall clock (``timed_goto``) also holds its
+    delay in noticing the chart, 0.1-0.5 s when a long task (the next chart) follows the
+    paint."""
+    page.wait_for_function(
+        "id => performance.getEntriesByName('chart-painted:' + id).length > 0", arg=chart_id
+    )
+    return float(page.evaluate(PAINTED_S, chart_id))
 
 
 def test_home_shows_at_once_without_plotly_and_explains_the_first_step(
@@ -171,7 +190,10 @@ def test_run_page_chart_is_fast_cached_local_explained_and_accessible(
     page.on("response", lambda r: answers.append(r) if "plotly" in r.url else None)
     url = f"{live_server.url}/#/runs/{example_run['id']}"
     ready = "() => { const gd = document.getElementById('profile-plot'); return gd && gd._fullLayout && gd.querySelector('.main-svg'); }"
+    page.add_init_script(CHART_MARKS)
     cold = timed_goto(page, url, ready)
+    cold_painted = painted(page, "profile-plot")
+    assert cold_painted > 0
     assert_plotly_loads_with_the_page_module(page, "/static/js/pages/run.js")
     # The chart's data is asked for with the run (static/js/pages/run.js), not after its answer.
     api = page.evaluate(
@@ -181,13 +203,18 @@ def test_run_page_chart_is_fast_cached_local_explained_and_accessible(
     run_end = next(end for p, _, end in api if p == f"/api/v1/runs/{example_run['id']}")
     chart_starts = [s for p, s, _ in api if "/views/runs/" in p or p.endswith("/soft-spots")]
     assert len(chart_starts) == 2 and max(chart_starts) < run_end, api
-    warm = min(
-        timed_goto(page, f"{live_server.url}/?t={i}#/runs/{example_run['id']}", ready)
+    warm, warm_painted = min(
+        (
+            timed_goto(page, f"{live_server.url}/?t={i}#/runs/{example_run['id']}", ready),
+            painted(page, "profile-plot"),
+        )
         for i in range(2)
     )
-    TIMINGS["run chart, first visit (s)"] = cold
-    TIMINGS["run chart, plotly cached (s)"] = warm
-    assert warm < CHART_CEILING_S
+    TIMINGS["run chart painted, first visit (s)"] = cold_painted
+    TIMINGS["run chart painted, plotly cached (s)"] = warm_painted
+    TIMINGS["run chart noticed by the driver, first visit (s)"] = cold
+    TIMINGS["run chart noticed by the driver, plotly cached (s)"] = warm
+    assert cold_painted < CHART_CEILING_S and warm < CHART_CEILING_S
     first = answers[0]
     # The dashboard's own plotly bundle (core and heatmap, 1.1 MB; not plotly's partial 1.5 MB
     # nor the full 4.8 MB: the cold first visit's time is mostly chromium evaluating it), with
@@ -232,6 +259,7 @@ def test_track_page_fits_a_phone_and_explains_a_single_run(
     legend goes below it; a defect seen once has no trend ("—"); plurals; axe clean."""
     context = browser.new_context(viewport={"width": 390, "height": 844})
     page = context.new_page()
+    page.add_init_script(CHART_MARKS)
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
     try:
@@ -239,7 +267,11 @@ def test_track_page_fits_a_phone_and_explains_a_single_run(
         t = time.perf_counter()
         page.goto(url)
         wait_for_plot(page, "#chainage-map", 2)
-        TIMINGS["track chart at 390 px, first visit (s)"] = time.perf_counter() - t
+        noticed = time.perf_counter() - t
+        map_painted = painted(page, "chainage-map")
+        assert 0 < map_painted < CHART_CEILING_S
+        TIMINGS["track chart at 390 px painted, first visit (s)"] = map_painted
+        TIMINGS["track chart at 390 px noticed by the driver, first visit (s)"] = noticed
         assert_plotly_loads_with_the_page_module(page, "/static/js/pages/track/")
         wait_for_plot(page, "#zone-plot")
         width = page.evaluate("() => document.getElementById('chainage-map')._fullLayout._size.w")
