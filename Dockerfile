@@ -1,14 +1,5 @@
 # TrackProfile service: uvicorn app.main:app on port 8000, database in the /data volume.
 
-# plotly's partial bundle for the dashboard's charts (npm, at build time; scripts/_plotly.sh
-# does the same for serve.sh/test.sh). It must be the plotly.js version of the plotly package
-# pip installs below (python -c "import plotly.offline; print(plotly.offline.get_plotlyjs_version())");
-# if not, the service logs a warning and serves the package's full bundle (slower first charts).
-FROM node:20-slim AS plotly-partial
-ARG PLOTLY_JS_VERSION=4.1.1
-RUN npm install --no-save --no-audit --no-fund --no-package-lock --prefix /opt/plotly \
-    "plotly.js-cartesian-dist-min@${PLOTLY_JS_VERSION}"
-
 FROM python:3.11-slim
 
 ENV PYTHONDONTWRITEBYTECODE=1 \
@@ -26,13 +17,21 @@ COPY engine ./engine
 COPY app ./app
 COPY migrations ./migrations
 COPY static ./static
-COPY --from=plotly-partial /opt/plotly/node_modules/plotly.js-cartesian-dist-min \
-     ./.cache/plotly/node_modules/plotly.js-cartesian-dist-min
 # Editable install: the app finds migrations/ and static/ next to its package. The postgres
 # extra (psycopg 3) lets DATABASE_URL point at PostgreSQL (see docker-compose.yml).
 RUN pip install -e ".[postgres]" \
     && mkdir -p /data \
     && chown app:app /data
+# The dashboard's own plotly.js bundle (core, scatter, heatmap), built by the same script as
+# serve.sh and test.sh use, at the plotly.js version of the plotly package just installed
+# (scripts/_plotly.sh; falls back to plotly's partial bundle, then to the package's full one,
+# with a warning). npm is needed only for this step and removed in the same layer.
+COPY scripts/_plotly.sh scripts/plotly-dashboard.js ./scripts/
+RUN apt-get update \
+    && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends npm \
+    && bash scripts/_plotly.sh \
+    && apt-get purge -y --auto-remove npm \
+    && rm -rf /var/lib/apt/lists/* /root/.npm .cache/plotly-build
 
 USER app
 VOLUME ["/data"]
