@@ -22,7 +22,7 @@ import scipy.fft as sfft
 from numpy.typing import NDArray
 from scipy.signal import resample_poly
 
-from .errors import EngineError
+from .errors import EngineError, ParameterError
 from .pipeline import ProcessConfig, check_run
 from .spectral import (
     band_window,
@@ -56,7 +56,8 @@ class Segment:
 
 @dataclass
 class Group:
-    """Segments sharing one sample step and FFT length (one frequency grid)."""
+    """Segments sharing one sample step and FFT length (one frequency grid) and one body mass
+    (``body_mass_kg``, kg: a declared load; None: the vehicle's own)."""
 
     dt: float
     nfft: int
@@ -74,6 +75,7 @@ class Group:
     rear_idx: list[NDArray[np.intp]]  # (m, 4) indices
     rear_w: list[NDArray[np.float64]]  # (m, 4) weights
     run: list[int]  # run index of each segment
+    body_mass_kg: float | None = None
 
 
 def cubic_weights(
@@ -99,9 +101,15 @@ def prepare(
     taper = pcfg.taper
     skipped: list[tuple[str, str]] = []
     used: list[tuple[str, float]] = []
-    pieces: dict[tuple[float, int], list[Segment]] = {}
+    pieces: dict[tuple[float, int, float | None], list[Segment]] = {}
     for r_i, run in enumerate(runs):
         label = run.label or f"run {r_i + 1}"
+        if run.body_mass_kg is not None:
+            try:
+                vehicle.with_body_mass(run.body_mass_kg)
+            except ParameterError as exc:
+                skipped.append((label, f"its declared load: {exc}"))
+                continue
         try:
             chk = check_run(
                 run.log, start_chainage_m=run.start_chainage_m, direction=run.direction,
@@ -149,7 +157,7 @@ def prepare(
             if k.size < 16:
                 continue
             idx, w = cubic_weights(r_pos, f_pos[k])
-            pieces.setdefault((dtd, nseg), []).append(
+            pieces.setdefault((dtd, nseg, run.body_mass_kg), []).append(
                 Segment(a[sl], g[sl], chk.f_lo_hz, chk.f_hi_hz, sa / math.sqrt(q),
                          sg / math.sqrt(q), k, idx, w, r_i)
             )  # fmt: skip
@@ -159,7 +167,7 @@ def prepare(
             continue
         used.append((label, n_used * nseg * dtd))
     groups = []
-    for (dtd, nseg), segs in pieces.items():
+    for (dtd, nseg, body_mass), segs in pieces.items():
         pad = edge_padding(nseg, dtd, min(sg.f_lo for sg in segs), taper)
         nfft = sfft.next_fast_len(nseg + 2 * pad, real=True)
         f = sfft.rfftfreq(nfft, dtd)
@@ -175,7 +183,7 @@ def prepare(
                 front_idx=[sg.front_idx for sg in segs],
                 rear_idx=[sg.rear_idx for sg in segs],
                 rear_w=[sg.rear_w for sg in segs],
-                run=[sg.run for sg in segs],
+                run=[sg.run for sg in segs], body_mass_kg=body_mass,
             )
         )  # fmt: skip
     return groups, skipped, used
@@ -191,11 +199,14 @@ class Evaluation:
 
 
 def evaluate(groups: list[Group], vehicle: VehicleParams) -> Evaluation:
+    """The axles' disagreement of every segment inverted with ``vehicle`` (at each group's
+    declared body mass)."""
     diffs: list[NDArray[np.float64]] = []
     energy: list[float] = []
     runs: list[int] = []
     for g in groups:
-        H = vehicle_response(vehicle, g.omega)
+        veh = vehicle if g.body_mass_kg is None else vehicle.with_body_mass(g.body_mass_kg)
+        H = vehicle_response(veh, g.omega)
         full = np.zeros((g.A.shape[0], 2, g.sel.size), dtype=complex)
         for i in range(g.A.shape[0]):
             Y = solve_bins(H, g.A[i], g.Q[i], g.sa[i], g.sg[i], 1.0 / g.nfft)

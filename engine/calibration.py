@@ -110,12 +110,18 @@ class CalibrationRun:
         Direction of travel.
     label : str
         How the result names the run (e.g. its id).
+    body_mass_kg : float, optional
+        The body mass the run was driven with, kg, when its load was declared (a payload, a
+        measured static wheel load: what the run was inverted with). The run is then compared
+        at that mass, the fitted quantities applied as to every run
+        (:meth:`engine.vehicle.VehicleParams.with_body_mass`); None: the held body mass.
     """
 
     log: RunLog
     start_chainage_m: float | None = None
     direction: str = "increasing"
     label: str = ""
+    body_mass_kg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -364,14 +370,10 @@ def calibrate(
         key = np.asarray(theta, float).tobytes()
         if key not in cache:
             try:
-                veh = _vehicle_at(base, fit, theta)
-            except ParameterError:  # outside the physical range: a wall
-                veh = None
-            if veh is None:
+                cache[key] = disagreement.evaluate(groups, _vehicle_at(base, fit, theta))
+            except ParameterError:  # outside the physical range (at any run's mass): a wall
                 ev0 = cache[np.zeros(k).tobytes()]
                 cache[key] = Evaluation([d * 0 + 1e3 for d in ev0.diff], ev0.energy, ev0.run)
-            else:
-                cache[key] = disagreement.evaluate(groups, veh)
             n_eval += 1
             if progress is not None:
                 progress(n_eval)

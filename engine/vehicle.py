@@ -143,6 +143,15 @@ class VehicleParams:
         """A copy with some parameters changed (validated like a new one)."""
         return VehicleParams.from_dict({**self.to_dict(), **changes})
 
+    def with_body_mass(self, ms: float) -> VehicleParams:
+        """The vehicle with another body mass, kg (a payload carried, a load figure).
+
+        The difference is taken as spread like the body's own mass: the pitch inertia (kg m²)
+        scales with the body mass, axle masses and the axle loads' split stay. This is how a
+        run's declared load enters its inversion and its calibration.
+        """
+        return self.replace(ms=ms, Is=self.Is * ms / self.ms)
+
     @property
     def wheelbase(self) -> float:
         """Distance between the two axles, m."""

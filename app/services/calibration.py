@@ -25,6 +25,7 @@ from engine.health import HealthAlert, ParameterEstimate, health_alerts
 from engine.vehicle import VehicleParams
 
 from .errors import Conflict, Invalid, NotFound
+from .loads import declared_body_mass
 from .logs import unpack_log
 from .vehicles import new_version
 
@@ -203,6 +204,9 @@ def calibration_inputs(
     """The registered vehicle (and its version) and the stored runs a calibration uses."""
     vehicle = session.get(Vehicle, cal.vehicle_id)
     assert vehicle is not None
+    vp = VehicleParams.from_dict(vehicle.params_dict())
+    load_kg = cal.request.get("load_kg")
+    held = vp if load_kg is None else vp.replace(ms=load_kg)
     runs: list[CalibrationRun] = []
     times: list[datetime] = []
     for run_id in cal.request.get("run_ids") or []:
@@ -210,11 +214,16 @@ def calibration_inputs(
         data = session.scalar(select(RunInput.data).where(RunInput.run_id == run_id))
         if run is None or data is None:
             continue  # deleted since the request: the rest is used
+        # A run with a declared load is compared at the body mass it was inverted with (the
+        # engine skips it, saying why, when that mass is not plausible for the vehicle).
+        body_mass = declared_body_mass(held, run.payload_kg, run.static_wheel_load_n)
         runs.append(
-            CalibrationRun(unpack_log(data), run.start_chainage_m, run.direction, f"run {run_id}")
-        )
+            CalibrationRun(
+                unpack_log(data), run.start_chainage_m, run.direction, f"run {run_id}",
+                body_mass_kg=body_mass,
+            )
+        )  # fmt: skip
         times.append(run.recorded_at or run.created_at)
-    vp = VehicleParams.from_dict(vehicle.params_dict())
     return (
         vp,
         vehicle.version,

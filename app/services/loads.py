@@ -14,8 +14,6 @@ Units: kg, N.
 
 from __future__ import annotations
 
-import dataclasses
-
 from engine.runlog import RunLog
 from engine.vehicle import GRAVITY, VehicleParams
 
@@ -39,6 +37,21 @@ def declared_wheel_load(
     return log.static_wheel_load_n(), LOGGED_LOAD_FIELD
 
 
+def declared_body_mass(
+    vehicle: VehicleParams, payload_kg: float | None, static_wheel_load_n: float | None
+) -> float | None:
+    """The body mass a declared load gives, kg (None: nothing declared; not checked).
+
+    A payload is carried on top of the registered body mass; two axles carry the body and
+    themselves: ``2 W = (ms + mu1 + mu2) g``.
+    """
+    if payload_kg is not None:
+        return vehicle.ms + payload_kg
+    if static_wheel_load_n is not None:
+        return 2.0 * static_wheel_load_n / GRAVITY - vehicle.mu1 - vehicle.mu2
+    return None
+
+
 def loaded_vehicle(
     vehicle: VehicleParams,
     payload_kg: float | None = None,
@@ -60,19 +73,15 @@ def loaded_vehicle(
         raise Invalid(
             "give either payload_kg or static_wheel_load_n, not both", field="static_wheel_load_n"
         )
-    if payload_kg is not None:
-        ms = vehicle.ms + payload_kg
-    elif static_wheel_load_n is not None:
-        # Two axles carry the body and themselves: 2 W = (ms + mu1 + mu2) g.
-        ms = 2.0 * static_wheel_load_n / GRAVITY - vehicle.mu1 - vehicle.mu2
-        if ms <= 0.1 * vehicle.ms:
-            axles = 0.5 * (vehicle.mu1 + vehicle.mu2) * GRAVITY
-            raise Invalid(
-                f"static_wheel_load_n {static_wheel_load_n:g} N is not plausible for this "
-                f"vehicle: its axles alone weigh {axles:.0f} N per wheel and the body "
-                f"{0.5 * vehicle.ms * GRAVITY:.0f} N (give the mean static wheel load, N)",
-                field=field,
-            )
-    else:
+    ms = declared_body_mass(vehicle, payload_kg, static_wheel_load_n)
+    if ms is None:
         return vehicle
-    return dataclasses.replace(vehicle, ms=ms, Is=vehicle.Is * ms / vehicle.ms)
+    if static_wheel_load_n is not None and ms <= 0.1 * vehicle.ms:
+        axles = 0.5 * (vehicle.mu1 + vehicle.mu2) * GRAVITY
+        raise Invalid(
+            f"static_wheel_load_n {static_wheel_load_n:g} N is not plausible for this "
+            f"vehicle: its axles alone weigh {axles:.0f} N per wheel and the body "
+            f"{0.5 * vehicle.ms * GRAVITY:.0f} N (give the mean static wheel load, N)",
+            field=field,
+        )
+    return vehicle.with_body_mass(ms)

@@ -62,12 +62,14 @@ def _register(c: TestClient, name: str) -> None:
     assert r.json()["version"] == 1
 
 
-def _upload(c: TestClient, runs, vehicle: str, month: int = 1, tag: str = "") -> list[int]:
+def _upload(
+    c: TestClient, runs, vehicle: str, month: int = 1, tag: str = "", **load: float
+) -> list[int]:
     ids = []
     for i, r in enumerate(runs):
         when = f"2026-{month:02d}-0{i + 1}T08:00:00"
         resp = upload(c, r["csv"], track=f"line-{tag}{month}-{i}", vehicle=vehicle,
-                      start_chainage_m=r["start"], recorded_at=when)  # fmt: skip
+                      start_chainage_m=r["start"], recorded_at=when, **load)  # fmt: skip
         assert resp.status_code in (200, 201), resp.text
         run = wait_done(c, resp.json()["id"])
         assert run["status"] == "done" and run["vehicle_version"] == 1, run
@@ -130,6 +132,24 @@ def test_calibration_with_apply_makes_a_version_and_reprocesses_in_place(
         assert_zones_match(spots, run["zones"])
     listed = client.get("/api/v1/vehicles/coach/calibrations").json()
     assert [c["id"] for c in listed["data"]] == [cal["id"]]
+
+
+def test_runs_with_a_declared_payload_are_calibrated_at_their_mass(client: TestClient) -> None:
+    """Three runs of the registered coach carrying 35 % of its body mass, uploaded with that
+    payload_kg: the calibration compares each at the mass it was inverted with, finds nothing
+    significant and leaves the registration (without the payload the fit reads the heavier body
+    as a suspension 20-35 % softer: tests/engine/test_calibration.py)."""
+    payload = 0.35 * TABLE1.ms
+    runs = _csv_runs(TABLE1.with_body_mass(TABLE1.ms + payload), 700)
+    _register(client, "laden")
+    ids = _upload(client, runs, "laden", tag="laden", payload_kg=payload)
+    r = client.post("/api/v1/vehicles/laden/calibrate", json={"apply": True})
+    assert r.status_code == 202, r.text
+    cal = _wait_calibration(client, "laden", r.json()["id"])
+    assert cal["status"] == "done" and cal["runs_used"] == ids, cal
+    assert cal["significant"] is False and cal["applied"] is False, cal["message"]
+    assert all(abs(f["change"]) < 0.05 for f in cal["fitted"]), cal["fitted"]
+    assert client.get("/api/v1/vehicles/laden").json()["version"] == 1
 
 
 def test_matching_vehicle_automatic_calibration_changes_nothing(start_app, healthy_runs) -> None:

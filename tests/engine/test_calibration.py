@@ -171,3 +171,28 @@ def test_given_load_fixes_the_mass(matching_runs):
     """A load figure replaces the registered body mass; the rest is fitted against it."""
     res = calibrate(_cal(matching_runs[:2]), TABLE1, CalibrationConfig(load_kg=17000.0))
     assert res.registered.ms == 17000.0 and res.params.ms == 17000.0
+
+
+def test_declared_loads_are_calibrated_at_their_mass():
+    """Runs of the registered coach carrying 35 % of its body mass as payload: declared (each
+    run's body mass, as they were inverted with), the registered vehicle explains them and
+    nothing significant changes; undeclared, the fit reads the heavier body as a softer
+    suspension (k_s/m_s is what the runs identify) and would move the registration."""
+    loaded = TABLE1.with_body_mass(TABLE1.ms * 1.35)
+    runs = _runs(loaded, 3, 300.0, 400)
+    declared = [dataclasses.replace(c, body_mass_kg=loaded.ms) for c in _cal(runs)]
+    res = calibrate(declared, TABLE1)
+    assert not res.significant and res.params == TABLE1, res.message
+    assert all(abs(f.change) < 0.05 for f in res.fitted), [f.change for f in res.fitted]
+    ignored = calibrate(_cal(runs), TABLE1)
+    ks = {f.name: f.change for f in ignored.fitted}
+    assert ignored.significant and ks["ks1"] < -0.15 and ks["ks2"] < -0.15, ks
+
+
+def test_an_implausible_declared_load_skips_its_run(matching_runs):
+    """A run whose declared body mass the vehicle cannot have is skipped, saying why."""
+    cal = _cal(matching_runs[:2])
+    cal[1] = dataclasses.replace(cal[1], body_mass_kg=-5.0)
+    res = calibrate(cal, TABLE1)
+    assert [r.label for r in res.runs] == ["run 0"]
+    assert res.skipped and res.skipped[0][0] == "run 1" and "declared load" in res.skipped[0][1]
