@@ -46,3 +46,46 @@ def test_form_limits_keep_their_messages(client, settings) -> None:
         assert r.status_code == 400, (message, r.text)
         assert r.json()["detail"]["message"] == message
     assert row_counts(settings) == before
+
+
+def test_this_starlette_has_the_buffering_hooks() -> None:
+    """If this fails, a Starlette upgrade changed the parser's internals: uploads still work
+    (spooled by request.form(), the next test), but a large log is read ~1 s slower; adapt
+    app/api/multipart.py's hooks to the new parser."""
+    import app.api.multipart as multipart
+
+    assert multipart.BUFFERING
+
+
+def test_without_the_hooks_uploads_and_limits_still_work(
+    client, settings, synthetic_run, monkeypatch
+) -> None:
+    """The fallback for a Starlette without the hooks: the same run stored, the same limit
+    messages (request.form()'s), nothing stored for a refused form."""
+    import app.api.multipart as multipart
+
+    monkeypatch.setattr(multipart, "BUFFERING", False)
+    written: list[int] = []
+
+    class Spy(formparsers.SpooledTemporaryFile):  # type: ignore[misc]
+        def write(self, data):  # noqa: ANN001, ANN202
+            written.append(len(data))
+            return super().write(data)
+
+    monkeypatch.setattr(formparsers, "SpooledTemporaryFile", Spy)
+    data = synthetic_run["csv"]
+    r = upload(
+        client, data, "run.csv", track="T", start_chainage_m=synthetic_run["start_chainage_m"]
+    )
+    assert r.status_code == 201, r.text
+    assert r.json()["n_samples"] > 0 and r.json()["original_filename"] == "run.csv"
+    assert sum(written) == len(data)  # request.form()'s spooled file: the fallback ran
+    before = row_counts(settings)
+    r = client.post("/api/v1/runs", files=[("file", ("a.csv", b"x")), ("other", ("b.csv", b"y"))])
+    assert r.status_code == 400
+    assert r.json()["detail"]["message"] == "Too many files. Maximum number of files is 1."
+    r = client.post(
+        "/api/v1/runs", files={"log": ("a.csv", b"x")}, data={"file": "not a file", "track": "T"}
+    )
+    assert r.status_code == 422 and r.json()["detail"]["field"] == "file", r.text
+    assert row_counts(settings) == before
