@@ -6,8 +6,9 @@ process's own worker claims the run soon after, it takes the log the request par
 pre-flight's :class:`~engine.pipeline.RunCheck` from here instead: no read-back and unpacking
 of the stored log, no second check of it. Bounded: at most ``capacity`` logs are held (each
 a few hundred MB for a long log), an entry is removed when taken, and dropped when newer ones
-push it out or it waited ``ttl_s`` unclaimed; a missing entry only means the stored input is
-read.
+push it out, it waited ``ttl_s`` unclaimed, or the worker found no run it could claim (its run
+was claimed by another process, deleted or failed: :meth:`Handover.drop_before`); a missing
+entry only means the stored input is read.
 """
 
 from __future__ import annotations
@@ -69,6 +70,19 @@ class Handover:
         if handed is None or (identity is not None and handed.identity != identity):
             return None
         return handed
+
+    def drop_before(self, t: float) -> int:
+        """Drop the entries handed over before ``t`` (``time.monotonic()``, s); how many.
+
+        The worker calls it when no run was claimable in a look that started at ``t``: the
+        runs of those entries are in another process's hands (or gone), and their logs would
+        otherwise stay held until the next upload of this process.
+        """
+        with self._lock:
+            old = [k for k, h in self._held.items() if h.at < t]
+            for run_id in old:
+                del self._held[run_id]
+        return len(old)
 
     def clear(self) -> None:
         """Drop every entry."""

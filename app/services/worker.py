@@ -102,6 +102,10 @@ class Heartbeat:
                             exc_info=True)  # fmt: skip
 
 
+HANDOVER_GRACE_S = 5.0
+"""A held log younger than this survives a look that found no claimable run, s."""
+
+
 class Worker:
     """Processing threads of one app process."""
 
@@ -230,7 +234,12 @@ class Worker:
 
     def run_once(self) -> bool:
         """Claim and process one run, else one calibration; False when nothing was waiting."""
+        looked_at = time.monotonic()
         run_id = self.claim()
+        if run_id is None and (handover := self.ctx.handover) is not None:
+            # Their runs went elsewhere: free the memory (not the newest: a run claimed by
+            # another thread of this process takes its entry a moment after claiming it).
+            handover.drop_before(looked_at - HANDOVER_GRACE_S)
         if run_id is not None:
             with self.ctx.slots:
                 self.process(run_id)

@@ -140,3 +140,23 @@ def test_handover_is_bounded_taken_once_and_guarded_by_identity(monkeypatch) -> 
     now = time.monotonic()
     monkeypatch.setattr(time, "monotonic", lambda: now + 61.0)
     assert h.take(4, "id4") is None  # waited too long
+
+
+def test_logs_of_runs_claimed_elsewhere_are_freed_when_the_worker_finds_nothing(
+    start_app, monkeypatch
+) -> None:
+    """A held log whose run this worker cannot claim (another process has it, or it is gone)
+    is dropped at the worker's next look that finds nothing to claim, once older than the
+    grace; a newer one (a run another thread of this process is about to take) stays."""
+    c = start_app(inline_max_samples=0)
+    ctx = c.app.state.ctx
+    worker = c.app.state.worker
+    log = _small_log()
+    chk = _check(log)
+    ctx.handover.put(10_001, "elsewhere", log, chk)  # no such queued run here
+    assert worker.run_once() is False and len(ctx.handover) == 1  # within the grace
+    now = time.monotonic()
+    monkeypatch.setattr(time, "monotonic", lambda: now + worker_mod.HANDOVER_GRACE_S + 1)
+    ctx.handover.put(10_002, "just handed", log, chk)
+    assert worker.run_once() is False
+    assert ctx.handover.take(10_001) is None and ctx.handover.take(10_002) is not None
