@@ -8,7 +8,8 @@ import starlette.formparsers as formparsers
 from api.api_support import row_counts, upload
 
 
-def test_file_part_is_read_into_memory_not_spooled(client, settings, synthetic_run, monkeypatch):
+def _spy_on_spooling(monkeypatch) -> list[int]:
+    """Sizes of the writes to Starlette's spooled temporary files, as they happen."""
     written: list[int] = []
 
     class Spy(formparsers.SpooledTemporaryFile):  # type: ignore[misc]
@@ -17,6 +18,11 @@ def test_file_part_is_read_into_memory_not_spooled(client, settings, synthetic_r
             return super().write(data)
 
     monkeypatch.setattr(formparsers, "SpooledTemporaryFile", Spy)
+    return written
+
+
+def test_file_part_is_read_into_memory_not_spooled(client, settings, synthetic_run, monkeypatch):
+    written = _spy_on_spooling(monkeypatch)
     data = synthetic_run["csv"]
     r = upload(
         client, data, "run.csv", track="T", start_chainage_m=synthetic_run["start_chainage_m"]
@@ -65,14 +71,7 @@ def test_without_the_hooks_uploads_and_limits_still_work(
     import app.api.multipart as multipart
 
     monkeypatch.setattr(multipart, "BUFFERING", False)
-    written: list[int] = []
-
-    class Spy(formparsers.SpooledTemporaryFile):  # type: ignore[misc]
-        def write(self, data):  # noqa: ANN001, ANN202
-            written.append(len(data))
-            return super().write(data)
-
-    monkeypatch.setattr(formparsers, "SpooledTemporaryFile", Spy)
+    written = _spy_on_spooling(monkeypatch)
     data = synthetic_run["csv"]
     r = upload(
         client, data, "run.csv", track="T", start_chainage_m=synthetic_run["start_chainage_m"]
