@@ -8,8 +8,9 @@ import starlette.formparsers as formparsers
 from api.api_support import row_counts, upload
 
 
-def _spy_on_spooling(monkeypatch) -> list[int]:
-    """Sizes of the writes to Starlette's spooled temporary files, as they happen."""
+def _upload_spooled_bytes(client, synthetic_run, monkeypatch) -> int:
+    """Upload the synthetic run (stored: 201); the bytes written to Starlette's spooled
+    temporary files meanwhile."""
     written: list[int] = []
 
     class Spy(formparsers.SpooledTemporaryFile):  # type: ignore[misc]
@@ -18,18 +19,17 @@ def _spy_on_spooling(monkeypatch) -> list[int]:
             return super().write(data)
 
     monkeypatch.setattr(formparsers, "SpooledTemporaryFile", Spy)
-    return written
-
-
-def test_file_part_is_read_into_memory_not_spooled(client, settings, synthetic_run, monkeypatch):
-    written = _spy_on_spooling(monkeypatch)
     data = synthetic_run["csv"]
     r = upload(
         client, data, "run.csv", track="T", start_chainage_m=synthetic_run["start_chainage_m"]
     )
     assert r.status_code == 201, r.text
     assert r.json()["n_samples"] > 0 and r.json()["original_filename"] == "run.csv"
-    assert written == []
+    return sum(written)
+
+
+def test_file_part_is_read_into_memory_not_spooled(client, settings, synthetic_run, monkeypatch):
+    assert _upload_spooled_bytes(client, synthetic_run, monkeypatch) == 0
 
 
 def test_form_limits_keep_their_messages(client, settings) -> None:
@@ -71,14 +71,8 @@ def test_without_the_hooks_uploads_and_limits_still_work(
     import app.api.multipart as multipart
 
     monkeypatch.setattr(multipart, "BUFFERING", False)
-    written = _spy_on_spooling(monkeypatch)
-    data = synthetic_run["csv"]
-    r = upload(
-        client, data, "run.csv", track="T", start_chainage_m=synthetic_run["start_chainage_m"]
-    )
-    assert r.status_code == 201, r.text
-    assert r.json()["n_samples"] > 0 and r.json()["original_filename"] == "run.csv"
-    assert sum(written) == len(data)  # request.form()'s spooled file: the fallback ran
+    spooled = _upload_spooled_bytes(client, synthetic_run, monkeypatch)
+    assert spooled == len(synthetic_run["csv"])  # request.form()'s spooled file: the fallback
     before = row_counts(settings)
     r = client.post("/api/v1/runs", files=[("file", ("a.csv", b"x")), ("other", ("b.csv", b"y"))])
     assert r.status_code == 400
