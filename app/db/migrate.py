@@ -30,27 +30,37 @@ def alembic_config() -> Config:
 
 
 @contextmanager
-def _migration_lock(db: Database, conn: Connection) -> Iterator[None]:
+def _file_lock(db: Database) -> Iterator[None]:
+    """SQLite: an exclusive lock on a file beside the database, held until the migration's
+    transaction has committed (a process that takes it next sees the upgraded schema)."""
     path = sqlite_path(db.url)
-    if path is not None:
-        lock_path = path.with_name(path.name + ".migrate.lock")
-        with open(lock_path, "a+b") as fh:
-            fcntl.flock(fh, fcntl.LOCK_EX)
-            try:
-                yield
-            finally:
-                fcntl.flock(fh, fcntl.LOCK_UN)
-    elif conn.dialect.name == "postgresql":
+    if path is None:
+        yield
+        return
+    lock_path = path.with_name(path.name + ".migrate.lock")
+    with open(lock_path, "a+b") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _lock_in_transaction(conn: Connection) -> None:
+    """PostgreSQL: an advisory lock released with the transaction (at its commit)."""
+    if conn.dialect.name == "postgresql":
         conn.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _PG_LOCK_ID})
-        yield
-    else:
-        yield
 
 
 def upgrade(db: Database, revision: str = "head") -> None:
-    """Bring the database schema up to ``revision`` (idempotent)."""
+    """Bring the database schema up to ``revision`` (idempotent).
+
+    Processes starting together take turns: each upgrades, commits, and only then lets the
+    next one look at the schema (which then finds nothing to do).
+    """
     cfg = alembic_config()
-    with db.engine.begin() as conn, _migration_lock(db, conn):
+    with _file_lock(db), db.engine.begin() as conn:
+        _lock_in_transaction(conn)
         cfg.attributes["connection"] = conn
         command.upgrade(cfg, revision)
 

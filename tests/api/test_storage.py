@@ -64,6 +64,49 @@ def test_migrations_downgrade_and_upgrade(tmp_path) -> None:
 
 
 @pytest.mark.sqlite_only
+def test_processes_starting_together_take_turns_to_migrate(tmp_path, monkeypatch) -> None:
+    """Two upgrades of one new SQLite file at once (two app processes starting together):
+    the second looks at the schema only after the first has committed, so both succeed. The
+    lock's release is slowed down here: were it released before the commit, the second would
+    find no tables yet and fail on creating them ('table tracks already exists')."""
+    import fcntl
+    import threading
+    import time
+    import types
+
+    import app.db.migrate as migrate
+
+    def slow_unlock(fh, op):  # noqa: ANN001, ANN202
+        fcntl.flock(fh, op)
+        if op == fcntl.LOCK_UN:
+            time.sleep(0.5)
+
+    monkeypatch.setattr(migrate, "fcntl", types.SimpleNamespace(
+        flock=slow_unlock, LOCK_EX=fcntl.LOCK_EX, LOCK_UN=fcntl.LOCK_UN))  # fmt: skip
+    url = f"sqlite:///{tmp_path / 'together.db'}"
+    errors: list[BaseException] = []
+
+    def start() -> None:
+        db = Database(url)
+        try:
+            upgrade(db)
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+        finally:
+            db.dispose()
+
+    threads = [threading.Thread(target=start) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    assert not errors, errors
+    db = Database(url)
+    assert current_revision(db) is not None
+    db.dispose()
+
+
+@pytest.mark.sqlite_only
 def test_sqlite_runs_in_wal_mode_with_foreign_keys(client, settings) -> None:
     """The app's connections use WAL, enforce foreign keys and wait on a busy database."""
     ctx = client.app.state.ctx
