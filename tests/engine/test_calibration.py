@@ -174,17 +174,27 @@ def test_given_load_fixes_the_mass(matching_runs):
 
 
 def test_declared_loads_are_calibrated_at_their_mass():
-    """Runs of the registered coach carrying 35 % of its body mass as payload: declared (each
-    run's body mass, as they were inverted with), the registered vehicle explains them and
-    nothing significant changes; undeclared, the fit reads the heavier body as a softer
-    suspension (k_s/m_s is what the runs identify) and would move the registration."""
+    """Runs of the registered coach carrying 35 % of its body mass as payload, on rail with
+    geometry (German low-disturbance) and logged 1.2 m off their start: declared (each run's
+    body mass, as they were inverted with), the registered vehicle explains them and nothing
+    significant changes; undeclared, the fit reads the heavier body as a softer suspension
+    (k_s/m_s is what the runs identify) and would move the registration."""
     loaded = TABLE1.with_body_mass(TABLE1.ms * 1.35)
-    runs = _runs(loaded, 3, 300.0, 400)
-    declared = [dataclasses.replace(c, body_mass_kg=loaded.ms) for c in _cal(runs)]
+    runs = [
+        make_run(length=300.0, zones=[SoftZone(120, 125, 0.5)], speed=SPEEDS[i], sensor=SENSOR,
+                 sim_rate_hz=1000.0, jitter=0.05, seed=400 + i, vehicle=loaded,
+                 irregularity="german-low", start_error_m=1.2)
+        for i in range(3)
+    ]  # fmt: skip
+    logged = [
+        CalibrationRun(r.log, r.logged_start_chainage_m, r.direction, f"run {i}")
+        for i, r in enumerate(runs)
+    ]
+    declared = [dataclasses.replace(c, body_mass_kg=loaded.ms) for c in logged]
     res = calibrate(declared, TABLE1)
     assert not res.significant and res.params == TABLE1, res.message
     assert all(abs(f.change) < 0.05 for f in res.fitted), [f.change for f in res.fitted]
-    ignored = calibrate(_cal(runs), TABLE1)
+    ignored = calibrate(logged, TABLE1)
     ks = {f.name: f.change for f in ignored.fitted}
     assert ignored.significant and ks["ks1"] < -0.15 and ks["ks2"] < -0.15, ks
 
