@@ -19,10 +19,10 @@ from typing import Any
 import pytest
 from browser.harness import (
     CHART_MARKS,
-    PAINTED_S,
     LiveServer,
     axe_source,
     axe_violations,
+    painted_s,
     wait_for_plot,
 )
 
@@ -135,18 +135,6 @@ def timed_goto(page: Any, url: str, ready: str) -> float:
     return time.perf_counter() - t
 
 
-def painted(page: Any, chart_id: str) -> float:
-    """Seconds from the navigation to the frame that first painted the chart ``chart_id``, as
-    the browser measured it (``CHART_MARKS``, added to the page before the navigation): the
-    figure the targets are about. The driver's own wall clock (``timed_goto``) also holds its
-    delay in noticing the chart, 0.1-0.5 s when a long task (the next chart) follows the
-    paint."""
-    page.wait_for_function(
-        "id => performance.getEntriesByName('chart-painted:' + id).length > 0", arg=chart_id
-    )
-    return float(page.evaluate(PAINTED_S, chart_id))
-
-
 def test_home_shows_at_once_without_plotly_and_explains_the_first_step(
     page: Any, live_server: LiveServer, example_run: dict[str, Any], axe: str
 ) -> None:
@@ -192,7 +180,7 @@ def test_run_page_chart_is_fast_cached_local_explained_and_accessible(
     ready = "() => { const gd = document.getElementById('profile-plot'); return gd && gd._fullLayout && gd.querySelector('.main-svg'); }"
     page.add_init_script(CHART_MARKS)
     cold = timed_goto(page, url, ready)
-    cold_painted = painted(page, "profile-plot")
+    cold_painted = painted_s(page, "profile-plot")
     assert cold_painted > 0
     assert_plotly_loads_with_the_page_module(page, "/static/js/pages/run.js")
     # The chart's data is asked for with the run (static/js/pages/run.js), not after its answer.
@@ -206,7 +194,7 @@ def test_run_page_chart_is_fast_cached_local_explained_and_accessible(
     warm, warm_painted = min(
         (
             timed_goto(page, f"{live_server.url}/?t={i}#/runs/{example_run['id']}", ready),
-            painted(page, "profile-plot"),
+            painted_s(page, "profile-plot"),
         )
         for i in range(2)
     )
@@ -268,7 +256,7 @@ def test_track_page_fits_a_phone_and_explains_a_single_run(
         page.goto(url)
         wait_for_plot(page, "#chainage-map", 2)
         noticed = time.perf_counter() - t
-        map_painted = painted(page, "chainage-map")
+        map_painted = painted_s(page, "chainage-map")
         assert 0 < map_painted < CHART_CEILING_S
         TIMINGS["track chart at 390 px painted, first visit (s)"] = map_painted
         TIMINGS["track chart at 390 px noticed by the driver, first visit (s)"] = noticed
