@@ -118,7 +118,7 @@ def store_run(db: Database, track_id: int, vehicle_id: int, line: Line, k: int, 
         s.add(run)
         s.flush()
         t0 = time.perf_counter()
-        store_result(s, run, Processed(res, 0.0))
+        store_result(s, run, Processed(res, 0.0), 1)
         s.commit()
         return run.id, float(run.chainage_offset_m), time.perf_counter() - t0
 

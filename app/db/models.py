@@ -58,6 +58,9 @@ class Track(Base):
     mass_per_m: Mapped[float] = mapped_column(Float)  # kg/m
     c_support: Mapped[float] = mapped_column(Float)  # N s/m per support
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
+    # chunks whose geometry/stiffness separation waits for a worker (app.services.integrate)
+    separation_pending_lo: Mapped[int | None] = mapped_column(Integer)
+    separation_pending_hi: Mapped[int | None] = mapped_column(Integer)
 
     runs: Mapped[list[Run]] = relationship(back_populates="track", passive_deletes=True)
 

@@ -58,6 +58,10 @@ class StiffnessPublic(BaseModel):
     separable: bool = Field(description="True when part of the window is separable")
     separable_fraction: float = Field(description="Share of the covered points separable, 0-1")
     message: str | None = Field(description="Why (part of) the window is not separable")
+    updating: bool = Field(
+        description="A run stored a moment ago covers part of the window and its separation "
+        "is being redone: this is the state before it; read again in a few seconds"
+    )
     chainage_m: list[float]
     k_rel: list[float | None] = Field(description="Support stiffness / nominal")
     k_rel_lo: list[float | None] = Field(description="Lower end of k_rel's band")

@@ -4,11 +4,13 @@ A queued run's input is always stored (``run_inputs``) before the request is ans
 worker of any process, or this one after a restart, processes it from there. When this
 process's own worker claims the run soon after, it takes the log the request parsed and the
 pre-flight's :class:`~engine.pipeline.RunCheck` from here instead: no read-back and unpacking
-of the stored log, no second check of it. Bounded: at most ``capacity`` logs are held (each
-a few hundred MB for a long log), an entry is removed when taken, and dropped when newer ones
-push it out, it waited ``ttl_s`` unclaimed, or the worker found no run it could claim (its run
-was claimed by another process, deleted or failed: :meth:`Handover.drop_before`); a missing
-entry only means the stored input is read.
+of the stored log, no second check of it; and the inversion the request started while it
+stored the input (:func:`app.services.processing.start_inversion`), when a slot was free.
+Bounded: at most ``capacity`` logs are held (each a few hundred MB for a long log), an entry
+is removed when taken, and dropped when newer ones push it out, it waited ``ttl_s``
+unclaimed, or the worker found no run it could claim (its run was claimed by another
+process, deleted or failed: :meth:`Handover.drop_before`); a missing entry only means the
+stored input is read (and inverted again).
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from dataclasses import dataclass
 
 from engine.pipeline import RunCheck
 from engine.runlog import RunLog
+
+from .processing import StartedInversion
 
 CAPACITY = 2
 """Most logs held at once."""
@@ -38,6 +42,8 @@ class Handed:
     check: RunCheck
     at: float
     """``time.monotonic()`` when it was handed over, s."""
+    inversion: StartedInversion | None = None
+    """The inversion of this log already running (None: the worker inverts it)."""
 
 
 class Handover:
@@ -52,11 +58,14 @@ class Handover:
         with self._lock:
             return len(self._held)
 
-    def put(self, run_id: int, identity: str, log: RunLog, check: RunCheck) -> None:
-        """Hold run ``run_id``'s log (and its check) for the worker."""
+    def put(
+        self, run_id: int, identity: str, log: RunLog, check: RunCheck,
+        inversion: StartedInversion | None = None,
+    ) -> None:  # fmt: skip
+        """Hold run ``run_id``'s log (its check, the inversion started) for the worker."""
         with self._lock:
             self._held.pop(run_id, None)
-            self._held[run_id] = Handed(identity, log, check, time.monotonic())
+            self._held[run_id] = Handed(identity, log, check, time.monotonic(), inversion)
             self._expire()
             while len(self._held) > self.capacity:
                 self._held.popitem(last=False)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import threading
 import time
+from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,7 +21,7 @@ from engine.runlog import RunLog
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
 
-from .integrate import add_run_to_track
+from .integrate import Separation, add_run_to_track
 from .profiles import fuse_axles, insert_profile
 
 
@@ -58,6 +60,74 @@ def invert(
     return Processed(result, time.perf_counter() - t0)
 
 
+@dataclass(frozen=True)
+class StartedInversion:
+    """An inversion started before its run was claimed (:func:`start_inversion`), with the
+    inputs it runs with: the worker that claims the run takes its result when its own inputs
+    are the same, and inverts again otherwise."""
+
+    future: Future[Processed]
+    inputs: tuple[float | None, str, VehicleParams, TrackParams]
+    """``(start_chainage_m, direction, vehicle, track)``."""
+
+    def matches(
+        self, start_chainage_m: float | None, direction: str, vehicle: VehicleParams,
+        track: TrackParams,
+    ) -> bool:  # fmt: skip
+        """Whether it inverts the log with these inputs."""
+        return self.inputs == (start_chainage_m, direction, vehicle, track)
+
+    def result(self) -> Processed:
+        """Its result once done (waits); raises what the inversion raised."""
+        return self.future.result()
+
+
+def start_inversion(
+    slots: threading.BoundedSemaphore,
+    log: RunLog,
+    *,
+    start_chainage_m: float | None,
+    direction: str,
+    vehicle: VehicleParams,
+    track: TrackParams,
+    budget_s: float | None,
+    checked: RunCheck,
+) -> StartedInversion | None:
+    """Invert a queued run's log on a thread of its own now, while its input is still being
+    stored, instead of after a worker has claimed it; None when no processing slot is free
+    (the worker inverts it then, as any queued run).
+
+    The slot (``AppContext.slots``: the memory cap on inversions at once) is held until the
+    inversion ends. Crash safety is the queue's: the run is stored before the client is
+    answered, and a process that dies with the inversion in hand leaves it to another worker.
+    """
+    if not slots.acquire(blocking=False):
+        return None
+    future: Future[Processed] = Future()
+
+    def run() -> None:
+        try:
+            if future.set_running_or_notify_cancel():
+                future.set_result(
+                    invert(
+                        log,
+                        start_chainage_m=start_chainage_m,
+                        direction=direction,
+                        vehicle=vehicle,
+                        track=track,
+                        budget_s=budget_s,
+                        checked=checked,
+                    )  # fmt: skip
+                )
+        except BaseException as exc:  # handed to whoever takes the result
+            future.set_exception(exc)
+        finally:
+            slots.release()
+
+    threading.Thread(target=run, name="early-inversion", daemon=True).start()
+    return StartedInversion(future, (start_chainage_m, direction, vehicle, track))
+
+
 def finite_or_none(value: Any) -> float | None:
     """A JSON-safe number: NaN and infinities become None."""
     try:
@@ -68,7 +138,12 @@ def finite_or_none(value: Any) -> float | None:
 
 
 def store_result(
-    session: Session, run: Run, processed: Processed, vehicle_version: int | None
+    session: Session,
+    run: Run,
+    processed: Processed,
+    vehicle_version: int | None,
+    *,
+    separation: Separation = "now",
 ) -> None:
     """Write a run's profile and soft spots and mark it done (caller commits).
 
@@ -77,7 +152,9 @@ def store_result(
 
     Chainage in m, levels in mm; the run's chainage extent is where the fused level exists.
     The run is then aligned to its track and merged into the track's aggregated profile
-    (``app.services.integrate``), in the same transaction.
+    (``app.services.integrate``), in the same transaction; the track's geometry/stiffness
+    separation there is redone in it too, or marked for after it (``separation="later"``:
+    the worker's, :func:`~app.services.integrate.separate_pending`).
     """
     res = processed.result
     no_force = np.full(res.chainage_m.shape, np.nan)
@@ -125,5 +202,6 @@ def store_result(
     run.processed_at = utcnow()
     run.vehicle_version = vehicle_version
     add_run_to_track(
-        session, run, res.chainage_m, res.level_mm, force if under_level.size else None
-    )
+        session, run, res.chainage_m, res.level_mm, force if under_level.size else None,
+        separation=separation,
+    )  # fmt: skip

@@ -6,13 +6,15 @@ load (``survey_levels``). ``engine.separation.separate`` turns these passes into
 geometry, the compliance and ``k/k_nom`` per grid point, and soft spots.
 
 When it runs: in the transaction that adds or removes a pass (after the aggregate, under the
-track lock), for the chunks the pass covers plus :data:`MARGIN_CHUNKS` of context either
-side; the result is stored per chunk (``track_stiffness``) and soft spots by their peak
+track lock) — for a run stored by the background worker, in the worker's next transaction
+instead (``app.services.integrate.separate_pending``: the run is done without waiting) — for
+the chunks the pass covers plus :data:`MARGIN_CHUNKS` of context either side; the result is
+stored per chunk (``track_stiffness``) and soft spots by their peak
 (``track_stiffness_spots``). Reads are then one indexed range scan and no numerics: a 2 km
-window reads in milliseconds whatever the number of runs, while the separation costs the
-writer what the engine needs for the stretch it touched (50 runs over 10 km: about 2 s).
-Computing on read (a cache keyed by a version counter) would put that cost on the first
-reader of every window after each upload instead.
+window reads in milliseconds whatever the number of runs, while the separation costs the writer
+what the engine needs for the stretch it touched (50 runs over 10 km: about 2 s). Computing on
+read (a cache keyed by a version counter) would put that cost on the first reader of every
+window after each upload instead.
 
 Units: chainage in m (aligned), levels and geometry in mm, forces in N, compliance in mm/kN,
 ``k_rel`` dimensionless (1 = nominal).
@@ -70,6 +72,12 @@ BATCH_CHUNKS = 40
 
 NOT_SEPARABLE = NOT_SEPARABLE_MESSAGE
 """What is said wherever the passes cannot tell rail geometry from support stiffness."""
+
+UPDATING = (
+    "the separation is being redone over part of this window after a run stored a moment "
+    "ago: what follows is the state before that run; read again in a few seconds"
+)
+"""What is said while a window's separation waits (``StiffnessWindow.updating``)."""
 
 _DTYPE = np.dtype("<f4")
 
@@ -308,6 +316,9 @@ class StiffnessWindow:
     spots: list[TrackStiffnessSpot]
     contributors: list[dict[str, Any]]
     message: str | None
+    updating: bool = False
+    """A run stored just now changed the window's passes and its separation is being redone
+    (``app.services.integrate.separate_pending``): what is read is the state before it."""
 
     @property
     def n(self) -> int:
@@ -404,7 +415,16 @@ def read_stiffness(
         | {"mean_force_n": c["force_sum"] / max(1, c["points"])}
         for c in contributors.values()
     ]
-    return StiffnessWindow(columns, spots, contrib, message if x.size else None)
+    lo, hi = session.execute(
+        select(Track.separation_pending_lo, Track.separation_pending_hi).where(Track.id == track_id)
+    ).one_or_none() or (None, None)
+    updating = (
+        lo is not None
+        and hi is not None
+        and (from_m is None or (hi + 1) * CHUNK_POINTS * GRID_STEP_M > from_m)
+        and (to_m is None or lo * CHUNK_POINTS * GRID_STEP_M <= to_m)
+    )
+    return StiffnessWindow(columns, spots, contrib, message if x.size else None, updating)
 
 
 def separable_intervals(session: Session, track_id: int) -> list[tuple[float, float]]:

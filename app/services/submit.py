@@ -38,7 +38,7 @@ from .context import AppContext
 from .errors import Conflict, Invalid
 from .loads import declared_wheel_load, loaded_vehicle
 from .logs import pack_log, summarize
-from .processing import Processed, invert, store_result
+from .processing import Processed, StartedInversion, invert, start_inversion, store_result
 from .signals import log_signals, pack_signals
 from .vehicles import create_vehicle
 
@@ -305,7 +305,17 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         signals |= sub.extra_signals
 
         processed: Processed | None = None
-        if sub.log.n <= settings.inline_max_samples:
+        started: StartedInversion | None = None
+        if sub.log.n > settings.inline_max_samples and ctx.handover is not None:
+            # Queued for this process's worker: its inversion starts now, beside the storing
+            # of its input, and the worker takes the result (its claim and crash safety as
+            # for any queued run).
+            started = start_inversion(
+                ctx.slots, sub.log, start_chainage_m=sub.start_chainage_m,
+                direction=sub.direction, vehicle=vp, track=tp,
+                budget_s=settings.processing_budget_s, checked=check,
+            )  # fmt: skip
+        elif sub.log.n <= settings.inline_max_samples:
             with ctx.slots:
                 try:
                     processed = invert(
@@ -375,7 +385,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         handover = ctx.handover if processed is None else None
         if handover is not None:
             # Before the commit: this process's worker may claim the run at once.
-            handover.put(run_id, identity, sub.log, check)
+            handover.put(run_id, identity, sub.log, check, started)
         try:
             s.commit()
         except BaseException:

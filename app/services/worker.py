@@ -38,6 +38,7 @@ from .calibration import (
 )
 from .context import AppContext
 from .handover import Handover
+from .integrate import separate_pending, tracks_pending_separation
 from .loads import loaded_vehicle
 from .logs import unpack_log
 from .processing import Processed, invert, store_result
@@ -102,6 +103,9 @@ class Heartbeat:
                             exc_info=True)  # fmt: skip
 
 
+SEPARATION_RETRY_S = 60.0
+"""A track whose waiting separation failed is tried again after this long, s."""
+
 HANDOVER_GRACE_S = 5.0
 """A held log younger than this survives a look that found no claimable run, s."""
 
@@ -116,6 +120,7 @@ class Worker:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._next_sweep = 0.0  # time.monotonic() of the next retention sweep
+        self._separation_failed: dict[int, float] = {}  # track id: time.monotonic() of it
         self._sweep_lock = threading.Lock()
 
     # -- lifecycle -------------------------------------------------------------------------
@@ -241,12 +246,11 @@ class Worker:
             # another thread of this process takes its entry a moment after claiming it).
             handover.drop_before(looked_at - HANDOVER_GRACE_S)
         if run_id is not None:
-            with self.ctx.slots:
-                self.process(run_id)
+            self.process(run_id)  # holds a processing slot while it inverts
             return True
         cal_id = self.claim_calibration()
         if cal_id is None:
-            return self.sweep_if_due()
+            return self.separate_waiting() or self.sweep_if_due()
         with self.ctx.slots:
             self.calibrate(cal_id)
         return True
@@ -418,19 +422,28 @@ class Worker:
 
         def work() -> Processed:
             with Heartbeat(self.ctx, run_id, self.id, max(0.5, settings.lease_s / 4)):
-                if handed is not None:
-                    # Checked by the submission for these parameters (a changed vehicle
-                    # version or start makes process_run check again).
-                    runlog, checked = handed.log, handed.check
-                else:
-                    packed = held.pop()
-                    assert packed is not None
-                    runlog, checked = unpack_log(packed), None
-                    del packed
-                return invert(
-                    runlog, start_chainage_m=start, direction=direction, vehicle=vp, track=tp,
-                    budget_s=settings.processing_budget_s, checked=checked,
-                )  # fmt: skip
+                started = None if handed is None else handed.inversion
+                if started is not None and started.matches(start, direction, vp, tp):
+                    # The request's inversion (holding its own slot) of the same inputs;
+                    # a vehicle version or start changed since inverts again.
+                    return started.result()
+                with self.ctx.slots:
+                    return inverted()
+
+        def inverted() -> Processed:
+            if handed is not None:
+                # Checked by the submission for these parameters (a changed vehicle version
+                # or start makes process_run check again).
+                runlog, checked = handed.log, handed.check
+            else:
+                packed = held.pop()
+                assert packed is not None
+                runlog, checked = unpack_log(packed), None
+                del packed
+            return invert(
+                runlog, start_chainage_m=start, direction=direction, vehicle=vp, track=tp,
+                budget_s=settings.processing_budget_s, checked=checked,
+            )  # fmt: skip
 
         processed = self._attempt("processing", run_id, self._fail, work)
         if processed is None:
@@ -452,9 +465,41 @@ class Worker:
                 return
             run = s.get(Run, run_id)
             assert run is not None
-            store_result(s, run, processed, vehicle_version)
+            # done without waiting for the track's separation: redone next, on its own
+            store_result(s, run, processed, vehicle_version, separation="later")
+            track_id = run.track_id
             s.commit()
+        self.separate_track(track_id)
+        with self.ctx.db.session() as s:
             maybe_auto_calibrate(s, vehicle_id, settings.auto_calibrate_runs)
+
+    def separate_track(self, track_id: int) -> bool:
+        """Redo the separation a stored run left waiting on track ``track_id`` (one
+        transaction, :func:`~app.services.integrate.separate_pending`); False when none was
+        waiting or it failed (logged; the mark stays, retried at a later idle look)."""
+        try:
+            with self.ctx.db.session() as s:
+                done = separate_pending(s, track_id)
+                s.commit()
+        except Exception:
+            log.exception("separation of track %s failed", track_id)
+            self._separation_failed[track_id] = time.monotonic()
+            return False
+        self._separation_failed.pop(track_id, None)
+        return done
+
+    def separate_waiting(self) -> bool:
+        """Redo one track's waiting separation (left by a process that stopped between a
+        run's commit and its separation); False when none waits. A track whose separation
+        failed is retried after ``SEPARATION_RETRY_S``."""
+        with self.ctx.db.session() as s:
+            waiting = tracks_pending_separation(s)
+        now = time.monotonic()
+        for track_id in waiting:
+            failed_at = self._separation_failed.get(track_id)
+            if failed_at is None or now - failed_at > SEPARATION_RETRY_S:
+                return self.separate_track(track_id)
+        return False
 
     def _owned(self, run_id: int) -> Update:
         """An UPDATE of run ``run_id`` while this worker still owns its processing."""

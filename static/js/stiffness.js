@@ -81,6 +81,10 @@ function spotsTable(spots, limits) {
   return h("table", { class: "data", id: "stiffness-spots" }, h("thead", {}, head), h("tbody", {}, ...rows));
 }
 
+const UPDATING_NOTE = "a run stored a moment ago is being separated with the others; this map shows the state before it and reloads by itself.";
+const RELOAD_MS = 3000;
+const MAX_RELOADS = 20; // a minute; a separation that takes longer shows on the next visit
+
 /** The stiffness card of a track (``enc``: its encoded id); ``render()`` (re)loads it. */
 export function stiffnessCard(enc) {
   const div = h("div", { class: "plot plot-stiffness", id: "stiffness-map", role: "figure", "aria-label": "Stiffness map: support stiffness in percent of nominal along chainage, coloured by the track's loss limits, with the unloaded rail geometry below" });
@@ -94,6 +98,7 @@ export function stiffnessCard(enc) {
       h("a", { class: "button small", id: "export-stiffness-csv", href: `/api/v1/tracks/${enc}/stiffness?format=csv` }, "Stiffness (CSV)")),
     h("p", { class: "hint" }, "Support stiffness in % of nominal, separated from the rail's own geometry by comparing passes of different wheel loads (and surveys); points coloured by the loss limit they reach; the band is its 95 % interval. Below: the unloaded rail geometry."),
     status.el, div, note, details);
+  let reloads = 0; // while a just-stored run's separation is redone (st.updating)
   const render = async () => {
     let st;
     let limits = null;
@@ -106,8 +111,13 @@ export function stiffnessCard(enc) {
       status.show(`Cannot load the stiffness: ${err.message}`, "error");
       return;
     }
-    if (st.message) status.show(st.message, st.separable ? "info" : "warning");
+    const said = st.updating ? `Updating: ${UPDATING_NOTE}${st.message ? ` ${st.message}` : ""}` : st.message;
+    if (said) status.show(said, st.separable && !st.updating ? "info" : "warning");
     else status.hide();
+    if (st.updating && reloads < MAX_RELOADS) {
+      reloads += 1;
+      setTimeout(() => { if (section.isConnected) render(); }, RELOAD_MS);
+    } else if (!st.updating) reloads = 0;
     details.replaceChildren(
       h("h3", {}, "Soft spots (separated)"), spotsTable(st.soft_spots, limits),
       h("h3", {}, "Contributing passes"), contributorsList(st));

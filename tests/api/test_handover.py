@@ -8,14 +8,19 @@ from collections import Counter
 
 import pytest
 
+import app.services.processing as processing_mod
 import app.services.submit as submit_mod
 import app.services.worker as worker_mod
 import engine.pipeline as pipeline_mod
 import engine.plausibility as plausibility_mod
 from api.api_support import row_counts, upload, wait_done
 from app.services.handover import Handover
+from app.services.processing import start_inversion
+from app.services.worker import Worker
+from engine.errors import BudgetExceeded
 from engine.pipeline import check_run
 from engine.runlog import RunLog
+from engine.track import TrackParams
 from engine.vehicle import TABLE1
 
 
@@ -160,3 +165,83 @@ def test_logs_of_runs_claimed_elsewhere_are_freed_when_the_worker_finds_nothing(
     ctx.handover.put(10_002, "just handed", log, chk)
     assert worker.run_once() is False
     assert ctx.handover.take(10_001) is None and ctx.handover.take(10_002) is not None
+
+
+@pytest.fixture
+def inversions(monkeypatch) -> list[tuple[str, float]]:
+    """Every engine inversion (``process_run``) of a stored run: the thread it ran on and the
+    vehicle body mass it used, kg."""
+    seen: list[tuple[str, float]] = []
+    real = processing_mod.process_run
+
+    def spy(log, **kwargs):
+        import threading
+
+        seen.append((threading.current_thread().name, kwargs["vehicle"].ms))
+        return real(log, **kwargs)
+
+    monkeypatch.setattr(processing_mod, "process_run", spy)
+    return seen
+
+
+def test_queued_upload_is_inverted_while_its_input_is_stored(
+    start_app, synthetic_run, inversions
+) -> None:
+    """The upload starts the inversion as soon as the log is checked (on a thread of its own,
+    beside the storing of the input); the worker that claims the run takes that result
+    instead of inverting the log a second time."""
+    c = start_app(inline_max_samples=0)
+    run_id = _queue(c, synthetic_run)
+    run = wait_done(c, run_id)
+    assert run["status"] == "done" and run["n_soft_spots"] >= 1
+    assert [name for name, _ in inversions] == ["early-inversion"]
+    assert len(c.app.state.ctx.handover) == 0
+
+
+def test_a_started_inversion_is_not_used_when_the_vehicle_changed_meanwhile(
+    start_app, synthetic_run, inversions
+) -> None:
+    """A vehicle version registered between the upload and the claim: the worker inverts
+    again with the new parameters and stores that result, not the started one."""
+    c = start_app(inline_max_samples=0, start_worker=False)
+    ctx = c.app.state.ctx
+    ctx.handover = Handover()  # as the worker's start sets it, without its threads
+    r = c.post("/api/v1/vehicles", json={"name": "coach", "params": TABLE1.to_dict()})
+    assert r.status_code == 201, r.text
+    run_id = _queue(c, synthetic_run, vehicle="coach")
+    r = c.patch("/api/v1/vehicles/coach", json={"params": {"ms": 17000.0}})
+    assert r.status_code == 200, r.text
+    assert Worker(ctx).run_once() is True
+    run = c.get(f"/api/v1/runs/{run_id}").json()
+    assert run["status"] == "done" and run["vehicle_version"] == 2
+    assert inversions == [("early-inversion", TABLE1.ms), ("MainThread", 17000.0)]
+
+
+def test_an_inversion_is_started_only_in_a_free_slot_and_frees_it(synthetic_run) -> None:
+    """No free processing slot: nothing starts (the worker inverts later). Started: the slot
+    is held until the inversion ends, and an engine error is handed to whoever takes the
+    result."""
+    import threading
+
+    from engine.logio import read_run_csv
+
+    slots = threading.BoundedSemaphore(1)
+    log = read_run_csv(synthetic_run["csv"])
+    start = synthetic_run["start_chainage_m"]
+    inputs = dict(start_chainage_m=start, direction="increasing", vehicle=TABLE1,
+                  track=TrackParams(), budget_s=None)  # fmt: skip
+    with slots:
+        assert start_inversion(slots, log, checked=check_run(log, start_chainage_m=start),
+                               **inputs) is None  # fmt: skip
+    # a processing budget it cannot meet: the inversion fails (BudgetExceeded)
+    started = start_inversion(slots, log, checked=check_run(log, start_chainage_m=start),
+                              **{**inputs, "budget_s": 1e-9})  # fmt: skip
+    assert started is not None
+    with pytest.raises(BudgetExceeded):
+        started.result()
+    assert slots.acquire(timeout=5)  # freed
+    slots.release()
+    ok = start_inversion(slots, log, checked=check_run(log, start_chainage_m=start), **inputs)
+    assert ok is not None and ok.matches(start, "increasing", TABLE1, TrackParams())
+    assert not ok.matches(start + 1.0, "increasing", TABLE1, TrackParams())
+    assert ok.result().result.soft_spots

@@ -47,6 +47,22 @@ def test_migrations_run_on_start_and_are_idempotent(start_app, settings) -> None
     db.dispose()
 
 
+def test_the_migrations_build_the_models_schema(start_app, settings) -> None:
+    """The schema the migrations make is the one the models declare (tables, columns and
+    their types, indexes, keys): a model changed without its migration fails here."""
+    from alembic.autogenerate import compare_metadata
+    from alembic.migration import MigrationContext
+
+    from app.db.base import Base
+
+    start_app()
+    db = Database(settings.sqlalchemy_url)
+    with db.engine.connect() as conn:
+        context = MigrationContext.configure(conn, opts={"compare_type": True})
+        assert compare_metadata(context, Base.metadata) == []
+    db.dispose()
+
+
 def test_migrations_downgrade_and_upgrade(tmp_path) -> None:
     """The migrations can be undone and redone (a broken downgrade would block rollbacks)."""
     from alembic import command

@@ -147,13 +147,14 @@ def test_engine_error_in_the_background_marks_the_run_failed(
     """An engine error that only the inversion finds ends the queued run as 'failed' with the
     engine's message and no stored input or profile; resending the file replaces the failed
     run."""
-    import app.services.worker as worker_mod
+    import app.services.processing as processing_mod
     from engine.errors import InversionError
 
-    def failing_invert(*_args, **_kwargs):
+    def failing_inversion(*_args, **_kwargs):
         raise InversionError("the profile band has no energy (test)")
 
-    monkeypatch.setattr(worker_mod, "invert", failing_invert)
+    # the engine call behind every inversion: the one the upload starts, the worker's own
+    monkeypatch.setattr(processing_mod, "process_run", failing_inversion)
     c = start_app(inline_max_samples=0)
     failed = wait_done(c, _queue(c, synthetic_run)["id"])
     assert failed["status"] == "failed"

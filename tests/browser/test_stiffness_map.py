@@ -98,3 +98,32 @@ def test_one_wheel_load_says_not_separable(
     assert "not separable" in page.locator("#run-stiffness-message").inner_text()
     losses = page.locator("#spots-table tbody tr td:nth-child(6)").all_inner_texts()
     assert all(v.strip() in ("—", "") for v in losses), losses
+
+
+def test_a_track_whose_separation_is_being_redone_says_so_and_reloads(
+    page: Any, live_server: LiveServer, tracks: dict[str, Any]
+) -> None:
+    """While a just-stored run's separation waits (the API's ``updating``; the worker redoes
+    it within a second or so, so the answer is made to say it here), the card says it is
+    updating besides its usual message and reloads by itself; then the plain message is back.
+    """
+    track = tracks["coach_track"]
+    answers: list[bool] = []
+
+    def updating_once(route: Any) -> None:
+        body = route.fetch().json()
+        body["updating"] = not answers
+        answers.append(body["updating"])
+        route.fulfill(json=body)
+
+    page.route(f"**/api/v1/tracks/{track}/stiffness", updating_once)
+    page.goto(f"{live_server.url}/#/tracks/{track}")
+    page.wait_for_selector("#stiffness-message:not([hidden])")
+    text = page.locator("#stiffness-message").inner_text()
+    assert text.startswith("Updating: a run stored a moment ago") and "not separable" in text
+    page.wait_for_function(
+        "() => !document.getElementById('stiffness-message').textContent.startsWith('Updating')",
+        timeout=10_000,
+    )
+    assert answers == [True, False]  # reloaded once, by itself
+    assert "not separable" in page.locator("#stiffness-message").inner_text()

@@ -23,7 +23,7 @@ from app.schemas.stiffness import (
 )
 from app.services.alignment import GRID_STEP_M
 from app.services.context import AppContext
-from app.services.stiffness import stiffness_with_vehicles
+from app.services.stiffness import UPDATING, stiffness_with_vehicles
 from app.services.submit import clean_filename
 from app.services.surveys import SurveyInput, create_survey, delete_survey, get_survey, list_surveys
 
@@ -70,6 +70,8 @@ def read_track_stiffness(
     cols = sep.columns
     if format == "csv":
         lines = []
+        if sep.updating:
+            lines.append(f"# {UPDATING}")
         if sep.message:
             lines.append(f"# {sep.message}")
         lines.append(",".join(STIFFNESS_CSV_FIELDS))
@@ -91,6 +93,7 @@ def read_track_stiffness(
         "separable": sep.separable,
         "separable_fraction": sep.separable_fraction,
         "message": sep.message,
+        "updating": sep.updating,
         "chainage_m": cols["chainage_m"],
         "k_rel": cols["k_rel"],
         "k_rel_lo": cols["k_rel_lo"],
