@@ -296,6 +296,15 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
     tp = TrackParams.from_dict(track_fields or _track_params(new_track))
 
     check = _preflight(sub, vp)
+    started: StartedInversion | None = None
+    if sub.log.n > settings.inline_max_samples and ctx.handover is not None:
+        # Queued for this process's worker: its inversion starts now, beside the storing of
+        # its input, and the worker takes the result (its claim and crash safety as for any
+        # queued run).
+        started = start_inversion(
+            ctx.slots, sub.log, start_chainage_m=sub.start_chainage_m, direction=sub.direction,
+            vehicle=vp, track=tp, budget_s=settings.processing_budget_s, checked=check,
+        )  # fmt: skip
     # The log is kept either way (reprocessing with a new vehicle version, calibration):
     # packed on a second thread meanwhile (Zstandard and numpy's copies release the GIL).
     with ThreadPoolExecutor(1, thread_name_prefix="pack-log") as pool:
@@ -305,17 +314,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         signals |= sub.extra_signals
 
         processed: Processed | None = None
-        started: StartedInversion | None = None
-        if sub.log.n > settings.inline_max_samples and ctx.handover is not None:
-            # Queued for this process's worker: its inversion starts now, beside the storing
-            # of its input, and the worker takes the result (its claim and crash safety as
-            # for any queued run).
-            started = start_inversion(
-                ctx.slots, sub.log, start_chainage_m=sub.start_chainage_m,
-                direction=sub.direction, vehicle=vp, track=tp,
-                budget_s=settings.processing_budget_s, checked=check,
-            )  # fmt: skip
-        elif sub.log.n <= settings.inline_max_samples:
+        if sub.log.n <= settings.inline_max_samples:
             with ctx.slots:
                 try:
                     processed = invert(
