@@ -23,6 +23,7 @@ from typing import Any, TypeVar, cast
 from sqlalchemy import CursorResult, Update, delete, or_, select, update
 from sqlalchemy.orm import Session
 
+from app.core.memory import release_freed_memory
 from app.db.base import utcnow
 from app.db.models import Calibration, Run, RunInput
 from app.services.errors import engine_error_facts
@@ -247,6 +248,7 @@ class Worker:
             handover.drop_before(looked_at - HANDOVER_GRACE_S)
         if run_id is not None:
             self.process(run_id)  # holds a processing slot while it inverts
+            release_freed_memory()  # the run's arrays, kept by the allocator otherwise
             return True
         cal_id = self.claim_calibration()
         if cal_id is None:
