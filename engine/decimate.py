@@ -8,6 +8,8 @@ highest value. A plotted line of the kept samples has the same envelope as the w
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -17,10 +19,11 @@ def minmax_indices(y: ArrayLike, max_points: int) -> NDArray[np.intp]:
 
     Parameters
     ----------
-    y : array_like, shape (n,) or (k, n)
+    y : array_like, shape (n,) or (k, n), or a sequence of ``k`` arrays of shape (n,)
         The series (any unit). With ``k`` rows sharing one axis (front, rear and fused level;
         acceleration and pitch rate), each row gets ``1/k`` of the budget and the kept indices
-        are the union, so each row keeps its own extremes on the shared axis.
+        are the union, so each row keeps its own extremes on the shared axis. A sequence of
+        rows is read row by row (no stacked copy of long signals).
     max_points : int
         Most indices returned (at least ``2 k + 2``).
 
@@ -37,10 +40,18 @@ def minmax_indices(y: ArrayLike, max_points: int) -> NDArray[np.intp]:
     value keeps one sample, its first (a NaN), so a chart line drawn through the kept
     samples breaks across the gap instead of bridging it.
     """
-    a = np.atleast_2d(np.asarray(y, dtype=np.float64))
-    if a.ndim != 2:
-        raise ValueError(f"y must be 1-D or 2-D, got {a.ndim} dimensions")
-    k, n = a.shape
+    if isinstance(y, (list, tuple)) and y and all(np.ndim(r) == 1 for r in y):
+        a: Sequence[NDArray[np.float64]] | NDArray[np.float64] = [
+            np.asarray(r, dtype=np.float64) for r in y
+        ]
+        if len({r.size for r in a}) != 1:
+            raise ValueError("the rows of y must have one length")
+        k, n = len(a), a[0].size
+    else:
+        a = np.atleast_2d(np.asarray(y, dtype=np.float64))
+        if a.ndim != 2:
+            raise ValueError(f"y must be 1-D or 2-D, got {a.ndim} dimensions")
+        k, n = a.shape
     if max_points < 2 * k + 2:
         raise ValueError(f"max_points must be >= {2 * k + 2} for {k} row(s), got {max_points}")
     if n <= max_points:
@@ -51,6 +62,13 @@ def minmax_indices(y: ArrayLike, max_points: int) -> NDArray[np.intp]:
     starts = np.arange(0, n, size)
     keep = [np.array([0, n - 1])]
     for row in a:
+        if not np.isnan(row).any():
+            # no gaps: padded with its last value (argmin/argmax take the first of equal
+            # values, the real sample) and no masked copies of a long signal
+            blocks = np.concatenate([row, np.full(pad, row[-1])]).reshape(-1, size)
+            keep.append(starts + blocks.argmin(axis=1))
+            keep.append(starts + blocks.argmax(axis=1))
+            continue
         blocks = np.concatenate([row, np.full(pad, np.nan)]).reshape(-1, size)
         missing = np.isnan(blocks)
         # an all-NaN bucket: both argmin and argmax give 0, its first sample

@@ -59,7 +59,7 @@ def minmax_envelope(
         False when the signals were short enough to keep whole.
     """
     t = np.asarray(time_s, dtype=np.float64)
-    values = np.vstack([np.asarray(v, dtype=np.float64) for v in signals.values()])
+    values = [np.asarray(v, dtype=np.float64) for v in signals.values()]  # (not stacked)
     idx = minmax_indices(values, max_points)
     out: dict[str, list[float | None]] = {"time_s": nullable(t[idx] - t[0])}
     out |= {k: nullable(row[idx]) for k, row in zip(signals, values, strict=True)}

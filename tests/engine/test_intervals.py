@@ -47,3 +47,39 @@ def test_minmax_keeps_a_nan_where_a_bucket_has_no_data() -> None:
     assert np.nanmin(kept) == np.nanmin(y) and np.nanmax(kept) == np.nanmax(y)
     with pytest.raises(ValueError, match="max_points"):
         minmax_indices(y, 3)
+
+
+def _reference_minmax(y: np.ndarray, max_points: int) -> np.ndarray:
+    """The decimator's rule written out plainly: NaN-padded buckets, NaN-masked extremes."""
+    k, n = y.shape
+    buckets = max(1, (max_points - 2) // (2 * k))
+    size = -(-n // buckets)
+    keep = {0, n - 1}
+    for row in y:
+        for a in range(0, n, size):
+            part = row[a : a + size]
+            if np.isnan(part).all():
+                keep.add(a)
+                continue
+            keep.add(a + int(np.nanargmin(part)))
+            keep.add(a + int(np.nanargmax(part)))
+    return np.array(sorted(keep))
+
+
+@pytest.mark.parametrize("n", [50_001, 50_000, 999_983])
+def test_minmax_rows_as_a_sequence_or_without_gaps_keep_the_same_samples(n: int) -> None:
+    """Rows given as a list (not stacked) and rows without gaps (no masked copies, padded with
+    their last value) keep exactly the samples of the plain rule, ties and the last bucket
+    included."""
+    rng = np.random.default_rng(n)
+    y = np.round(rng.normal(0.0, 1.0, (3, n)), 1)  # rounded: many ties within a bucket
+    y[1, -1] = 9.0  # the last sample an extreme of the last (padded) bucket
+    y[2, -1] = -9.0
+    gappy = y.copy()
+    gappy[0, 100:4000] = np.nan
+    for data in (y, gappy):
+        want = _reference_minmax(data, 2000)
+        assert np.array_equal(minmax_indices(data, 2000), want)
+        assert np.array_equal(minmax_indices(list(data), 2000), want)
+    with pytest.raises(ValueError, match="one length"):
+        minmax_indices([y[0], y[1, :-1]], 2000)
