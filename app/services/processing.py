@@ -117,7 +117,7 @@ def start_inversion(
                         track=track,
                         budget_s=budget_s,
                         checked=checked,
-                    )  # fmt: skip
+                    )
                 )
         except BaseException as exc:  # handed to whoever takes the result
             future.set_exception(exc)
