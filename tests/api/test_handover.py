@@ -15,6 +15,7 @@ import engine.pipeline as pipeline_mod
 import engine.plausibility as plausibility_mod
 from api.api_support import row_counts, upload, wait_done
 from app.services.handover import Handover
+from app.services.logs import pack_log
 from app.services.processing import start_inversion
 from app.services.worker import Worker
 from engine.errors import BudgetExceeded
@@ -245,3 +246,28 @@ def test_an_inversion_is_started_only_in_a_free_slot_and_frees_it(synthetic_run)
     assert ok is not None and ok.matches(start, "increasing", TABLE1, TrackParams())
     assert not ok.matches(start + 1.0, "increasing", TABLE1, TrackParams())
     assert ok.result().result.soft_spots
+
+
+def test_a_submission_failing_after_the_start_leaves_no_slot_taken(
+    start_app, settings, synthetic_run, monkeypatch, inversions
+) -> None:
+    """The request fails after it started the inversion (here: packing the input breaks):
+    nothing is stored, nothing is handed over, and the slot the inversion held is free again
+    once it ends (the next upload starts its own)."""
+
+    def broken_pack(_log):
+        raise RuntimeError("packing failed (test)")
+
+    c = start_app(inline_max_samples=0)
+    ctx = c.app.state.ctx
+    monkeypatch.setattr(submit_mod, "pack_log", broken_pack)
+    r = upload(c, synthetic_run["csv"], track="T",
+               start_chainage_m=synthetic_run["start_chainage_m"])  # fmt: skip
+    assert r.status_code == 500, r.text
+    assert row_counts(settings)["runs"] == 0 and len(ctx.handover) == 0
+    assert ctx.slots.acquire(timeout=60)  # the started inversion ended and let it go
+    ctx.slots.release()
+    monkeypatch.setattr(submit_mod, "pack_log", pack_log)
+    run_id = _queue(c, synthetic_run)
+    assert wait_done(c, run_id)["status"] == "done"
+    assert [name for name, _ in inversions] == ["early-inversion", "early-inversion"]
