@@ -25,7 +25,7 @@ from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
 from .aggregate import drop_run_levels, recompute_aggregate, store_run_levels
 from .alignment import RunAlignment, align_to_track, on_track_grid
 from .profiles import fuse_axles, read_profile
-from .stiffness import recompute_all, recompute_stiffness
+from .stiffness import clear_pending, pending_chunks, recompute_all, recompute_stiffness
 
 
 def lock_track(session: Session, track_id: int) -> None:
@@ -122,17 +122,11 @@ def separate_pending(session: Session, track_id: int) -> bool:
     are marked again after this clears the mark.
     """
     lock_track(session, track_id)
-    lo, hi = session.execute(
-        select(Track.separation_pending_lo, Track.separation_pending_hi).where(Track.id == track_id)
-    ).one_or_none() or (None, None)
-    if lo is None or hi is None:
+    pending = pending_chunks(session, track_id)
+    if pending is None:
         return False
-    recompute_stiffness(session, track_id, int(lo), int(hi))
-    session.execute(
-        update(Track)
-        .where(Track.id == track_id)
-        .values(separation_pending_lo=None, separation_pending_hi=None)
-    )
+    recompute_stiffness(session, track_id, *pending)
+    clear_pending(session, track_id)
     return True
 
 
@@ -195,9 +189,5 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
     if lo is not None:
         recompute_aggregate(session, track_id, int(lo), int(hi))
     recompute_all(session, track_id)
-    session.execute(
-        update(Track)
-        .where(Track.id == track_id)
-        .values(separation_pending_lo=None, separation_pending_hi=None)
-    )
+    clear_pending(session, track_id)
     return out

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import delete, insert, select
+from sqlalchemy import delete, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import (
@@ -287,6 +287,26 @@ def _finite(v: Any) -> float | None:
     return f if math.isfinite(f) else None
 
 
+def pending_chunks(session: Session, track_id: int) -> tuple[int, int] | None:
+    """The chunks (first, last) whose separation waits for a worker after a run was stored
+    (``app.services.integrate.separate_pending``); None when it is up to date."""
+    row = session.execute(
+        select(Track.separation_pending_lo, Track.separation_pending_hi).where(Track.id == track_id)
+    ).one_or_none()
+    if row is None or row[0] is None or row[1] is None:
+        return None
+    return int(row[0]), int(row[1])
+
+
+def clear_pending(session: Session, track_id: int) -> None:
+    """Mark the track's separation up to date (caller holds the track's lock)."""
+    session.execute(
+        update(Track)
+        .where(Track.id == track_id)
+        .values(separation_pending_lo=None, separation_pending_hi=None)
+    )
+
+
 def recompute_all(session: Session, track_id: int) -> int:
     """Separate a whole track again (after a realignment); grid points with a result."""
     bounds: list[int] = []
@@ -415,14 +435,11 @@ def read_stiffness(
         | {"mean_force_n": c["force_sum"] / max(1, c["points"])}
         for c in contributors.values()
     ]
-    lo, hi = session.execute(
-        select(Track.separation_pending_lo, Track.separation_pending_hi).where(Track.id == track_id)
-    ).one_or_none() or (None, None)
+    pending = pending_chunks(session, track_id)
     updating = (
-        lo is not None
-        and hi is not None
-        and (from_m is None or (hi + 1) * CHUNK_POINTS * GRID_STEP_M > from_m)
-        and (to_m is None or lo * CHUNK_POINTS * GRID_STEP_M <= to_m)
+        pending is not None
+        and (from_m is None or (pending[1] + 1) * CHUNK_POINTS * GRID_STEP_M > from_m)
+        and (to_m is None or pending[0] * CHUNK_POINTS * GRID_STEP_M <= to_m)
     )
     return StiffnessWindow(columns, spots, contrib, message if x.size else None, updating)
 
