@@ -183,6 +183,58 @@ def _bandpass_matrix(
     return _bandpass_rows(np.eye(n), step_m, lambda_min, lambda_max, taper)
 
 
+def softening_modes(
+    flexibility: NDArray[np.float64],
+    influence: NDArray[np.float64],
+    columns: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The modes of softening a set of supports together, for :func:`modal_dips`.
+
+    Parameters
+    ----------
+    flexibility : ndarray
+        ``F_ij = f(x_i - x_j)`` of the ``p`` supports, m/N (symmetric).
+    influence : ndarray
+        ``b_j(x) = f(x - x_j)`` of each support at the profile's points, m/N, shape (p, g).
+    columns : ndarray
+        Linear map of a profile to what is compared (the band-pass at the fitted points),
+        shape (g, w).
+
+    Returns
+    -------
+    lam : ndarray
+        Eigenvalues of ``F``, m/N, shape (p,).
+    E : ndarray
+        Each mode's squared influence mapped by ``columns``, (m/N)², shape (p, w).
+    """
+    if flexibility.shape[0] == 0:
+        return np.zeros(0), np.zeros((0, columns.shape[1]))
+    lam, Q = np.linalg.eigh(flexibility)
+    C = Q.T @ influence
+    return lam, (C * C) @ columns
+
+
+def modal_dips(
+    lam: NDArray[np.float64],
+    E: NDArray[np.float64],
+    losses: NDArray[np.float64],
+    k_nominal: float,
+    load: float,
+) -> NDArray[np.float64]:
+    """Change of the loaded level when the supports of :func:`softening_modes` lose
+    ``losses`` (fractions, 0..1) of their stiffness ``k_nominal`` (N/m) under a static
+    ``load`` (N): mm, positive up (a softened zone sinks: negative), one row per loss.
+
+    Softening by ``D = d I`` (``d = -loss k_nominal``) changes the level by
+    ``P b^T (D^-1 + F)^-1 b``; with ``F = Q diag(lam) Q^T`` that is
+    ``P sum_k d / (1 + lam_k d) (Q^T b)_k^2``: a weighted sum of the modes, one small product
+    per loss instead of a matrix inverse, and finite at loss 0.
+    """
+    d = -np.asarray(losses, dtype=float)[:, None] * k_nominal
+    # n^T K^-1 n - n^T K0^-1 n = -b^T (D^-1 + F)^-1 b; the level is -P times that
+    return ((d / (1.0 + lam[None, :] * d)) @ E) * (load * 1e3)
+
+
 def fit_zone(
     grid: NDArray[np.float64],
     residual_mm: NDArray[np.float64],
@@ -222,7 +274,8 @@ def fit_zone(
     Softening the supports ``j`` in the zone by ``D = -loss k_nominal`` is a low-rank change
     of the nominal stiffness matrix ``K0``, so the loaded level changes by
     ``P b(x)^T (D^-1 I + F)^-1 b(x)`` with ``b_j(x) = f(x - x_j)`` and ``F_ij = f(x_i - x_j)``,
-    ``f`` the nominal influence line (:class:`InfluenceLine`). Losses are scanned in batches.
+    ``f`` the nominal influence line (:class:`InfluenceLine`), evaluated in the eigenbasis
+    of ``F`` (:func:`modal_dips`). Losses are scanned in batches.
     """
     step = float(grid[1] - grid[0])
     s = params.spacing
@@ -253,20 +306,15 @@ def fit_zone(
     bp_fit = _bandpass_matrix(g.size, step, lambda_min, lambda_max, taper)[np.ix_(near, fit_w)]
     meas_fit = meas[fit_w]
 
-    def dips(a: float, b: float, losses: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Band-passed modelled dips at the fitted columns, one row per loss, mm."""
+    def modes(a: float, b: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         pick = np.flatnonzero((sup_x >= a - 1e-6) & (sup_x <= b + 1e-6))
-        if pick.size == 0:
-            return np.zeros((losses.size, meas_fit.size))
-        Bp = B[pick]
-        eye = np.eye(pick.size)
-        mats = eye[None] / (-losses[:, None, None] * kn) + Fss[np.ix_(pick, pick)][None]
-        inv = np.linalg.inv(mats)
-        # einsum, not matmul: these products are small, and a threaded BLAS on a busy
-        # machine makes them ten times slower
-        corr = np.einsum("lig,ig->lg", np.einsum("lij,jg->lig", inv, Bp), Bp)
-        # n^T K^-1 n - n^T K0^-1 n = -b^T (D^-1 + F)^-1 b; the level is -P times that
-        return np.einsum("lg,gw->lw", corr, bp_fit) * (load * 1e3)
+        return softening_modes(Fss[np.ix_(pick, pick)], B[pick], bp_fit)
+
+    def dips(
+        mode: tuple[NDArray[np.float64], NDArray[np.float64]], losses: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """Band-passed modelled dips at the fitted columns, one row per loss, mm."""
+        return modal_dips(*mode, losses, kn, load)
 
     tried: dict[tuple[float, float], tuple[float, float]] = {}
 
@@ -279,8 +327,9 @@ def fit_zone(
 
     def _best_loss(a: float, b: float) -> tuple[float, float]:
         losses = np.linspace(0.02, MAX_LOSS, 32)
+        mode = modes(a, b)
         for _ in range(2):
-            d = dips(a, b, losses)
+            d = dips(mode, losses)
             err = np.sqrt(np.mean((d - meas_fit) ** 2, axis=1))
             k = int(np.argmin(err))
             best_l, best_e = float(losses[k]), float(err[k])
