@@ -25,7 +25,7 @@ _FIRST_COLUMNS = LOG_COLUMNS[:5]
 so that a log hashes as it did before columns were added."""
 
 
-def sha256_hex(*chunks: bytes) -> str:
+def sha256_hex(*chunks: bytes | bytearray) -> str:
     """Hex SHA-256 of the concatenated chunks."""
     h = hashlib.sha256()
     for c in chunks:
@@ -34,7 +34,10 @@ def sha256_hex(*chunks: bytes) -> str:
 
 
 def parse_csv(
-    data: bytes, options: dict[str, Any], field: str = "file", max_bytes: int | None = None
+    data: bytes | bytearray,
+    options: dict[str, Any],
+    field: str = "file",
+    max_bytes: int | None = None,
 ) -> RunLog:
     """Read an uploaded CSV (plain or gzip) into a RunLog with the given column/unit options.
 
@@ -70,7 +73,7 @@ def parse_csv(
         raise Invalid.from_engine(exc, field) from None
 
 
-def recorded_at_of(data: bytes, options: dict[str, Any]) -> datetime | None:
+def recorded_at_of(data: bytes | bytearray, options: dict[str, Any]) -> datetime | None:
     """When a CSV's first sample was recorded (UTC), if its time column holds epoch seconds
     or milliseconds or another column ISO 8601 date-times (:func:`preview_csv`); None
     otherwise. Called after :func:`parse_csv` accepted the file."""

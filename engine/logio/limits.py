@@ -49,12 +49,12 @@ def data_line_limit(n_fields: int) -> int:
     return min(MAX_LINE_CHARS, max(MIN_DATA_LINE_CHARS, CHARS_PER_FIELD * n_fields))
 
 
-def _line_number(data: bytes, offset: int) -> int:
+def _line_number(data: bytes | bytearray, offset: int) -> int:
     newlines = data.count(b"\n", 0, offset)
     return (newlines if newlines else data.count(b"\r", 0, offset)) + 1
 
 
-def check_lines(data: bytes, char_bytes: int = 1) -> None:
+def check_lines(data: bytes | bytearray, char_bytes: int = 1) -> None:
     """Refuse over-long lines before anything splits them (see the module's description).
 
     Parameters
@@ -112,7 +112,9 @@ def check_lines(data: bytes, char_bytes: int = 1) -> None:
         start = next_start
 
 
-def _too_long(data: bytes, start: int, size: int, limit: int, char_bytes: int, what: str) -> None:
+def _too_long(
+    data: bytes | bytearray, start: int, size: int, limit: int, char_bytes: int, what: str
+) -> None:
     line = _line_number(data, start)
     raise LogFormatError(
         f"line {line} is {size // char_bytes} characters long; {what} may have at most "

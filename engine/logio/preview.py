@@ -93,7 +93,9 @@ class CsvPreview:
         }
 
 
-def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None) -> CsvPreview:
+def preview_csv(
+    data: bytes | bytearray, n_rows: int = 10, options: CsvOptions | None = None
+) -> CsvPreview:
     """Look at the start of a CSV: its columns, first rows and how they would be read.
 
     Only the first :data:`PREVIEW_BYTES` (decompressed) are read, so this is cheap on a large
@@ -122,11 +124,10 @@ def preview_csv(data: bytes, n_rows: int = 10, options: CsvOptions | None = None
     if not isinstance(n_rows, int) or not 0 <= n_rows <= 1000:
         raise ParameterError(f"n_rows must be an integer from 0 to 1000, got {n_rows!r}")
     opts = options if options is not None else CsvOptions()
-    raw = bytes(data)
-    if raw[:2] == _GZIP_MAGIC:
-        head, more = _gunzip_head(raw, PREVIEW_BYTES)
+    if data[:2] == _GZIP_MAGIC:
+        head, more = _gunzip_head(data, PREVIEW_BYTES)
     else:
-        head, more = raw[:PREVIEW_BYTES], len(raw) > PREVIEW_BYTES
+        head, more = bytes(data[:PREVIEW_BYTES]), len(data) > PREVIEW_BYTES
     if not head or head.isspace():
         raise LogFormatError("the file is empty: no header line naming the columns (and no data)")
     encoding, enc_note = _detect_encoding(head, final=not more)

@@ -42,7 +42,7 @@ _pool_lock = threading.Lock()
 _pool_sized = False
 
 
-def _data_offset(data: bytes, header_line: int) -> int | None:
+def _data_offset(data: bytes | bytearray, header_line: int) -> int | None:
     """Byte offset where the line after line ``header_line`` (1-based) starts."""
     for k, m in enumerate(_LINE_END.finditer(data), 1):
         if k == header_line:

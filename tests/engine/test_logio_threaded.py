@@ -190,3 +190,22 @@ def test_threaded_reader_keeps_its_thread_cap() -> None:
 
     parse_run_csv(_csv(_lines()))
     assert pa.cpu_count() <= threaded.MAX_THREADS
+
+
+@pytest.mark.parametrize(
+    "make",
+    [*TRICKY.values(), *ACCEPTED.values(), *(bad.data for bad in CATALOGUE.values())],
+    ids=[*TRICKY, *ACCEPTED, *CATALOGUE],
+)
+def test_an_upload_buffer_is_read_in_place_as_its_bytes(
+    make: Callable[[], bytes], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A ``bytearray`` (the service's upload buffer, read without a copy) gives the same log,
+    recognition or error as the same bytes, on the threaded and the reference paths; and
+    no view of it is left behind: the buffer can be freed (resized) after the read."""
+    data = make()
+    buf = bytearray(data)
+    _assert_same(_outcome(buf), _outcome(data))  # type: ignore[arg-type]
+    _assert_same(_reference(buf, monkeypatch), _reference(data, monkeypatch))  # type: ignore[arg-type]
+    assert buf == data  # read, not changed
+    buf.clear()  # BufferError if the reader still held a view of it

@@ -132,17 +132,16 @@ def _from_multipart(
 ) -> Submission:
     meta = _validate(RunUploadForm, fields)
     options = meta.csv_options()
-    data = bytes(body)  # the reader's type (one copy, ~0.1 s for 135 MB); the buffer freed
-    body.clear()
-    log, content_hash = _parse_and_hash(data, options, "file", max_bytes)
+    # read in place (no copy of the buffer: ~0.1-0.3 s and 135 MB for an hour at 1 kHz)
+    log, content_hash = _parse_and_hash(body, options, "file", max_bytes)
     return _submission(
         meta, source="upload", content_hash=content_hash, filename=filename, key=key,
-        log=log, options={"csv": options}, file_recorded_at=recorded_at_of(data, options),
+        log=log, options={"csv": options}, file_recorded_at=recorded_at_of(body, options),
     )  # fmt: skip
 
 
 def _parse_and_hash(
-    data: bytes, options: dict[str, Any], field: str, max_bytes: int
+    data: bytes | bytearray, options: dict[str, Any], field: str, max_bytes: int
 ) -> tuple[RunLog, str]:
     """The CSV's log and its SHA-256, hashed on a second thread while it is parsed
     (hashlib releases the GIL)."""
