@@ -49,7 +49,26 @@ def aggregate_levels(
     has = n > 0
     if has.any():
         sub = lv[:, has]
-        m = np.nanmedian(sub, axis=0)
+        m = column_nanmedian(sub, n[has])
         med[has] = m
-        spread[has] = 1.4826 * np.nanmedian(np.abs(sub - m), axis=0)
+        spread[has] = 1.4826 * column_nanmedian(np.abs(sub - m), n[has])
     return AggregateProfile(chainage_m, med, spread, n.astype(np.int64))
+
+
+def column_nanmedian(
+    values: NDArray[np.float64], n_finite: NDArray[np.integer]
+) -> NDArray[np.float64]:
+    """``np.nanmedian(values, axis=0)`` (the same numbers) for columns that each hold
+    ``n_finite`` > 0 finite values.
+
+    One sort along the runs (NaN last) and the middle one or two picked per column: numpy's
+    nanmedian goes through masked arrays when there are few rows, ten times slower on the
+    hundreds of thousands of points of a long run.
+    """
+    if values.shape[0] == 1:
+        return values[0].copy()
+    srt = np.sort(values, axis=0)
+    lo = np.take_along_axis(srt, ((n_finite - 1) // 2)[None, :], axis=0)[0]
+    hi = np.take_along_axis(srt, (n_finite // 2)[None, :], axis=0)[0]
+    # numpy's median of an even count is the mean of the middle two: (lo + hi) / 2
+    return np.where(n_finite % 2 == 1, lo, (lo + hi) / 2)

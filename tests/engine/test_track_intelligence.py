@@ -2,11 +2,12 @@
 
 import dataclasses
 import datetime as dtm
+import warnings
 
 import numpy as np
 import pytest
 
-from engine.aggregate import aggregate_levels
+from engine.aggregate import aggregate_levels, column_nanmedian
 from engine.align import align_profiles
 from engine.errors import ParameterError
 from engine.pipeline import process_run
@@ -121,6 +122,28 @@ def test_aggregate_median_spread_count():
     assert np.allclose(agg.level_mm, [1, 2, 3, 4, 6])
     assert list(agg.n_runs) == [3, 3, 2, 2, 3]
     assert agg.spread_mm[0] == 0.0 and agg.spread_mm[4] == pytest.approx(1.4826)
+
+
+@pytest.mark.parametrize("runs", [1, 2, 3, 4, 7, 30])
+def test_aggregate_median_is_numpys_nanmedian_to_the_bit(runs):
+    """The aggregate's median (one sort along the runs) gives numpy's nanmedian exactly, for
+    odd and even counts, ties, and runs that cover only parts of the grid (float32 levels, as
+    stored)."""
+    rng = np.random.default_rng(runs)
+    lv = rng.standard_normal((runs, 5000)).astype(np.float32).astype(np.float64)
+    lv[rng.random(lv.shape) < 0.35] = np.nan
+    lv[:, :50] = 0.25  # ties
+    n = np.isfinite(lv).sum(axis=0)
+    has = n > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        want = np.nanmedian(lv[:, has], axis=0)
+        want_mad = np.nanmedian(np.abs(lv[:, has] - want), axis=0)
+    assert np.array_equal(column_nanmedian(lv[:, has], n[has]), want)
+    agg = aggregate_levels(np.arange(lv.shape[1], dtype=float), lv)
+    assert np.array_equal(agg.level_mm[has], want)
+    assert np.array_equal(agg.spread_mm[has], 1.4826 * want_mad)
+    assert np.all(np.isnan(agg.level_mm[~has])) and np.all(agg.n_runs == n)
 
 
 def test_limits_levels_and_validation():
