@@ -73,10 +73,12 @@ def check_lines(data: bytes | bytearray, char_bytes: int = 1) -> None:
     header_seen = False
     start = 0  # offset where the current line starts
     n = len(data)
+    has_cr = data.find(b"\r") >= 0  # (memchr: most logs end lines with \n alone)
     for block_start in range(0, n, BLOCK_BYTES):
         block = np.frombuffer(data, dtype=np.uint8, count=min(BLOCK_BYTES, n - block_start),
                               offset=block_start)  # fmt: skip
-        breaks = np.flatnonzero((block == 10) | (block == 13)) + block_start
+        is_break = (block == 10) | (block == 13) if has_cr else block == 10
+        breaks = np.flatnonzero(is_break) + block_start
         ends = np.append(breaks, n) if block_start + BLOCK_BYTES >= n else breaks
         if ends.size == 0:
             if (block_start + block.size - start) // char_bytes > MAX_LINE_CHARS:
