@@ -14,6 +14,7 @@ import threading
 import time
 from collections.abc import Iterator
 
+import httpx
 import pytest
 
 from api.api_support import row_counts
@@ -262,3 +263,21 @@ def test_key_use_is_stamped_outside_the_request(settings) -> None:
     assert keys.lookup("tp_unknown") is None
     keys.close()
     db.dispose()
+
+
+def test_oversized_headers_are_refused_before_any_route(keyed_server) -> None:
+    """The server runs with the HTTP parser that bounds header size (h11, as ``serve.sh`` and
+    the Dockerfile start it): a 1 MB header is refused (400, or the connection closed) and
+    the server's memory does not grow by it; an ordinary request on a new connection works."""
+    rss0 = _rss_mb(keyed_server)
+    with socket.create_connection(("127.0.0.1", keyed_server.port), timeout=10) as sock:
+        try:
+            sock.sendall(
+                b"GET /healthz HTTP/1.1\r\nHost: x\r\nX-Big: " + b"a" * 1_000_000 + b"\r\n\r\n"
+            )
+            answer = sock.recv(64)
+        except ConnectionError:
+            answer = b""
+    assert answer == b"" or answer.startswith(b"HTTP/1.1 400"), answer
+    assert _rss_mb(keyed_server) - rss0 < 20
+    assert httpx.get(f"{keyed_server.url}/healthz", timeout=10).status_code == 200
