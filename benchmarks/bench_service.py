@@ -1,6 +1,7 @@
 """Service benchmark: a 1-hour 1 kHz log uploaded, processed and stored, then window reads.
 
     python benchmarks/bench_service.py [--port 8011] [--repeats 30] [--uploads 1]
+                                       [--uvicorn-args "--loop asyncio"]
 
 1. The 1-hour log (3.6 M samples, 30 m/s over 108 km, a 40 % soft zone every 2 km, realistic
    sensor noise) comes from the engine's forward model via ``benchmarks/common.py`` (simulated
@@ -25,6 +26,7 @@ import argparse
 import gc
 import io
 import os
+import shlex
 import statistics
 import subprocess
 import sys
@@ -106,6 +108,9 @@ def main() -> int:
     ap.add_argument("--port", type=int, default=8011)
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--uploads", type=int, default=1, help="uploads to one server (best kept)")
+    ap.add_argument(
+        "--uvicorn-args", default="", help="more arguments for uvicorn (e.g. '--loop asyncio')"
+    )
     ns = ap.parse_args()
 
     csv_path, start = hour_csv()
@@ -120,7 +125,7 @@ def main() -> int:
         base = f"http://127.0.0.1:{ns.port}"
         server = subprocess.Popen(
             [sys.executable, "-m", "uvicorn", "app.main:app", "--host", "127.0.0.1",
-             "--port", str(ns.port), "--log-level", "warning"],
+             "--port", str(ns.port), "--log-level", "warning", *shlex.split(ns.uvicorn_args)],
             cwd=REPO, env=env,
         )  # fmt: skip
         try:
