@@ -13,7 +13,6 @@ Units: chainage in m, levels in mm.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -125,16 +124,16 @@ def on_track_grid(
     i_lo, i_hi = grid_index_range(lo + offset_m, hi + offset_m)
     if i_hi < i_lo:
         return i_lo, np.empty(0)
-    uniform = _uniform_shift(c, offset_m, i_lo, i_hi)
-    if uniform is not None:
-        return i_lo, uniform(v)
+    shifted = _uniform_shift(c, v, offset_m, i_lo, i_hi)
+    if shifted is not None:
+        return i_lo, shifted
     x = np.arange(i_lo, i_hi + 1, dtype=np.float64) * GRID_STEP_M
     return i_lo, sample_at(c + offset_m, v, x)
 
 
 def _uniform_shift(
-    c: NDArray[np.float64], offset_m: float, i_lo: int, i_hi: int
-) -> Callable[[NDArray[np.float64]], NDArray[np.float64]] | None:
+    c: NDArray[np.float64], v: NDArray[np.float64], offset_m: float, i_lo: int, i_hi: int
+) -> NDArray[np.float64] | None:
     """:func:`sample_at` of grid points ``i_lo..i_hi`` for a profile on the track's own step
     (the engine's grid: every run), as slices: every point sits at the same fraction between
     two samples, so no search is needed (~10x faster on an hour's 432 000 points); None when
@@ -158,14 +157,10 @@ def _uniform_shift(
         frac = 0.0
     if k0 < 0 or k0 + m + (frac > 0) > n:
         return None
-
-    def shifted(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        a = v[k0 : k0 + m]
-        if frac == 0.0:
-            return a.astype(np.float64, copy=True)
-        return (1 - frac) * a + frac * v[k0 + 1 : k0 + 1 + m]
-
-    return shifted
+    a = v[k0 : k0 + m]
+    if frac == 0.0:
+        return a.astype(np.float64, copy=True)
+    return (1 - frac) * a + frac * v[k0 + 1 : k0 + 1 + m]
 
 
 def align_to_track(
