@@ -73,15 +73,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             app.state.worker = worker
             ctx.on_queued = worker.wake
             await run_in_threadpool(worker.start)
-        # Move the start-up heap (framework, ORM, numpy: ~10^6 objects) out of the garbage
-        # collector's reach: a full collection then scans only request garbage, instead of
-        # adding ~50 ms to a profile read that allocates its rows (measured, see benchmarks).
-        gc.collect()
-        gc.freeze()
+        if settings.freeze_startup_heap:
+            # Move the start-up heap (framework, ORM, numpy: ~10^6 objects) out of the garbage
+            # collector's reach: a full collection then scans only request garbage, instead of
+            # adding ~50 ms to a profile read that allocates its rows (measured, see benchmarks).
+            gc.collect()
+            gc.freeze()
         try:
             yield
         finally:
-            gc.unfreeze()
+            if settings.freeze_startup_heap:
+                gc.unfreeze()
             if app.state.worker is not None:
                 await run_in_threadpool(app.state.worker.stop)
                 app.state.worker = None

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
+import tempfile
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -26,6 +28,8 @@ from sqlalchemy.exc import OperationalError
 from sqlalchemy.pool import NullPool
 
 from app.core.config import REPO_ROOT, Settings
+from app.db.migrate import upgrade
+from app.db.session import Database, sqlite_path
 from app.main import create_app
 
 with warnings.catch_warnings():
@@ -57,15 +61,63 @@ def _admin_execute(statement: str) -> None:
         engine.dispose()
 
 
-def database_url_for(tmp_path: Path) -> str:
+_TEMPLATE_DATABASE = "tp_template_" + str(os.getpid())
+"""PostgreSQL: a database migrated to head once per session, copied for each test's app."""
+
+_template_made: list[str] = []
+_template_sqlite: Path | None = None
+
+
+def _migrated_template() -> str:
+    """The URL of a database migrated to head once per session (created on first use): a
+    test's app then starts from a copy of it instead of running every migration again."""
+    global _template_sqlite
+    if uses_postgres():
+        assert TEST_DATABASE_URL is not None
+        url = make_url(TEST_DATABASE_URL).set(database=_TEMPLATE_DATABASE)
+        if not _template_made:
+            _admin_execute(f'CREATE DATABASE "{_TEMPLATE_DATABASE}"')
+            _template_made.append(_TEMPLATE_DATABASE)
+            _migrate(url.render_as_string(hide_password=False))
+        return url.render_as_string(hide_password=False)
+    if _template_sqlite is None:
+        directory = Path(tempfile.mkdtemp(prefix="trackprofile-template-"))
+        path = directory / "template.db"
+        _migrate(f"sqlite:///{path}")
+        _template_sqlite = path
+    return f"sqlite:///{_template_sqlite}"
+
+
+def _migrate(url: str) -> None:
+    db = Database(url)
+    try:
+        upgrade(db)
+    finally:
+        db.dispose()
+
+
+def database_url_for(tmp_path: Path, *, migrated: bool = False) -> str:
     """The database of the test that owns ``tmp_path``: a SQLite file in it, or (with
-    ``TEST_DATABASE_URL``) a PostgreSQL database named after it, created on first use."""
+    ``TEST_DATABASE_URL``) a PostgreSQL database named after it, created on first use.
+
+    It is created empty, or with ``migrated`` as a copy of a database migrated to head (what
+    the app's start-up would make of an empty one, without running the migrations per test).
+    """
     if not uses_postgres():
-        return f"sqlite:///{tmp_path / 'trackprofile.db'}"
+        path = tmp_path / "trackprofile.db"
+        if migrated and not path.exists():
+            template = sqlite_path(_migrated_template())
+            assert template is not None
+            shutil.copyfile(template, path)
+        return f"sqlite:///{path}"
     assert TEST_DATABASE_URL is not None
     name = "tp_" + hashlib.sha1(str(tmp_path).encode()).hexdigest()[:24]
     if name not in _created_databases:
-        _admin_execute(f'CREATE DATABASE "{name}"')
+        if migrated:
+            template = make_url(_migrated_template()).database
+            _admin_execute(f'CREATE DATABASE "{name}" TEMPLATE "{template}"')
+        else:
+            _admin_execute(f'CREATE DATABASE "{name}"')
         _created_databases.append(name)
     return make_url(TEST_DATABASE_URL).set(database=name).render_as_string(hide_password=False)
 
@@ -91,6 +143,10 @@ def _drop_remaining_test_databases() -> Iterator[None]:
     yield
     while _created_databases:
         _admin_execute(f'DROP DATABASE IF EXISTS "{_created_databases.pop()}" WITH (FORCE)')
+    while _template_made:
+        _admin_execute(f'DROP DATABASE IF EXISTS "{_template_made.pop()}" WITH (FORCE)')
+    if _template_sqlite is not None:
+        shutil.rmtree(_template_sqlite.parent, ignore_errors=True)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -110,9 +166,12 @@ def make_settings(tmp_path: Path, **overrides: Any) -> Settings:
     ``TEST_DATABASE_URL``, a PostgreSQL database of its own)."""
     values: dict[str, Any] = {
         "data_dir": tmp_path,
-        "database_url": database_url_for(tmp_path),
+        "database_url": database_url_for(tmp_path, migrated=True),
         "static_dir": REPO_ROOT / "static",
         "poll_interval_s": 0.05,
+        # A full collection per app start (~0.3 s in a test process) adds minutes to the
+        # suite; test_lifespan checks the freeze itself.
+        "freeze_startup_heap": False,
     }
     values.update(overrides)
     return Settings(**values)
