@@ -94,6 +94,28 @@ _ARRAY_MAGIC = b"TPA1"
 _ARRAY_HEADER = struct.Struct("<4s2sI")  # magic, dtype ("f4" or "f8", little-endian), values
 
 
+def _shuffled(a: NDArray[np.floating]) -> NDArray[np.uint8]:
+    """The bytes of ``a`` grouped by significance (all first bytes, then all second, ...),
+    transposed in blocks that stay in cache, into a numpy array (large ones get huge pages:
+    a fraction of the page faults of a ``bytes`` copy)."""
+    width = a.itemsize
+    v = a.view(np.uint8).reshape(a.size, width)
+    out = np.empty((width, a.size), dtype=np.uint8)
+    step = 1 << 16
+    for at in range(0, a.size, step):
+        out[:, at : at + step] = v[at : at + step].T
+    return out
+
+
+def _float_parts(values: NDArray[np.floating], dtype: str) -> list[bytes | pa.Buffer]:
+    """:func:`pack_floats`'s blob as its parts (header, compressed payload), not joined."""
+    if dtype not in ("f4", "f8"):
+        raise ValueError(f"dtype must be 'f4' or 'f8', not {dtype!r}")
+    a = np.ascontiguousarray(values, dtype="<" + dtype)
+    header = _ARRAY_HEADER.pack(_ARRAY_MAGIC, dtype.encode(), a.size)
+    return [header, _CODEC.compress(_shuffled(a), asbytes=False)]
+
+
 def pack_floats(values: NDArray[np.floating], dtype: str = "f4") -> bytes:
     """Values as little-endian float32 (``"f4"``) or float64 (``"f8"``), losslessly
     compressed (bytes shuffled, Zstandard); NaN kept.
@@ -102,13 +124,7 @@ def pack_floats(values: NDArray[np.floating], dtype: str = "f4") -> bytes:
     separation are recomputed from (kept for ever, so not rounded further than float32);
     float64 for a run's log, which calibration and reprocessing read back bit for bit.
     """
-    if dtype not in ("f4", "f8"):
-        raise ValueError(f"dtype must be 'f4' or 'f8', not {dtype!r}")
-    a = np.ascontiguousarray(values, dtype="<" + dtype)
-    width = a.itemsize
-    shuffled = a.view(np.uint8).reshape(a.size, width).T.tobytes()
-    header = _ARRAY_HEADER.pack(_ARRAY_MAGIC, dtype.encode(), a.size)
-    return header + _CODEC.compress(shuffled, asbytes=True)
+    return b"".join(_float_parts(values, dtype))
 
 
 def unpack_floats(blob: bytes | memoryview) -> NDArray[np.float64]:
@@ -139,13 +155,14 @@ def pack_named(
 ) -> bytes:
     """Named columns (``names`` in order; None = absent) packed one after the other with
     :func:`pack_floats` in ``dtype``: a run's log (float64, bit for bit) or its display
-    signals."""
-    parts = [_NAMED_MAGIC]
+    signals. (Joined once: a run's log is ~50 MB, each copy of it ~0.05 s of page faults.)"""
+    parts: list[bytes | pa.Buffer] = [_NAMED_MAGIC]
     for name in names:
         arr = columns.get(name)
-        blob = b"" if arr is None else pack_floats(arr, dtype)
-        parts.append(struct.pack("<I", len(blob)))
-        parts.append(blob)
+        blob = [] if arr is None else _float_parts(arr, dtype)
+        size = sum(len(b) if isinstance(b, bytes) else b.size for b in blob)
+        parts.append(struct.pack("<I", size))
+        parts.extend(blob)
     return b"".join(parts)
 
 

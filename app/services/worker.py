@@ -123,6 +123,7 @@ class Worker:
         self._next_sweep = 0.0  # time.monotonic() of the next retention sweep
         self._separation_failed: dict[int, float] = {}  # track id: time.monotonic() of it
         self._sweep_lock = threading.Lock()
+        self._checkpoint_lock = threading.Lock()
 
     # -- lifecycle -------------------------------------------------------------------------
     def start(self) -> None:
@@ -252,10 +253,26 @@ class Worker:
             return True
         cal_id = self.claim_calibration()
         if cal_id is None:
-            return self.separate_waiting() or self.sweep_if_due()
+            if self.separate_waiting() or self.sweep_if_due():
+                return True
+            self.checkpoint_when_idle()
+            return False
         with self.ctx.slots:
             self.calibrate(cal_id)
         return True
+
+    def checkpoint_when_idle(self) -> None:
+        """With nothing left to do, move the WAL's pages into the SQLite database file (not
+        at a request's commit: see ``SQLITE_AUTOCHECKPOINT_PAGES``). Cheap when there is
+        nothing to copy; one thread of the process at a time."""
+        if not self._checkpoint_lock.acquire(blocking=False):
+            return
+        try:
+            self.ctx.db.checkpoint()
+        except Exception:  # a busy or locked database: the next idle moment tries again
+            log.warning("WAL checkpoint failed", exc_info=True)
+        finally:
+            self._checkpoint_lock.release()
 
     def sweep_if_due(self) -> bool:
         """Remove expired detail (``app.services.retention``) when the last sweep is

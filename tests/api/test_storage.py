@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import sqlite3
+import time
 
 import numpy as np
 import pytest
@@ -131,6 +133,37 @@ def test_sqlite_runs_in_wal_mode_with_foreign_keys(client, settings) -> None:
         assert raw.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
         assert raw.execute("PRAGMA foreign_keys").fetchone()[0] == 1
         assert raw.execute("PRAGMA busy_timeout").fetchone()[0] >= 5000
+
+
+def _write_scratch(db: Database, size: int) -> None:
+    with db.engine.begin() as conn:
+        conn.exec_driver_sql("CREATE TABLE scratch (data BLOB)")
+        conn.exec_driver_sql("INSERT INTO scratch VALUES (?)", (os.urandom(size),))
+
+
+@pytest.mark.sqlite_only
+def test_a_commit_leaves_the_wal_to_the_checkpoint(start_app) -> None:
+    """A large commit (an hour's log is ~50 MB) is not copied into the database file on the
+    committing request's path, as SQLite's default (past 1000 pages) would; a checkpoint
+    copies it."""
+    client = start_app(start_worker=False)
+    db = client.app.state.ctx.db
+    path = db_file(client.app.state.ctx.settings)
+    _write_scratch(db, 8 << 20)  # ~2050 pages of 4 KiB
+    assert path.stat().st_size < 4 << 20, "the commit copied the WAL into the database"
+    assert db.checkpoint() > 2000
+    assert path.stat().st_size > 8 << 20
+
+
+@pytest.mark.sqlite_only
+def test_the_idle_worker_checkpoints_the_wal(start_app) -> None:
+    client = start_app()
+    path = db_file(client.app.state.ctx.settings)
+    _write_scratch(client.app.state.ctx.db, 8 << 20)
+    deadline = time.monotonic() + 10
+    while path.stat().st_size < 8 << 20 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert path.stat().st_size > 8 << 20, "the idle worker did not checkpoint the WAL"
 
 
 @pytest.mark.sqlite_only
