@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from .errors import LogFormatError
 from .runlog import RunLog
+from .scan import first_at_most, first_beyond, first_outside, first_true
 
 ACCEL_LIMIT_MPS2 = 50.0
 """Largest plausible vertical body acceleration, m/s² (gravity removed); beyond it the unit is
@@ -103,11 +104,6 @@ def _default_row(i: int) -> int:
     return i + 2
 
 
-def _first(mask: NDArray[np.bool_]) -> int | None:
-    idx = np.flatnonzero(mask)
-    return int(idx[0]) if idx.size else None
-
-
 def check_time_steps(
     t: NDArray[np.float64], name: str = "time_s", row_of: RowOf = _default_row, hint: str = ""
 ) -> float:
@@ -131,7 +127,7 @@ def check_time_steps(
     """
     dt = np.diff(t)
     h = float(np.median(dt))
-    i = _first(np.abs(dt - h) > STEP_TOLERANCE * h)
+    i = first_beyond(dt, STEP_TOLERANCE * h, center=h)
     if i is not None:
         ln, prev = row_of(i + 1), row_of(i)
         step = float(dt[i])
@@ -163,7 +159,7 @@ def _magnitude(
     values: NDArray[np.float64], name: str, row_of: RowOf, lo: float, hi: float, unit: str,
     what: str,
 ) -> None:  # fmt: skip
-    i = _first((values < lo) | (values > hi))
+    i = first_outside(values, lo, hi)
     if i is not None:
         raise LogFormatError(
             f"column {name!r} at line {row_of(i)} is {float(values[i]):.6g} {unit}: {what}",
@@ -193,7 +189,7 @@ def check_chainage(
         )
     sign = 1.0 if total > 0 else -1.0
     step = np.diff(c) * sign
-    i = _first(step <= 0)
+    i = first_at_most(step, 0.0)
     if i is not None:
         raise LogFormatError(
             f"column {name!r} at line {row_of(i + 1)} is {float(c[i + 1])!r} m, not beyond "
@@ -203,7 +199,7 @@ def check_chainage(
             row=row_of(i + 1),
         )
     dt = np.diff(t)
-    i = _first(step > SPEED_MAX_MPS * dt + CHAINAGE_RESOLUTION_M)
+    i = first_true(step > SPEED_MAX_MPS * dt + CHAINAGE_RESOLUTION_M)
     if i is not None:
         raise LogFormatError(
             f"column {name!r} jumps by {float(step[i]):.6g} m at line {row_of(i + 1)} (from line "

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import LogFormatError
+from .scan import first_at_most, first_nonfinite
 
 COLUMNS = ("time_s", "accel_z_mps2", "pitch_rate_radps", "speed_mps", "chainage_m", "wheel_load_n")
 """The fields of a :class:`RunLog`, each an array of one value per sample (or None)."""
@@ -64,9 +65,8 @@ class RunLog:
                 raise LogFormatError(
                     f"column {name} has shape {a.shape}, expected ({n},) like time_s", column=name
                 )
-            bad = ~np.isfinite(a)
-            if bad.any():
-                i = int(np.flatnonzero(bad)[0])
+            i = first_nonfinite(a)
+            if i is not None:
                 raise LogFormatError(
                     f"column {name} sample {i} is {a[i]}: every value must be a finite number",
                     column=name, row=i + 2,
@@ -77,9 +77,8 @@ class RunLog:
             raise LogFormatError(
                 "a run log needs a speed column (m/s) or a chainage column (m)", column="speed_mps"
             )
-        dt = np.diff(self.time_s)
-        if np.any(dt <= 0):
-            i = int(np.flatnonzero(dt <= 0)[0])
+        i = first_at_most(np.diff(self.time_s), 0.0)
+        if i is not None:
             raise LogFormatError(
                 f"time must be strictly increasing: sample {i + 1} ({self.time_s[i + 1]} s) "
                 f"does not follow sample {i} ({self.time_s[i]} s)",

@@ -69,6 +69,8 @@ def check_lines(data: bytes | bytearray, char_bytes: int = 1) -> None:
     LogFormatError
         Naming the line (``row``, 1-based) that is too long, its length and the limit.
     """
+    if _short_lines_only(data):
+        return
     limit: int | None = None  # data lines, once the header is known
     header_seen = False
     start = 0  # offset where the current line starts
@@ -112,6 +114,24 @@ def check_lines(data: bytes | bytearray, char_bytes: int = 1) -> None:
             if lengths[k] > MAX_LINE_CHARS:  # a comment: only the absolute limit
                 _too_long(data, s, e - s, MAX_LINE_CHARS, char_bytes, "any line")
         start = next_start
+
+
+_PROBE_BYTES = MIN_DATA_LINE_CHARS // 2
+"""Size of the aligned blocks :func:`_short_lines_only` looks for line feeds in, B."""
+
+
+def _short_lines_only(data: bytes | bytearray) -> bool:
+    """True when every line is shorter than :data:`MIN_DATA_LINE_CHARS` bytes, which every
+    limit allows: a line feed in each aligned block of ``MIN_DATA_LINE_CHARS // 2`` bytes.
+    (A run of ``2 * block - 1`` bytes without one contains a whole block.) About 3x faster
+    than finding every line's end; False sends the file to the exact check."""
+    n = len(data) // _PROBE_BYTES * _PROBE_BYTES
+    blocks = np.frombuffer(data, dtype=np.uint8, count=n).reshape(-1, _PROBE_BYTES)
+    rows = BLOCK_BYTES // _PROBE_BYTES
+    return all(
+        bool((blocks[at : at + rows] == 10).any(axis=1).all())
+        for at in range(0, blocks.shape[0], rows)
+    )
 
 
 def _too_long(

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from ..errors import LogFormatError, ParameterError
 from ..plausibility import check_chainage, check_time_steps, mark_plausible
 from ..runlog import RunLog
+from ..scan import first_at_most, first_beyond, first_nonfinite, first_outside, first_true
 from ..vehicle import GRAVITY
 from .columns import (
     _map_columns,
@@ -98,14 +99,9 @@ class ParsedRun:
         }
 
 
-def _first(mask: NDArray[np.bool_]) -> int | None:
-    idx = np.flatnonzero(mask)
-    return int(idx[0]) if idx.size else None
-
-
 def _check_finite(table: _Table, j: int, name: str) -> None:
     v = table.columns[j]
-    i = _first(~np.isfinite(v))
+    i = first_nonfinite(v)
     if i is not None:
         ln = table.line(i)
         raise LogFormatError(
@@ -123,7 +119,7 @@ def _time(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
     elif unit == "ms":
         t = (t - t[0] if abs(t[0]) > EPOCH_MS_THRESHOLD else t) * 1e-3
     dt = np.diff(t)
-    i = _first(dt <= 0)
+    i = first_at_most(dt, 0.0)
     if i is not None:
         ln, prev = table.line(i + 1), table.line(i)
         what = "is the same as" if dt[i] == 0 else "comes before"
@@ -160,7 +156,7 @@ def _accel(
     raw = table.columns[j]
     a = raw * _ROLES["accel"].factors[unit]
     alt = "set accel_unit='m/s2'" if unit == "g" else "set accel_unit='g' if it is in g"
-    i = _first(np.abs(a) > ACCEL_LIMIT_MPS2 + GRAVITY)
+    i = first_beyond(a, ACCEL_LIMIT_MPS2 + GRAVITY)
     if i is not None:
         raise _limit_error(
             table, i, name, float(raw[i]), unit, float(a[i]), "m/s²",
@@ -197,7 +193,7 @@ def _accel(
         )
     if gravity == "included":
         a = a - GRAVITY
-    i = _first(np.abs(a) > ACCEL_LIMIT_MPS2)
+    i = first_beyond(a, ACCEL_LIMIT_MPS2)
     if i is not None:
         raise _limit_error(
             table, i, name, float(raw[i]), unit, float(a[i]), "m/s² with gravity removed",
@@ -210,7 +206,7 @@ def _accel(
 def _pitch_rate(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
     raw = table.columns[j]
     w = raw * _ROLES["pitch_rate"].factors[unit]
-    i = _first(np.abs(w) > PITCH_RATE_LIMIT_RADPS)
+    i = first_beyond(w, PITCH_RATE_LIMIT_RADPS)
     if i is not None:
         alt = (
             "set pitch_rate_unit='deg/s' if it is in deg/s"
@@ -228,7 +224,7 @@ def _pitch_rate(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float
 def _speed(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
     raw = table.columns[j]
     v = raw * _ROLES["speed"].factors[unit]
-    i = _first((v < SPEED_MIN_MPS) | (v > SPEED_MAX_MPS))
+    i = first_outside(v, SPEED_MIN_MPS, SPEED_MAX_MPS)
     if i is None:
         return v
     if v[i] <= 0:
@@ -287,7 +283,7 @@ def _chainage(
 def _wheel_load(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
     raw = table.columns[j]
     f = table.columns[j] * _ROLES["wheel_load"].factors[unit]
-    i = _first((f < WHEEL_LOAD_MIN_N) | (f > WHEEL_LOAD_MAX_N))
+    i = first_outside(f, WHEEL_LOAD_MIN_N, WHEEL_LOAD_MAX_N)
     if i is not None:
         others = " or ".join(repr(u) for u in OPTION_UNITS["wheel_load"] if u != unit)
         raise _limit_error(
@@ -306,7 +302,7 @@ def _fixes(
     lat = np.asarray(table.columns[jlat], dtype=np.float64)
     lon = np.asarray(table.columns[jlon], dtype=np.float64)
     half = np.isnan(lat) != np.isnan(lon)
-    i = _first(half)
+    i = first_true(half)
     if i is not None:
         ln = table.line(i)
         empty, full = (names[jlat], names[jlon]) if np.isnan(lat[i]) else (names[jlon], names[jlat])
@@ -317,7 +313,7 @@ def _fixes(
             row=ln,
         )
     for j, a, limit in ((jlat, lat, 90.0), (jlon, lon, 180.0)):
-        i = _first(np.isinf(a) | (np.abs(a) > limit))
+        i = first_true(np.isinf(a) | (np.abs(a) > limit))
         if i is not None:
             ln = table.line(i)
             swap = (

@@ -11,7 +11,14 @@ import pytest
 
 from engine.errors import InputTooLarge, LogFormatError
 from engine.logio import read_run_csv
-from engine.logio.limits import MAX_LINE_CHARS, check_lines, data_line_limit, header_fields
+from engine.logio.limits import (
+    MAX_LINE_CHARS,
+    MIN_DATA_LINE_CHARS,
+    _short_lines_only,
+    check_lines,
+    data_line_limit,
+    header_fields,
+)
 from engine.logio.source import _gunzip
 
 
@@ -32,6 +39,26 @@ def test_ordinary_files_pass() -> None:
     check_lines(b"# logger v2, " + b"x" * 2000 + b"\n\n" + HEADER + b"\n" + body)
     check_lines(b"\xff\xfe" + (HEADER + ROW * 100).decode().encode("utf-16-le"), char_bytes=2)
     check_lines(b"")
+
+
+@pytest.mark.parametrize("offset", [0, 1, 100, 255])
+@pytest.mark.parametrize("length", [509, 510, 511, 512, 513, 600])
+def test_the_short_line_probe_never_passes_a_line_it_should_look_at(offset, length) -> None:
+    """The block probe (a line feed in every aligned 256-byte block) answers True only for
+    files whose lines are all under MIN_DATA_LINE_CHARS bytes, wherever the long line sits;
+    check_lines then decides exactly as its line-by-line scan (a 1-column header allows 512
+    characters)."""
+    lines = [b"t"] + [b"1"] * offset + [b"9" * length] + [b"2"] * 300
+    data = b"\n".join(lines) + b"\n"
+    longest = max(len(line) for line in lines)
+    assert _short_lines_only(data) is False or longest < MIN_DATA_LINE_CHARS
+    if longest <= data_line_limit(1):
+        check_lines(data)
+    else:
+        with pytest.raises(LogFormatError) as e:
+            check_lines(data)
+        assert e.value.row == offset + 2
+    assert _short_lines_only(HEADER + ROW * 50_000) is True
 
 
 @pytest.mark.parametrize("eol", [b"\n", b"\r\n", b"\r"])
