@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import gc
 import logging
+import threading
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from typing import Any
@@ -28,6 +29,7 @@ from app.api.openapi import (
     security_as_configured,
 )
 from app.api.routes import health
+from app.core import memory
 from app.core.config import Settings, get_settings
 from app.core.errors import install_error_handlers
 from app.core.middleware import BodySizeLimitMiddleware, SecurityHeadersMiddleware
@@ -52,6 +54,23 @@ loss in %, everything else SI. Errors answer `{"detail": {"message": ..., "field
 """
 
 
+class _IdleReleaseTimer(threading.Thread):
+    """Asks ``IdleRelease`` once a second whether the process has been idle long enough."""
+
+    def __init__(self, release: memory.IdleRelease) -> None:
+        super().__init__(name="memory-release", daemon=True)
+        self._release = release
+        self._stop_event = threading.Event()
+
+    def run(self) -> None:
+        while not self._stop_event.wait(1.0):
+            self._release.release_if_idle()
+
+    def stop(self) -> None:
+        self._stop_event.set()
+        self.join(5.0)
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     """Build the app for ``settings`` (default: from the environment)."""
     settings = settings or get_settings()
@@ -66,6 +85,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        releaser = None
+        if settings.memory_release_idle_s > 0:
+            memory.keep_freed_memory()
+            releaser = _IdleReleaseTimer(ctx.memory)
+            releaser.start()
         if settings.run_migrations:
             await run_in_threadpool(upgrade, db)
         if settings.start_worker:
@@ -88,6 +112,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 await run_in_threadpool(app.state.worker.stop)
                 app.state.worker = None
             await run_in_threadpool(keys.flush)
+            if releaser is not None:
+                releaser.stop()
             db.dispose()
 
     app = FastAPI(

@@ -13,6 +13,7 @@ from typing import Annotated
 from pydantic import AliasChoices, Field, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
+from app.core.memory import RELEASE_AFTER_IDLE_S
 from app.core.scopes import format_scopes, parse_scopes
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -81,6 +82,11 @@ class Settings(BaseSettings):
         Apply the Alembic migrations when the app starts.
     start_worker : bool
         Start the background worker threads with the app.
+    memory_release_idle_s : float
+        Memory freed by the service's work is kept in the process while it is busy and handed
+        back after this many seconds without work (``app.core.memory``: the next long run
+        then reuses pages instead of faulting them in again); 0 hands it back after every run
+        and keeps the C allocator's defaults.
     freeze_startup_heap : bool
         After start-up, collect garbage once and move the start-up heap out of the garbage
         collector's reach (``gc.freeze``), so full collections scan only request garbage. The
@@ -137,6 +143,7 @@ class Settings(BaseSettings):
     )
     run_migrations: bool = True
     start_worker: bool = True
+    memory_release_idle_s: float = Field(default=RELEASE_AFTER_IDLE_S, ge=0, le=3600)
     freeze_startup_heap: bool = True
     auto_calibrate_runs: int = Field(default=0, ge=0, le=10_000)
     detail_retention_days: float | None = Field(default=None, gt=0)

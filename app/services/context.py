@@ -8,6 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from app.core.config import Settings
+from app.core.memory import IdleRelease
 from app.db.session import Database
 
 from .handover import Handover
@@ -31,16 +32,21 @@ class AppContext:
     handover : Handover or None
         Where queued runs' parsed logs wait for this process's worker (set while it runs;
         None without a worker: the logs are read back from the database).
+    memory : IdleRelease
+        Told when a piece of work ends; hands freed memory back once the process is idle
+        (``settings.memory_release_idle_s``).
     """
 
     settings: Settings
     db: Database
     slots: threading.BoundedSemaphore = field(init=False)
+    memory: IdleRelease = field(init=False)
     on_queued: Callable[[], None] = _nobody
     handover: Handover | None = None
 
     def __post_init__(self) -> None:
         self.slots = threading.BoundedSemaphore(self.settings.workers)
+        self.memory = IdleRelease(self.settings.memory_release_idle_s)
 
     def wake_worker(self) -> None:
         """Tell this process's worker a run is queued (other processes find it by polling)."""

@@ -245,17 +245,20 @@ def submit(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
     Conflict
         A reused Idempotency-Key. Nothing is stored in either case.
     """
-    for attempt in range(3):
-        try:
-            with _one_at_a_time(f"{ctx.db.url}|{sub.track}|{sub.track_id}|{sub.identity}"):
-                return _submit_once(ctx, sub)
-        except IntegrityError:
-            # A concurrent request stored the same track name or content first: look again.
-            if attempt == 2:
-                raise Conflict(
-                    "the run conflicts with one being stored at the same time; retry"
-                ) from None
-    raise AssertionError("unreachable")
+    try:
+        for attempt in range(3):
+            try:
+                with _one_at_a_time(f"{ctx.db.url}|{sub.track}|{sub.track_id}|{sub.identity}"):
+                    return _submit_once(ctx, sub)
+            except IntegrityError:
+                # A concurrent request stored the same track name or content first: look again.
+                if attempt == 2:
+                    raise Conflict(
+                        "the run conflicts with one being stored at the same time; retry"
+                    ) from None
+        raise AssertionError("unreachable")
+    finally:
+        ctx.memory.busy()  # the upload's copies were just freed: kept while busy
 
 
 def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:

@@ -23,7 +23,6 @@ from typing import Any, TypeVar, cast
 from sqlalchemy import CursorResult, Update, delete, or_, select, update
 from sqlalchemy.orm import Session
 
-from app.core.memory import release_freed_memory
 from app.db.base import utcnow
 from app.db.models import Calibration, Run, RunInput
 from app.services.errors import engine_error_facts
@@ -249,7 +248,7 @@ class Worker:
             handover.drop_before(looked_at - HANDOVER_GRACE_S)
         if run_id is not None:
             self.process(run_id)  # holds a processing slot while it inverts
-            release_freed_memory()  # the run's arrays, kept by the allocator otherwise
+            self.ctx.memory.busy()  # its freed arrays: kept for the next run while busy
             return True
         cal_id = self.claim_calibration()
         if cal_id is None:
@@ -259,6 +258,7 @@ class Worker:
             return False
         with self.ctx.slots:
             self.calibrate(cal_id)
+        self.ctx.memory.busy()
         return True
 
     def checkpoint_when_idle(self) -> None:

@@ -172,6 +172,9 @@ def make_settings(tmp_path: Path, **overrides: Any) -> Settings:
         # A full collection per app start (~0.3 s in a test process) adds minutes to the
         # suite; test_lifespan checks the freeze itself.
         "freeze_startup_heap": False,
+        # Memory handed back after each run (the allocator's defaults): the memory tests
+        # measure what a run holds, not what an earlier test's app kept.
+        "memory_release_idle_s": 0,
     }
     values.update(overrides)
     return Settings(**values)
