@@ -104,6 +104,8 @@ from app.core import memory
 from app.core.config import REPO_ROOT
 proc = psutil.Process()
 assert memory.keep_freed_memory()
+import pyarrow as pa
+assert pa.default_memory_pool().backend_name == "system", pa.default_memory_pool().backend_name
 base = proc.memory_info().rss
 a = np.ones(5_000_000)  # 40 MB: a mapping of its own under glibc's defaults
 del a
