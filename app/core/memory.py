@@ -12,12 +12,14 @@ numpy arrays of 1-100 MB. Two costs pull in opposite directions:
 * A service that has processed a few long runs and kept what they freed stays ~1.3 GB
   resident while idle.
 
-So while the service works (:func:`keep_freed_memory`) glibc serves blocks up to 1 GB from
-its heap, does not trim it by itself and keeps one arena for every thread (what one thread
-frees another reuses), and pyarrow allocates from that heap too (its own mimalloc pool kept
-the CSV parser's columns apart and handed them back at once). Measured, three hour-long
-uploads to one server: peak 1.36-1.44 GB resident; with two arenas, or with pyarrow's pool,
-the peak went past 1.5 GB. :class:`IdleRelease` hands
+So while the service works (:func:`keep_freed_memory`) glibc serves blocks up to 64 MB from
+its heap (a column of an hour's log is 29 MB; the upload's 135 MB buffer stays a mapping of
+its own, returned when freed), does not trim it by itself and keeps one arena for every
+thread (what one thread frees another reuses), and pyarrow allocates from that heap too (its
+own mimalloc pool kept the CSV parser's columns apart and handed them back at once).
+Measured, three hour-long uploads to one server: peak 1.31-1.32 GB resident; with blocks up
+to 1 GB kept as well the uploads were ~0.3 s faster still but the peak reached 1.41-1.63 GB,
+past the 1.5 GB target. :class:`IdleRelease` hands
 the free pages back (``malloc_trim``) once nothing has been processed for a while. Where the C
 library is not glibc nothing is changed.
 """
@@ -48,9 +50,9 @@ def _malloc_trim() -> Callable[[int], int] | None:
 _TRIM = _malloc_trim()
 
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD, _M_ARENA_MAX = -1, -3, -8  # glibc's malloc.h
-KEPT_BLOCK_BYTES = 1 << 30
-"""While memory is kept: blocks up to this size come from the heap (an hour's upload buffer is
-135 MB), and its free top is trimmed by glibc itself only past it, B."""
+KEPT_BLOCK_BYTES = 1 << 26
+"""While memory is kept: blocks up to this size come from the heap, and its free top is
+trimmed by glibc itself only past it, B."""
 KEPT_ARENAS = 1
 """While memory is kept: glibc arenas the threads share."""
 RELEASE_AFTER_IDLE_S = 10.0

@@ -107,7 +107,7 @@ assert memory.keep_freed_memory()
 import pyarrow as pa
 assert pa.default_memory_pool().backend_name == "system", pa.default_memory_pool().backend_name
 base = proc.memory_info().rss
-a = np.ones(5_000_000)  # 40 MB: a mapping of its own under glibc's defaults
+a = np.ones(5_000_000)  # 40 MB: kept now; its own mapping under glibc's defaults
 del a
 kept = proc.memory_info().rss - base
 memory.release_freed_memory()
