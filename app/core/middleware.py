@@ -95,7 +95,9 @@ class BodySizeLimitMiddleware:
     without one (chunked) is counted while the app reads it: at the first byte over the limit
     the 413 is sent from here and the app's reading is stopped (:class:`BodyTooLarge` raised
     into it; whatever it answers after that is dropped), so a framework that turns a failed
-    read into a 400 cannot hide the 413.
+    read into a 400 cannot hide the 413. The small bodies are read whole (up to their limit)
+    before the app sees them: a parser that fails on a malformed first chunk (a multipart form
+    of spaces) would otherwise answer 400 or 413 depending on how much had arrived.
     """
 
     def __init__(
@@ -123,6 +125,9 @@ class BodySizeLimitMiddleware:
         declared = _content_length(scope)
         if declared is not None and declared > limit:
             await _send_413(send, limit)
+            return
+        if scope.get("path", "") not in self.large_paths:
+            await self._whole_body_first(scope, receive, send, limit)
             return
         seen = 0
         refused = False
@@ -156,6 +161,29 @@ class BodySizeLimitMiddleware:
             if not refused:
                 raise
             # The app failed on the refused body (after the 413 was sent): nothing to add.
+
+    async def _whole_body_first(
+        self, scope: Scope, receive: Receive, send: Send, limit: int
+    ) -> None:
+        messages: list[Message] = []
+        seen = 0
+        while True:
+            message = await receive()
+            messages.append(message)
+            if message["type"] != "http.request":
+                break
+            seen += len(message.get("body", b""))
+            if seen > limit:
+                await _send_413(send, limit)
+                return
+            if not message.get("more_body", False):
+                break
+        pending = iter(messages)
+
+        async def replay() -> Message:
+            return next(pending, None) or await receive()
+
+        await self.app(scope, replay, send)
 
 
 def _content_length(scope: Scope) -> int | None:
