@@ -11,6 +11,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from app.services.aggregate import NEWEST_PASSES
 from engine.register import Limits
 
 from .common import StrictModel
@@ -35,9 +36,12 @@ class TrackProfileAggregatePublic(BaseModel):
         "highest point)"
     )
     chainage_m: list[float] = Field(description="Aligned chainage, m")
-    level_mm: list[float] = Field(description="Median level over the runs covering the point, mm")
+    level_mm: list[float] = Field(
+        description=f"Median level over the newest (at most {NEWEST_PASSES}) aligned runs "
+        "covering the point, mm"
+    )
     spread_mm: list[float] = Field(description="Robust spread (1.4826 x MAD) of the runs, mm")
-    n_runs: list[int] = Field(description="Aligned runs covering the point")
+    n_runs: list[int] = Field(description="Aligned runs in the point's median")
 
 
 class DefectObservationPublic(BaseModel):

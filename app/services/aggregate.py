@@ -4,7 +4,9 @@ Each aligned run's level is kept on the track grid (0.25 m, multiples of 0.25 m)
 :data:`CHUNK_POINTS` points (``track_run_levels``); when a run arrives or is deleted only the
 chunks it covers are recomputed (``engine.aggregate.aggregate_levels``) and rewritten in
 ``track_profile_chunks`` (the same chunks, one packed row each), inside the caller's
-transaction. Chainage in m, levels in mm.
+transaction. A chunk's aggregate is made of its :data:`NEWEST_PASSES` newest runs
+(:func:`newest_runs`), as is the geometry/stiffness separation (``app.services.stiffness``).
+Chainage in m, levels in mm.
 """
 
 from __future__ import annotations
@@ -16,10 +18,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import delete, func, insert, select
+from sqlalchemy import Subquery, delete, func, insert, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Track, TrackProfileChunk, TrackRunLevels
+from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
 from engine.aggregate import AggregateProfile, aggregate_levels
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
@@ -32,6 +34,16 @@ CHUNK_POINTS = 1000
 
 BATCH_CHUNKS = 40
 """Chunks recomputed at once (10 km: 50 runs x 40 000 points stay a few MB)."""
+
+NEWEST_PASSES = 50
+"""Runs per chunk that make its aggregate and its geometry/stiffness separation: the newest by
+recording time (then the newest stored). Every stored run used to re-read and recompute every
+earlier run over its stretch: on a 200 km line a 20 km run took 0.3 s to store after 100 runs
+and 2.6 s after 600 (``benchmarks/bench_year.py``), without end for a fleet that passes a
+kilometre ~40 times a day. Fifty passes of different loads are more than the separation
+needs, and the aggregate stays the track's present state, not its history; older runs'
+aligned levels stay stored (realignment, the register), and enter again when newer ones are
+deleted."""
 
 AGGREGATE_COLUMNS = ("level_mm", "spread_mm", "n_runs")
 """What a stored chunk of the aggregate holds per grid point (:func:`pack_chunk`)."""
@@ -107,15 +119,39 @@ def _batches(c_lo: int, c_hi: int) -> Iterator[tuple[int, int]]:
         yield a, min(c_hi, a + BATCH_CHUNKS - 1)
 
 
+def newest_runs(
+    track_id: int, c_lo: int, c_hi: int, *, with_force: bool = False, limit: int | None = None
+) -> Subquery:
+    """The ``(run_id, chunk)`` keys of chunks ``c_lo..c_hi`` that make each chunk's aggregate:
+    its ``limit`` (default :data:`NEWEST_PASSES`) newest runs by recording time (a run without
+    one last), then by id; ``with_force``: only runs that kept the wheel force. A subquery
+    (columns ``run_id``, ``chunk``) to join ``track_run_levels`` on; the ranking reads keys
+    and recording times only, not the levels."""
+    t = TrackRunLevels.__table__
+    rank = func.row_number().over(
+        partition_by=t.c.chunk,
+        order_by=(Run.recorded_at.desc().nulls_last(), t.c.run_id.desc()),
+    )
+    ranked = select(t.c.run_id, t.c.chunk, rank.label("rank")).join(Run, Run.id == t.c.run_id)
+    ranked = ranked.where(t.c.track_id == track_id, t.c.chunk >= c_lo, t.c.chunk <= c_hi)
+    if with_force:
+        ranked = ranked.where(t.c.force_n.is_not(None))
+    keys = ranked.subquery()
+    n = NEWEST_PASSES if limit is None else limit
+    return select(keys.c.run_id, keys.c.chunk).where(keys.c.rank <= n).subquery()
+
+
 def expected_points(
     session: Session, track_id: int, a: int, b: int
 ) -> tuple[NDArray[np.float64], AggregateProfile | None]:
     """What the aggregate of chunks ``a..b`` must hold: the grid (m) and the aggregation of
-    the levels of the track's runs there (None: no run there). Read only."""
+    the levels of each chunk's newest runs (:func:`newest_runs`; None: no run there). Read
+    only."""
     t = TrackRunLevels.__table__
+    keys = newest_runs(track_id, a, b)
     rows = session.execute(
-        select(t.c.run_id, t.c.chunk, t.c.levels).where(
-            t.c.track_id == track_id, t.c.chunk >= a, t.c.chunk <= b
+        select(t.c.run_id, t.c.chunk, t.c.levels).join(
+            keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk)
         )
     ).all()
     i0 = a * CHUNK_POINTS

@@ -46,7 +46,7 @@ from app.db.models import (
 from engine.separation import NOT_SEPARABLE_MESSAGE, Pass, SeparationResult, separate
 from engine.track import TrackParams
 
-from .aggregate import CHUNK_POINTS
+from .aggregate import CHUNK_POINTS, newest_runs
 from .alignment import GRID_STEP_M
 from .packing import unpack_f4
 
@@ -116,7 +116,8 @@ def _unblob(blob: bytes) -> NDArray[np.float64]:
 
 
 def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[PassLevels]:
-    """Every pass with data in chunks ``c_lo..c_hi``, on their grid (chunk ``c_lo`` first).
+    """Every pass with data in chunks ``c_lo..c_hi``, on their grid (chunk ``c_lo`` first):
+    every survey, and each chunk's newest runs (``app.services.aggregate.newest_runs``).
 
     Runs stored before wheel forces were kept (``force_n`` NULL) are left out: without a
     force they cannot take part in the separation.
@@ -130,12 +131,12 @@ def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[P
         return passes[kind, pid]
 
     t = TrackRunLevels.__table__
+    keys = newest_runs(track_id, c_lo, c_hi, with_force=True)
     for rid, chunk, levels, force in session.execute(
-        select(t.c.run_id, t.c.chunk, t.c.levels, t.c.force_n).where(
-            t.c.track_id == track_id, t.c.chunk >= c_lo, t.c.chunk <= c_hi,
-            t.c.force_n.is_not(None),
+        select(t.c.run_id, t.c.chunk, t.c.levels, t.c.force_n).join(
+            keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk)
         )
-    ):  # fmt: skip
+    ):
         lv, fv = slot("run", int(rid))
         at = (chunk - c_lo) * CHUNK_POINTS
         lv[at : at + CHUNK_POINTS] = _unblob(levels)
