@@ -38,7 +38,7 @@ BATCH_CHUNKS = 40
 NEWEST_PASSES = 50
 """Runs per chunk that make its aggregate and its geometry/stiffness separation: the newest by
 recording time (then the newest stored). Every stored run used to re-read and recompute every
-earlier run over its stretch: on a 200 km line a 20 km run took 0.3 s to store after 100 runs
+earlier run over its stretch: on a 200 km line a 20 km run took 0.4 s to store after 100 runs
 and 2.6 s after 600 (``benchmarks/bench_year.py``), without end for a fleet that passes a
 kilometre ~40 times a day. Fifty passes of different loads are more than the separation
 needs, and the aggregate stays the track's present state, not its history; older runs'
@@ -119,11 +119,9 @@ def _batches(c_lo: int, c_hi: int) -> Iterator[tuple[int, int]]:
         yield a, min(c_hi, a + BATCH_CHUNKS - 1)
 
 
-def newest_runs(
-    track_id: int, c_lo: int, c_hi: int, *, with_force: bool = False, limit: int | None = None
-) -> Subquery:
+def newest_runs(track_id: int, c_lo: int, c_hi: int, *, with_force: bool = False) -> Subquery:
     """The ``(run_id, chunk)`` keys of chunks ``c_lo..c_hi`` that make each chunk's aggregate:
-    its ``limit`` (default :data:`NEWEST_PASSES`) newest runs by recording time (a run without
+    its :data:`NEWEST_PASSES` newest runs by recording time (a run without
     one last), then by id; ``with_force``: only runs that kept the wheel force. A subquery
     (columns ``run_id``, ``chunk``) to join ``track_run_levels`` on; the ranking reads keys
     and recording times only, not the levels."""
@@ -137,8 +135,7 @@ def newest_runs(
     if with_force:
         ranked = ranked.where(t.c.force_n.is_not(None))
     keys = ranked.subquery()
-    n = NEWEST_PASSES if limit is None else limit
-    return select(keys.c.run_id, keys.c.chunk).where(keys.c.rank <= n).subquery()
+    return select(keys.c.run_id, keys.c.chunk).where(keys.c.rank <= NEWEST_PASSES).subquery()
 
 
 def expected_points(
