@@ -41,4 +41,4 @@ HEALTHCHECK --interval=30s --timeout=5s --start-period=30s --retries=3 \
     CMD ["python", "-c", "import sys, urllib.request; sys.exit(0 if urllib.request.urlopen('http://127.0.0.1:8000/healthz', timeout=4).status == 200 else 1)"]
 
 CMD ["uvicorn", "app.main:app", "--host", "0.0.0.0", "--port", "8000", "--proxy-headers", \
-     "--http", "h11", "--timeout-keep-alive", "5", "--limit-concurrency", "256"]
+     "--http", "h11", "--no-server-header", "--timeout-keep-alive", "5", "--limit-concurrency", "256"]

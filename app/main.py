@@ -123,6 +123,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         docs_url=None,
         redoc_url=None,
+        # A path with a trailing slash (or an encoded one: /vehicles/%2F) is 404, not an
+        # undocumented 307 to another resource.
+        redirect_slashes=False,
         generate_unique_id_function=operation_id,
     )
     app.state.ctx = ctx

@@ -121,6 +121,11 @@ def column_mean_sd(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray
     return mean, np.sqrt(var)
 
 
+def _name(j: int, p: Pass) -> str:
+    """How a message names a pass: its label (what the caller knows it by), else its place."""
+    return p.label or f"pass {j} ({p.kind})"
+
+
 def on_grid(
     passes: Sequence[Pass], step: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -135,22 +140,19 @@ def on_grid(
         y = np.asarray(p.level_mm, dtype=float)
         if x.shape != y.shape or x.ndim != 1 or x.size < 2:
             raise ParameterError(
-                f"pass {j} ({p.label or p.kind}): chainage_m and level_mm must be 1-D arrays of "
-                "the same length >= 2"
+                f"{_name(j, p)}: chainage_m and level_mm must be 1-D arrays of the same length >= 2"
             )
         if np.any(np.diff(x) <= 0):
-            raise ParameterError(f"pass {j} ({p.label or p.kind}): chainage_m must increase")
+            raise ParameterError(f"{_name(j, p)}: chainage_m must increase")
         try:
             f = np.broadcast_to(np.asarray(p.force_n, dtype=float), x.shape)
         except ValueError:
             raise ParameterError(
-                f"pass {j} ({p.label or p.kind}): force_n must be a number of N or one value "
+                f"{_name(j, p)}: force_n must be a number of N or one value "
                 f"per chainage point ({x.size}), got shape {np.shape(p.force_n)}"
             ) from None
         if np.any(np.isfinite(f) & (f <= 0)):
-            raise ParameterError(
-                f"pass {j} ({p.label or p.kind}): wheel force must be > 0 N (compression)"
-            )
+            raise ParameterError(f"{_name(j, p)}: wheel force must be > 0 N (compression)")
         ok = np.isfinite(y) & np.isfinite(f)
         if ok.sum() < 2:
             continue

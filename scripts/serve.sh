@@ -15,6 +15,7 @@ host="${HOST:-127.0.0.1}"
 port="${PORT:-8000}"
 echo "serving on http://${host}:${port}  (dashboard at /, API docs at /docs; Ctrl-C stops)"
 # uvicorn's own limits (a proxy in front adds header/body timeouts and TLS: see README);
-# h11 named: its header-size limit holds even where httptools (no such limit) is installed
-exec python -m uvicorn app.main:app --host "$host" --port "$port" --http h11 \
+# h11 named: its header-size limit holds even where httptools (no such limit) is installed;
+# no "server: uvicorn" header (it tells a prober which server and so which flaws to try)
+exec python -m uvicorn app.main:app --host "$host" --port "$port" --http h11 --no-server-header \
   --timeout-keep-alive 5 --limit-concurrency "${LIMIT_CONCURRENCY:-256}"

@@ -16,6 +16,7 @@ import json
 import logging
 import threading
 import time
+from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -23,10 +24,11 @@ from typing import Any
 import anyio.to_thread
 from sqlalchemy import select, update
 from sqlalchemy.exc import SQLAlchemyError
+from starlette.requests import Request
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from app.core.config import Settings
-from app.core.errors import ApiError, database_busy_error
+from app.core.errors import ApiError, database_busy_error, method_not_allowed_error
 from app.core.scopes import READ_METHODS, KeyScope, required_scope
 from app.core.security import hash_key
 from app.db.base import utcnow
@@ -37,6 +39,9 @@ log = logging.getLogger(__name__)
 
 PROTECTED_PREFIX = "/api/"
 """Paths whose requests go through the access check (the whole API)."""
+DOCS_PATHS = frozenset({"/openapi.json", "/docs"})
+"""The API's document and its Swagger UI page: checked like reads unless
+``settings.public_docs`` (Swagger UI's own script and style files are not checked)."""
 STAMP_INTERVAL_S = 60.0
 """A key's ``last_used_at`` is written at most this often per process, s."""
 
@@ -65,8 +70,9 @@ def missing_scope_error(scope: KeyScope, what: str) -> ApiError:
     )
 
 
-def key_from_headers(headers: dict[str, str]) -> str | None:
-    """The API key of a request: ``X-API-Key``, else an ``Authorization: Bearer`` token."""
+def key_from_headers(headers: Mapping[str, str]) -> str | None:
+    """The API key of a request: ``X-API-Key``, else an ``Authorization: Bearer`` token
+    (``headers`` with lower-case names, or Starlette's, which ignore case)."""
     key = headers.get("x-api-key")
     if key:
         return key
@@ -182,8 +188,13 @@ class AccessMiddleware:
         self.settings = settings
         self.keys = keys
 
+    def _checked(self, path: str) -> bool:
+        if path.startswith(PROTECTED_PREFIX):
+            return True
+        return path in DOCS_PATHS and not self.settings.public_docs
+
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or not scope.get("path", "").startswith(PROTECTED_PREFIX):
+        if scope["type"] != "http" or not self._checked(scope.get("path", "")):
             await self.app(scope, receive, send)
             return
         method: str = scope["method"]
@@ -196,7 +207,9 @@ class AccessMiddleware:
             else:  # no database work: decide here
                 caller = decide(self.settings, self.keys, method, headers, scope["path"])
         except ApiError as exc:
-            await _send_error(send, exc)
+            # A method the path does not have is a 405 whoever asks (read-only mode, no key,
+            # a key without the scope): what the path serves is in the API's document anyway.
+            await _send_error(send, method_not_allowed_error(Request(scope)) or exc)
             return
         except SQLAlchemyError:
             log.warning("API key lookup failed: database unavailable", exc_info=True)

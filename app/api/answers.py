@@ -35,11 +35,17 @@ def csv_answer(body: str | Iterator[str], filename: str) -> Response:
     return StreamingResponse(body, media_type="text/csv", headers=headers)
 
 
-def add_csv_twin(router: APIRouter, path: str, endpoint: Callable[..., Response]) -> None:
+def add_csv_twin(
+    router: APIRouter,
+    path: str,
+    endpoint: Callable[..., Response],
+    openapi_extra: dict[str, Any] | None = None,
+) -> None:
     """Register ``GET <path>.csv``: ``endpoint`` (which takes ``format``) answering CSV.
 
-    The twin takes the endpoint's other parameters; its operation id is the endpoint's name
-    with ``_csv``.
+    The twin takes the endpoint's other parameters (and the endpoint's ``openapi_extra``,
+    for parameters documented by hand); its operation id is the endpoint's name with
+    ``_csv``.
     """
     sig = inspect.signature(endpoint, eval_str=True)
     params = [p for name, p in sig.parameters.items() if name != "format"]
@@ -59,4 +65,5 @@ def add_csv_twin(router: APIRouter, path: str, endpoint: Callable[..., Response]
         summary=f"{endpoint.__name__.replace('_', ' ').capitalize()} (CSV)",
         description=f"The CSV form of `GET {router.prefix}{path}`.\n\n{doc}",
         responses={200: {"description": "CSV text (`text/csv`)"}},
+        openapi_extra=openapi_extra,
     )

@@ -5,14 +5,15 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Annotated
 
-from fastapi import Depends, Query, Request, Security
+from fastapi import Depends, Path, Query, Request, Security
 from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
 from app.api.access import Caller
 from app.db.models import ApiKey
+from app.services.chart_views import HEATMAP_MAX_SPAN_M
 from app.services.context import AppContext
-from app.services.window import Window
+from app.services.window import CHAINAGE_LIMIT_M, Window
 
 api_key_header = APIKeyHeader(name="X-API-Key", auto_error=False, description="Pipeline API key")
 bearer = HTTPBearer(auto_error=False, description="The API key as a bearer token")
@@ -57,11 +58,17 @@ def check_access(
 CallerDep = Annotated[Caller, Depends(check_access)]
 
 
-FromM = Annotated[float | None, Query(allow_inf_nan=False, description="From, m (chainage)")]
-ToM = Annotated[
-    float | None,
-    Query(allow_inf_nan=False, description="To, m (chainage); not below from_m (else 422)"),
-]
+RunId = Annotated[int, Path(ge=1, description="Run id")]
+CalibrationId = Annotated[int, Path(ge=1, description="Calibration id")]
+"""Ids start at 1 (the database's numbering): 0 or a negative id is a malformed request."""
+
+_CHAINAGE = {"ge": -CHAINAGE_LIMIT_M, "le": CHAINAGE_LIMIT_M, "allow_inf_nan": False}
+_RANGE = f"within ±{CHAINAGE_LIMIT_M / 1000:,.0f} km"
+FROM_DOC = f"From, m (chainage, {_RANGE})"
+TO_DOC = f"To, m (chainage, {_RANGE}); not below from_m (else 422)"
+
+FromM = Annotated[float | None, Query(**_CHAINAGE, description=FROM_DOC)]
+ToM = Annotated[float | None, Query(**_CHAINAGE, description=TO_DOC)]
 
 
 def chainage_window(from_m: FromM = None, to_m: ToM = None) -> Window:
@@ -71,13 +78,19 @@ def chainage_window(from_m: FromM = None, to_m: ToM = None) -> Window:
 
 
 def closed_chainage_window(
-    from_m: Annotated[float, Query(allow_inf_nan=False, description="From, m (chainage)")],
+    from_m: Annotated[float, Query(**_CHAINAGE, description=FROM_DOC)],
     to_m: Annotated[
         float,
-        Query(allow_inf_nan=False, description="To, m (chainage); not below from_m (else 422)"),
+        Query(
+            **_CHAINAGE,
+            description=f"{TO_DOC}; at most {HEATMAP_MAX_SPAN_M / 1000:g} km after from_m",
+            json_schema_extra={"x-max-span-m": HEATMAP_MAX_SPAN_M},
+        ),
     ],
 ) -> Window:
-    """``?from_m=&to_m=``, both required (same rule as :func:`chainage_window`)."""
+    """``?from_m=&to_m=``, both required (same rule as :func:`chainage_window`), at most
+    :data:`~app.services.chart_views.HEATMAP_MAX_SPAN_M` apart (the span is a rule between
+    two parameters, which a schema cannot state: ``x-max-span-m`` names it)."""
     return Window(from_m, to_m)
 
 

@@ -41,6 +41,11 @@ class Settings(BaseSettings):
         When true, reads need a key too (and so do writes, even if ``require_api_key`` was
         left false: closing reads alone would be a mistake; a warning is logged); by default
         the dashboard reads without one.
+    public_docs : bool
+        When reads need a key, whether ``/docs`` and ``/openapi.json`` are open all the same
+        (false, the default: a service that closed its reads shows nothing without a key,
+        not even the list of its routes; true publishes the API's description to
+        integrators). Where reads are open the docs are open too.
     default_key_scopes : str
         Scopes of a key made by ``python -m app create-key`` without ``--scopes``
         (comma-separated: ``read``, ``write``, ``admin``; see :mod:`app.core.scopes`). The
@@ -123,6 +128,7 @@ class Settings(BaseSettings):
     max_body_kb: float = Field(default=1024.0, gt=0)
     require_api_key: bool = False
     require_api_key_for_reads: bool = False
+    public_docs: bool = False
     default_key_scopes: str = "read,write,admin"
     read_only: bool = False
     cors_origins: Annotated[list[str], NoDecode] = Field(default_factory=list)

@@ -183,6 +183,20 @@ def allowed_methods(request: Request) -> list[str]:
     return served if documented is None else [m for m in served if m in documented]
 
 
+def method_not_allowed_error(request: Request) -> ApiError | None:
+    """405 (with ``Allow``) when the request's path is served but not with its method; None
+    when the method is allowed or no resource has the path (a 404 is not this one's)."""
+    allowed = allowed_methods(request)
+    if not allowed or request.method in allowed:
+        return None
+    return ApiError(
+        405,
+        f"method {request.method} is not allowed here; allowed: {', '.join(allowed)}",
+        headers={"Allow": ", ".join(allowed)},
+        allowed=allowed,
+    )
+
+
 def install_error_handlers(app: FastAPI) -> None:
     """Register the handlers that give every error the ``{"detail": {...}}`` shape."""
 
@@ -214,13 +228,11 @@ def install_error_handlers(app: FastAPI) -> None:
             exc.detail if isinstance(exc.detail, dict) else {"message": str(exc.detail)}
         )
         headers = dict(getattr(exc, "headers", None) or {})
-        if exc.status_code == 405:
+        if exc.status_code == 405 and (not_allowed := method_not_allowed_error(request)):
             # Starlette names the methods of the first route whose path matched; a path
             # served by several routes (GET and DELETE /runs/{id}) allows all of theirs.
-            allowed = allowed_methods(request)
-            headers["Allow"] = ", ".join(allowed)
-            detail = {"message": f"method {request.method} is not allowed here; allowed: "
-                      f"{', '.join(allowed)}", "allowed": allowed}  # fmt: skip
+            headers |= not_allowed.headers or {}
+            detail = not_allowed.detail()
         return JSONResponse(
             status_code=exc.status_code, content={"detail": detail}, headers=headers or None
         )

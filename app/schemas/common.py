@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import unicodedata
+from collections.abc import Callable, Iterable
 from datetime import UTC, datetime
 from typing import Annotated, Any, get_args
 
@@ -13,9 +14,11 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    JsonValue,
     ValidationInfo,
     field_validator,
 )
+from pydantic.json_schema import JsonDict
 
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
@@ -144,6 +147,29 @@ UrlName = Annotated[
 ]
 """The name of a resource addressed by id or name in URLs (tracks, vehicles): a :data:`Name`
 that is not digits only, nor ``.`` or ``..``."""
+
+
+def closed_list(names: Iterable[str]) -> Callable[[JsonDict], None]:
+    """``json_schema_extra`` stating a closed list of names (an engine registry's keys) as
+    the enum of a field's text: of the field itself, of its array's items or of its
+    object's keys, in each alternative of a nullable field. The schema then says what the
+    registry accepts (validation stays with the registry, whose 422 names the field)."""
+    enum: list[JsonValue] = list(names)
+
+    def extra(schema: JsonDict) -> None:
+        alts = schema.get("anyOf")
+        for alt in [schema, *(alts if isinstance(alts, list) else [])]:
+            if not isinstance(alt, dict):
+                continue
+            items = alt.get("items")
+            if alt.get("type") == "string":
+                alt["enum"] = enum
+            elif alt.get("type") == "array" and isinstance(items, dict):
+                items["enum"] = enum
+            elif alt.get("type") == "object":
+                alt["propertyNames"] = {"enum": enum}
+
+    return extra
 
 
 def _accepts_bool(annotation: Any) -> bool:

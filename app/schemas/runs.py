@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
 from pydantic.json_schema import JsonDict
 
+from app.services.window import CHAINAGE_LIMIT_M
 from engine.logio import (
     GRAVITY_MODES,
     OPTION_UNITS,
@@ -114,15 +116,19 @@ class RunMetadata(StrictModel):
     track: Name | None = Field(
         default=None, description="Track name; a new name creates the track (UIC60, 80 kN/mm)"
     )
-    track_id: int | None = Field(default=None, description="Existing track id (instead of track)")
+    track_id: int | None = Field(
+        default=None, ge=1, description="Existing track id (instead of track)"
+    )
     vehicle: Name | None = Field(
         default=None, description="Vehicle name (default: table1, the paper's Table 1 vehicle)"
     )
-    vehicle_id: int | None = Field(default=None, description="Existing vehicle id")
+    vehicle_id: int | None = Field(default=None, ge=1, description="Existing vehicle id")
     name: Name | None = Field(default=None, description="Optional label of the run")
     start_chainage_m: float | None = Field(
         default=None,
         allow_inf_nan=False,
+        ge=-CHAINAGE_LIMIT_M,
+        le=CHAINAGE_LIMIT_M,
         description="Chainage of the body centre at the first sample, m (required without a "
         "chainage column)",
     )
@@ -171,6 +177,25 @@ class RunMetadata(StrictModel):
         }
 
 
+@functools.cache
+def _free_text_fields(model: type[BaseModel]) -> frozenset[str]:
+    """Fields of ``model`` that take any text (no enum or format): the text ``null`` is a
+    value there."""
+
+    def free(schema: Any) -> bool:
+        return (
+            isinstance(schema, dict)
+            and schema.get("type") == "string"
+            and not ({"enum", "format", "const"} & schema.keys())
+        )
+
+    return frozenset(
+        name
+        for name, prop in model.model_json_schema()["properties"].items()
+        if free(prop) or any(free(alt) for alt in prop.get("anyOf", ()))
+    )
+
+
 class RunUploadForm(CsvOptionsFields, RunMetadata):
     """Form fields of a multipart upload (besides ``file``). Empty fields count as unset."""
 
@@ -180,6 +205,15 @@ class RunUploadForm(CsvOptionsFields, RunMetadata):
         if isinstance(data, dict):
             return {k: v for k, v in data.items() if not (isinstance(v, str) and not v.strip())}
         return data
+
+    @classmethod
+    def from_form(cls, fields: dict[str, Any]) -> dict[str, Any]:
+        """The multipart fields as this form reads them: ``null`` on a field that is not free
+        text (a number, id, unit, date, direction) is unset, as an empty field is. A form
+        has no null, and HTTP clients write an unset value as the text ``null`` (on a name
+        it stays a name)."""
+        text = _free_text_fields(cls)
+        return {k: v for k, v in fields.items() if not (v == "null" and k not in text)}
 
     def csv_options(self) -> dict[str, Any]:
         """The column/unit options that were set."""

@@ -7,11 +7,13 @@ from typing import Any, Literal
 from pydantic import BaseModel, Field, field_validator, model_validator
 
 from app.services.simulation import SimulationSpec
+from app.services.window import CHAINAGE_LIMIT_M
+from engine.irregularity import SPECTRA
 from engine.sensor import SensorModel
 from engine.synthetic import REALISTIC_SENSOR
 from engine.track import SoftZone
 
-from .common import Name, StrictModel, Timestamp
+from .common import Name, StrictModel, Timestamp, closed_list
 from .runs import Direction, RunCreated
 
 
@@ -55,8 +57,8 @@ class IrregularitySpec(StrictModel):
 
     spectrum: str = Field(
         max_length=40,
-        description="Spectrum name: german-low, german-high, fra-1 ... fra-6 "
-        "(GET /api/v1/simulate/spectra)",
+        description="Spectrum name (their sources: GET /api/v1/simulate/spectra)",
+        json_schema_extra=closed_list(SPECTRA),
     )
     seed: int = Field(
         default=0, ge=0, le=2**31 - 1,
@@ -83,8 +85,9 @@ class SimulateRequest(StrictModel):
         description="Soft zones; also accepts 'start:end:loss' strings",
     )
     start_chainage_m: float = Field(
-        default=24.13, ge=0, allow_inf_nan=False, description="Body-centre start chainage, m"
-    )
+        default=24.13, ge=0, le=CHAINAGE_LIMIT_M, allow_inf_nan=False,
+        description="Body-centre start chainage, m",
+    )  # fmt: skip
     direction: Direction = "increasing"
     sensor: SensorSpec | Literal["ideal", "realistic"] = Field(
         default="realistic",

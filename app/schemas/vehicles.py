@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
 
-from engine.vehicle import SENSOR_X_LIMIT_M, VehicleParams
+from engine.calibration import DEFAULT_FIT, FITTABLE
+from engine.vehicle import PRESETS, SENSOR_X_LIMIT_M, VehicleParams
 
-from .common import StrictModel, UrlName
+from .common import StrictModel, UrlName, closed_list
 
 
 def _schema_field(f: dataclasses.Field[Any]) -> Any:
@@ -58,7 +59,8 @@ class VehicleCreate(StrictModel):
     preset: str | None = Field(
         default=None,
         max_length=50,
-        description="Start from this engine preset (table1, heavy); parameters given override",
+        description="Start from this engine preset; parameters given override",
+        json_schema_extra=closed_list(sorted(PRESETS)),
     )
     params: VehicleParamsSchema = Field(default_factory=VehicleParamsSchema)
 
@@ -107,7 +109,10 @@ class VehiclesPublic(BaseModel):
 class VehicleEdit(StrictModel):
     """A manual edit: the parameters to change (SI); makes a new version, runs reprocessed."""
 
-    params: dict[str, float] = Field(description='Parameters to change, e.g. {"ms": 17000}')
+    params: dict[str, float] = Field(
+        description='Parameters to change, e.g. {"ms": 17000}',
+        json_schema_extra=closed_list(PARAM_NAMES),
+    )
     note: str | None = Field(default=None, max_length=2000, description="Why (kept with it)")
 
 
@@ -141,8 +146,8 @@ class CalibrateRequest(StrictModel):
         description="Runs to use (default: every processed run of the vehicle)",
     )  # fmt: skip
     fit: list[str] | None = Field(
-        default=None, max_length=8,
-        description="Quantities to fit: Is, ks, ks1, ks2, cs, sensor_x_m (default Is, ks1, ks2)",
+        default=None, min_length=1, max_length=8, json_schema_extra=closed_list(FITTABLE),
+        description=f"Quantities to fit (default {', '.join(DEFAULT_FIT)})",
     )  # fmt: skip
     apply: bool = Field(
         default=False,

@@ -107,10 +107,20 @@ def run_profile_view(
     cols = {k: _as_array(data[k]) for k in names}
     xd, cd, decimated = minmax_decimate(x, cols, max_points)
     a, b = run.aligned_extent()
+    from_m = window.from_m if window.from_m is not None else (a if a is not None else 0.0)
+    to_m = window.to_m if window.to_m is not None else (b if b is not None else 0.0)
+    if to_m < from_m:  # an open end filled from the run's extent, beyond the given one
+        field = "to_m" if window.to_m is not None else "from_m"
+        given = window.to_m if window.to_m is not None else window.from_m
+        raise Invalid(
+            f"the window ({field} {given:g} m) lies outside run {run.id}, which covers "
+            f"{a:g} to {b:g} m of chainage",
+            field=field,
+        )
     return ProfileViewPublic(
         run_id=run.id,
-        from_m=window.from_m if window.from_m is not None else (a if a is not None else 0.0),
-        to_m=window.to_m if window.to_m is not None else (b if b is not None else 0.0),
+        from_m=from_m,
+        to_m=to_m,
         n_points=int(x.size),
         decimated=decimated,
         chainage_m=xd.tolist(),

@@ -98,7 +98,7 @@ def included_columns(names: Sequence[str]) -> tuple[str, ...]:
     unknown = [n for n in names if n not in EXTRA_PROFILE_COLUMNS]
     if unknown:
         raise Invalid(
-            f"include: unknown column(s) {', '.join(unknown)}; choose from "
+            f"include: unknown column(s) {', '.join(map(repr, unknown))}; choose from "
             f"{', '.join(EXTRA_PROFILE_COLUMNS)} or 'all'",
             field="include",
         )

@@ -63,12 +63,23 @@ class Submission:
     recorded_at: datetime | None = None
     filename: str | None = None
     idempotency_key: str | None = None
+    idempotency_owner: int | None = None
+    """The API key whose Idempotency-Key this is (None: the clients without a key)."""
     options: dict[str, Any] = field(default_factory=dict)
     extra_signals: dict[str, Any] = field(default_factory=dict)
     payload_kg: float | None = None
     static_wheel_load_n: float | None = None
     new_track: dict[str, Any] = field(default_factory=dict)
     """Description, rail, k_nominal (N/m), spacing (m) of the track if this run creates it."""
+
+    @property
+    def stored_idempotency_key(self) -> str | None:
+        """The Idempotency-Key as stored: each API key has its own (two pipelines may both
+        send "run-1"), hashed so that it keeps the column's 200 characters."""
+        if self.idempotency_key is None or self.idempotency_owner is None:
+            return self.idempotency_key
+        digest = hashlib.sha256(self.idempotency_key.encode()).hexdigest()
+        return f"key{self.idempotency_owner}:{digest}"
 
     @property
     def identity(self) -> str:
@@ -164,7 +175,8 @@ def resolve_track(session: Session, name: str | None, track_id: int | None) -> T
 def _existing(session: Session, sub: Submission, track: Track | None) -> Run | None:
     """A stored run this submission repeats (same Idempotency-Key, or same content on the track)."""
     if sub.idempotency_key:
-        prev = session.scalar(select(Run).where(Run.idempotency_key == sub.idempotency_key))
+        stored = sub.stored_idempotency_key
+        prev = session.scalar(select(Run).where(Run.idempotency_key == stored))
         if prev is not None:
             same_track = track is not None and prev.track_id == track.id
             if prev.content_hash != sub.identity or not same_track:
@@ -365,7 +377,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             options=sub.options,
             content_hash=identity,
             positioning=positioning,
-            idempotency_key=sub.idempotency_key,
+            idempotency_key=sub.stored_idempotency_key,
             attempts=0,
             payload_kg=sub.payload_kg,
             static_wheel_load_n=wheel_load_n,

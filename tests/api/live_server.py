@@ -123,6 +123,7 @@ class LiveServer:
                 sys.executable, "-m", "uvicorn", "app.main:app", "--host", "127.0.0.1",
                 "--port", str(self.port), "--log-config", str(self._log_config),
                 "--no-access-log", "--timeout-graceful-shutdown", "5", "--http", "h11",
+                "--no-server-header",
             ],
             cwd=REPO_ROOT,
             env=env,

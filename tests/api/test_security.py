@@ -245,7 +245,9 @@ def test_out_of_range_numbers_are_4xx_not_5xx(client, settings) -> None:
         r = client.get(f"/api/v1/runs?{query}")
         assert r.status_code == 422, query
         assert r.json()["detail"]["field"] in ("limit", "offset")
-    assert client.get("/api/v1/runs/-1").status_code == 404
+    for bad in ("-1", "0"):  # ids start at 1: a malformed id, not an unknown one
+        r = client.get(f"/api/v1/runs/{bad}")
+        assert r.status_code == 422 and r.json()["detail"]["field"] == "run_id", r.text
 
 
 def test_nul_and_sql_like_text_is_plain_data(client, settings) -> None:
@@ -330,7 +332,7 @@ def test_every_write_endpoint_is_guarded(start_app, settings) -> None:
     """Every POST/PUT/PATCH/DELETE of the API (read from the OpenAPI document, so endpoints
     added later are covered) is 401 without a key when keys are required and 403 in
     read-only mode; GETs need a key only when reads are closed too."""
-    keyed = start_app(require_api_key=True, require_api_key_for_reads=True)
+    keyed = start_app(require_api_key=True, require_api_key_for_reads=True, public_docs=True)
     ops = _api_operations(keyed)
     writes = [(m, p) for m, p in ops if m in ("POST", "PUT", "PATCH", "DELETE")]
     reads = [(m, p) for m, p in ops if m == "GET"]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
-import hashlib
 import time
 from concurrent.futures import ThreadPoolExecutor
 from datetime import datetime
@@ -16,9 +15,10 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from pydantic import ValidationError
 
+from app.api.access import key_from_headers
 from app.api.answers import Format, add_csv_twin, csv_answer
 from app.api.convert import run_public
-from app.api.deps import CallerDep, CtxDep, SessionDep, WindowDep
+from app.api.deps import CallerDep, CtxDep, RunId, SessionDep, WindowDep
 from app.api.multipart import BufferedUpload, read_form
 from app.core.errors import ApiError
 from app.schemas.common import Timestamp
@@ -130,7 +130,7 @@ def _from_multipart(
     key: str | None,
     max_bytes: int,
 ) -> Submission:
-    meta = _validate(RunUploadForm, fields)
+    meta = _validate(RunUploadForm, RunUploadForm.from_form(fields))
     options = meta.csv_options()
     # read in place (no copy of the buffer: ~0.1-0.3 s and 135 MB for an hour at 1 kHz)
     log, content_hash = _parse_and_hash(body, options, "file", max_bytes)
@@ -244,12 +244,13 @@ async def create_run(
     A log that cannot be read or inverted is answered 422 naming the field, column, row or
     unit, and nothing is stored.
     """
-    if idempotency_key is not None and caller.key_id is not None:
-        # Idempotency keys are the caller's: two pipelines with their own API keys may
-        # both use "run-1" without one receiving the other's run (or a 409).
-        # (Hashed: the stored key keeps its 200-character column whatever the prefix.)
-        digest = hashlib.sha256(idempotency_key.encode()).hexdigest()
-        idempotency_key = f"key{caller.key_id}:{digest}"
+    owner = caller.key_id
+    sent = key_from_headers(request.headers)
+    if idempotency_key is not None and owner is None and sent:
+        # Keys are not required here, but a client that names itself by a valid key has
+        # Idempotency-Keys of its own, as it would where keys are required.
+        known = await run_in_threadpool(request.app.state.keys.lookup, sent)
+        owner = known.key_id if known is not None else None
     ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if ctype == "multipart/form-data":
         form = await read_form(request, max_files=1, max_fields=64)
@@ -287,6 +288,7 @@ async def create_run(
             "upload) or application/json",
             field="Content-Type",
         )
+    sub.idempotency_owner = owner
     run_id, created = await run_in_threadpool(submit, ctx, sub)
     del sub
     return await answer_submission(ctx, response, run_id, created, wait)
@@ -316,13 +318,13 @@ def list_runs(
 
 
 @router.get("/{run_id}", response_model=RunPublic)
-def read_run(session: SessionDep, run_id: int) -> RunPublic:
+def read_run(session: SessionDep, run_id: RunId) -> RunPublic:
     """A run's status, metadata, quality indicators and error."""
     return run_public(runs.get_run(session, run_id))
 
 
 @router.delete("/{run_id}", status_code=204, response_class=Response)
-def delete_run(session: SessionDep, run_id: int) -> Response:
+def delete_run(session: SessionDep, run_id: RunId) -> Response:
     """Delete a run with its profile, soft spots and signals (also while it processes).
 
     The track's aggregated profile is recomputed without it in the same transaction.
@@ -334,23 +336,41 @@ def delete_run(session: SessionDep, run_id: int) -> Response:
     return Response(status_code=204)
 
 
+INCLUDE_DOC: dict[str, Any] = {
+    "parameters": [
+        {
+            "name": "include",
+            "in": "query",
+            "required": False,
+            # comma-separated (?include=front_level_mm,rear_level_mm): form style, not exploded
+            "style": "form",
+            "explode": False,
+            "description": "Extra arrays: each axle's level and wheel force (N), the baseline, "
+            "or all",
+            "schema": {
+                "type": "array",
+                "minItems": 1,
+                "items": {"type": "string", "enum": ["all", *runs.EXTRA_PROFILE_COLUMNS]},
+            },
+        }
+    ]
+}
+"""``include`` as the OpenAPI document states it: a comma-separated list of closed names
+(FastAPI cannot state a list that is not exploded; the route reads the text)."""
+
+
 @router.get(
     "/{run_id}/profile",
     response_model=ProfilePublic,
     response_model_exclude_none=True,
+    openapi_extra=INCLUDE_DOC,
 )
 def read_run_profile(
     ctx: CtxDep,
     session: SessionDep,
-    run_id: int,
+    run_id: RunId,
     window: WindowDep,
-    include: Annotated[
-        str | None,
-        Query(
-            description="Extra arrays, comma-separated: front_level_mm, rear_level_mm, "
-            "baseline_mm, front_force_n, rear_force_n (wheel force per axle, N), or all",
-        ),
-    ] = None,
+    include: Annotated[str | None, Query(include_in_schema=False)] = None,
     format: Format = "json",
 ) -> Response:
     """The fused loaded profile on chainage: ``{"chainage_m": [...], "level_mm": [...]}``.
@@ -361,7 +381,7 @@ def read_run_profile(
     measured from and each axle's wheel force (static + dynamic, N); the ``.csv`` twin
     answers ``chainage_m,level_mm[,...]`` as CSV.
     """
-    names = [n.strip() for n in (include or "").split(",") if n.strip()]
+    names = [] if include is None else [n.strip() for n in include.split(",")]
     columns = ("chainage_m", "level_mm", *runs.included_columns(names))
     run = runs.detail_run(session, run_id, "profile")
     if format == "csv":
@@ -377,7 +397,7 @@ def read_run_profile(
 )
 def read_run_soft_spots(
     session: SessionDep,
-    run_id: int,
+    run_id: RunId,
     format: Format = "json",
 ) -> Any:
     """Soft spots along chainage: extent and peak (m), depth (mm), stiffness loss (%)."""
@@ -388,7 +408,7 @@ def read_run_soft_spots(
 
 
 @router.get("/{run_id}/signals", response_model=SignalsPublic)
-def read_run_signals(session: SessionDep, run_id: int) -> SignalsPublic:
+def read_run_signals(session: SessionDep, run_id: RunId) -> SignalsPublic:
     """The raw signals against time (decimated to at most 5000 points, min/max envelope)."""
     run = runs.get_run(session, run_id)
     sig = runs.signals(session, run)
@@ -404,5 +424,5 @@ def read_run_signals(session: SessionDep, run_id: int) -> SignalsPublic:
     )
 
 
-add_csv_twin(router, "/{run_id}/profile", read_run_profile)
+add_csv_twin(router, "/{run_id}/profile", read_run_profile, INCLUDE_DOC)
 add_csv_twin(router, "/{run_id}/soft-spots", read_run_soft_spots)

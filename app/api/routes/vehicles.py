@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query
 from sqlalchemy import func, select
 
 from app.api.convert import calibration_public, vehicle_public
-from app.api.deps import CallerDep, CtxDep, SessionDep, caller_name
+from app.api.deps import CalibrationId, CallerDep, CtxDep, SessionDep, caller_name
 from app.db.models import Vehicle
 from app.schemas.vehicles import (
     CalibrateRequest,
@@ -131,7 +131,9 @@ def list_calibrations(session: SessionDep, vehicle: str) -> CalibrationsPublic:
 
 
 @router.get("/{vehicle}/calibrations/{calibration_id}", response_model=CalibrationPublic)
-def read_calibration(session: SessionDep, vehicle: str, calibration_id: int) -> CalibrationPublic:
+def read_calibration(
+    session: SessionDep, vehicle: str, calibration_id: CalibrationId
+) -> CalibrationPublic:
     """One calibration: status, fitted parameters ± uncertainty, objective, runs, applied."""
     v = get_vehicle(session, vehicle)
     return calibration_public(calibration.get_calibration(session, v, calibration_id), v.name)

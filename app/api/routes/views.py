@@ -24,7 +24,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, File, Query, Request, UploadFile
 
-from app.api.deps import ClosedWindowDep, SessionDep, WindowDep
+from app.api.deps import ClosedWindowDep, RunId, SessionDep, WindowDep
 from app.api.routes.lookup import get_track
 from app.schemas.views import ChainageMapPublic, CsvPreviewPublic, ProfileViewPublic, WindowPublic
 from app.services import chart_views
@@ -35,7 +35,7 @@ router = APIRouter(prefix="/views", tags=["views"])
 @router.get("/runs/{run_id}/profile", response_model=ProfileViewPublic)
 def run_profile_view(
     session: SessionDep,
-    run_id: int,
+    run_id: RunId,
     window: WindowDep,
     max_points: Annotated[int, Query(ge=100, le=50_000, description="Most points")] = 4000,
 ) -> ProfileViewPublic:
