@@ -304,3 +304,17 @@ def test_a_pass_is_named_as_the_caller_knows_it() -> None:
     with pytest.raises(ParameterError) as err:
         on_grid([bad], 0.25)
     assert str(err.value).startswith("run 13:") and "pass 0" not in str(err.value)
+
+
+def test_csv_preview_takes_a_file_part_and_its_options_only(client) -> None:
+    """The preview's ``file`` must be a file part (a text field of that name was read as
+    the file), and a form field the preview does not know is refused, naming it."""
+    r = client.post("/api/v1/views/csv-preview", data={"file": "-309"})
+    assert r.status_code == 422 and r.json()["detail"]["field"] == "file", r.text
+    csv = b"time_s,accel_z_mps2\n0,0.1\n"
+    r = client.post("/api/v1/views/csv-preview", files={"file": ("a.csv", csv)},
+                    data={"MO2": "{}"})  # fmt: skip
+    assert r.status_code == 422 and r.json()["detail"]["field"] == "MO2", r.text
+    r = client.post("/api/v1/views/csv-preview", files={"file": ("a.csv", csv)},
+                    data={"time_column": "time_s"})  # fmt: skip
+    assert r.status_code == 200, r.text

@@ -23,9 +23,11 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, File, Query, Request, UploadFile
+from starlette.datastructures import UploadFile as StarletteUpload
 
 from app.api.deps import ClosedWindowDep, RunId, SessionDep, WindowDep
 from app.api.routes.lookup import get_track
+from app.core.errors import ApiError
 from app.schemas.views import ChainageMapPublic, CsvPreviewPublic, ProfileViewPublic, WindowPublic
 from app.services import chart_views
 
@@ -92,6 +94,11 @@ async def csv_preview(
     the content come back as ``warnings``; an empty or non-text file answers 422.
     """
     form = await request.form()
+    if not isinstance(form.get("file"), StarletteUpload):  # a text field named "file"
+        raise ApiError(422, "'file' must be a file part (the log's first bytes)", field="file")
+    unknown = sorted(set(form) - {"file", *chart_views.PREVIEW_OPTION_NAMES})
+    if unknown:
+        raise ApiError(422, f"unexpected form field {unknown[0][:50]!r}", field=unknown[0][:50])
     chosen = {
         k: str(v).strip()
         for k in chart_views.PREVIEW_OPTION_NAMES
