@@ -181,3 +181,47 @@ def test_request_schemas_say_what_the_routes_take(lined: TestClient) -> None:
         data={"wheel_load_n": "60000", "colour": "red"},
     )
     assert r.status_code == 422 and "colour" in r.text, r.text
+
+
+def test_placement_holds_a_processing_slot_and_keeps_to_the_budget(
+    tmp_path: Path, short_pass: SyntheticRun, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """GNSS placement is a processing stage: it runs holding a processing slot (no slot is
+    free while it runs; the service has one by default), and a placement past the processing
+    budget is 422 BudgetExceeded naming the stage, nothing stored."""
+    import json
+
+    import app.services.submit as submit
+
+    body = _gnss_csv(short_pass, 0.0, seed=4)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    with TestClient(create_app(make_settings(tmp_path / "a", workers=1))) as c:
+        c.post("/api/v1/tracks", json={"name": "Line"})
+        assert put_line(c, json.dumps(centerline_geojson())).status_code == 201
+        slots = c.app.state.ctx.slots  # type: ignore[attr-defined]
+        free_while_placing: list[bool] = []
+        place = submit.place_by_gnss
+
+        def spy(*args: Any, **kwargs: Any) -> Any:
+            free = slots.acquire(blocking=False)
+            if free:
+                slots.release()
+            free_while_placing.append(free)
+            return place(*args, **kwargs)
+
+        monkeypatch.setattr(submit, "place_by_gnss", spy)
+        assert upload(c, body, track="Line").status_code == 201
+        assert free_while_placing == [False]
+
+    settings = make_settings(tmp_path / "b", processing_budget_s=1e-6)
+    with TestClient(create_app(settings)) as c:
+        c.post("/api/v1/tracks", json={"name": "Line"})
+        assert put_line(c, json.dumps(centerline_geojson())).status_code == 201
+        before = row_counts(settings)
+        r = upload(c, body, track="Line")
+        assert r.status_code == 422, r.text
+        d = r.json()["detail"]
+        assert d["kind"] == "BudgetExceeded" and "GNSS placement took longer" in d["message"]
+        assert "projecting the GNSS fixes" in d["message"]
+        assert row_counts(settings) == before
