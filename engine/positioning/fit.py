@@ -303,8 +303,8 @@ def thin_fixes(
     Why the fit loses nothing by it: GNSS receivers give at most 10-20 fixes a second, so a
     log with a fix on every row (1 kHz) repeats or interpolates them; and what limits the fit
     is the fixes' wandering bias (1-3 m, correlated over 10-30 s), not their number: at 10 Hz
-    the white part of the error averages to ~1.5 m / sqrt(n) (below 1 cm over a kilometre at
-    30 m/s), far below the bias. The model's finest detail is a slope change every
+    the white part of the error averages to ~1.5 m / sqrt(n) (8 cm over a 1 km run at 30 m/s,
+    under 1 cm over an hour), far below the bias. The model's finest detail is a slope change every
     :data:`MIN_PIECE_M` (2 km), searched on bins of a tenth of that (200 m): 10 Hz leaves 20
     fixes per bin at 100 m/s, and :data:`MAX_FIXES` leaves 8 per bin on a 1 000 km run.
 
