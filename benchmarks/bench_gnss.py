@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -155,7 +156,11 @@ def measure(
                 parallel[name] = {"times": times, "peak_mb": mem.peak / 1e6}
         finally:
             server.terminate()
-            server.wait(timeout=60)
+            try:
+                server.wait(timeout=30)
+            except subprocess.TimeoutExpired:  # busy with a request: not left behind
+                server.kill()
+                server.wait()
     return {"plain": plain_s, "fixes": fix_s, "idle_mb": idle / 1e6, "parallel": parallel}
 
 
@@ -165,6 +170,8 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--port", type=int, default=8013)
     ns = ap.parse_args()
+    # stopped from outside: the servers' finally blocks still run
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     plain, fixes, feature, start = inputs()
     print(f"machine: {machine()}")
     print(
