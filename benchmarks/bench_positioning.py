@@ -1,7 +1,14 @@
 """Placing a run by its GNSS fixes (issue 11): a 1-hour run with 36 000 fixes on a 100 km,
 10 000-vertex centerline. Target: <= 1 s.
 
-Run: ``python benchmarks/bench_positioning.py``
+Run: ``python benchmarks/bench_positioning.py [--before REV]``
+
+Second part (issue 28): the same hour logged at 1 kHz with a fix on *every row* (3.6 M fixes,
+each with noise of its own), placed as the service does (:func:`place_run`, then the fitted
+chainage of every row). Target: <= 1 s with bounded memory. Each case runs in a fresh process
+(wall time, CPU time, and the resident memory the placement adds at its peak, sampled every
+10 ms); ``--before REV`` runs the same case on the engine of git revision ``REV`` too (exported
+with ``git archive`` to a temporary directory), side by side in one run.
 
 The line winds (curves of 1.5-5 km radius) through a local plane and is written as WGS84
 lon/lat; the run drives 27.8 m/s for an hour (100 km) with its odometer 0.6 % long and fixes
@@ -12,16 +19,28 @@ and the centerline's construction (validation, projection, STR-tree) separately;
 
 from __future__ import annotations
 
+import argparse
+import json
+import os
+import subprocess
 import sys
+import tarfile
+import tempfile
+import threading
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+REPO = Path(__file__).resolve().parents[1]
+# the engine under test: this tree's, or an exported revision's (--src, the child processes)
+SRC = sys.argv[sys.argv.index("--src") + 1] if "--src" in sys.argv else str(REPO)
+sys.path.insert(0, SRC)
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
+import psutil  # noqa: E402
 from common import machine  # noqa: E402
 from pyproj import CRS, Transformer  # noqa: E402
+from scipy.signal import lfilter  # noqa: E402
 
 from engine.positioning import Centerline, geodesic_chainage, place_run  # noqa: E402
 
@@ -85,5 +104,93 @@ def main() -> None:
     )
 
 
+def every_row_child() -> None:
+    """One placement of the 1-hour, 1 kHz, fix-on-every-row log; prints JSON figures."""
+    lon_v, lat_v = winding_line()
+    line = Centerline(lon_v, lat_v, geodesic_chainage(lon_v, lat_v, 11_900.0))
+    rng = np.random.default_rng(1)
+    t = np.arange(0.0, 3600.0, 0.001)
+    true = line.start_chainage_m + 50.0 + 27.7 * t
+    x, y = line.point_at(true)
+    phi = np.exp(-0.001 / 10.0)  # the wandering bias, tau 10 s, 0.7 m
+    kick = rng.normal(0, 0.7 * np.sqrt(1 - phi**2), (2, t.size))
+    bias = lfilter([1.0], [1.0, -phi], kick, axis=1)
+    lon, lat = line._to_plane.transform(
+        x + bias[0] + rng.normal(0, 1.5, t.size),
+        y + bias[1] + rng.normal(0, 1.5, t.size),
+        direction="INVERSE",
+    )
+    lon, lat = np.asarray(lon), np.asarray(lat)
+    odo = 1.006 * 27.7 * t
+    del x, y, bias, kick
+    proc = psutil.Process()
+    before = proc.memory_info().rss
+    peak = [before]
+    stop = threading.Event()
+
+    def sample() -> None:
+        while not stop.is_set():
+            peak[0] = max(peak[0], proc.memory_info().rss)
+            time.sleep(0.01)
+
+    sampler = threading.Thread(target=sample, daemon=True)
+    sampler.start()
+    w0, c0 = time.perf_counter(), time.process_time()
+    fit = place_run(line, t, odo, lat, lon)
+    chainage = fit.chainage(odo)  # what place_log writes into the log
+    wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+    stop.set()
+    sampler.join()
+    e = np.abs(chainage - true)
+    print(json.dumps({
+        "wall_s": wall, "cpu_s": cpu, "added_mb": (max(peak) - before) / 1e6,
+        "n_fixes": fit.n_fixes, "n_considered": getattr(fit, "n_considered", fit.n_fixes),
+        "err_max_m": float(e.max()), "err_median_m": float(np.median(e)),
+        "scale": fit.scale,
+    }))  # fmt: skip
+
+
+def every_row(src: str) -> dict[str, float]:
+    out = subprocess.run(
+        [sys.executable, __file__, "--child", "--src", src],
+        check=True, capture_output=True, text=True, env={**os.environ, "PYTHONPATH": src},
+    )  # fmt: skip
+    return dict(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def export(rev: str, into: str) -> str:
+    """The tree of git revision ``rev`` under ``into`` (``git archive``)."""
+    tar = Path(into) / "src.tar"
+    with open(tar, "wb") as fh:
+        subprocess.run(["git", "archive", rev], cwd=REPO, check=True, stdout=fh)
+    with tarfile.open(tar) as tf:
+        tf.extractall(Path(into) / "src", filter="data")
+    return str(Path(into) / "src")
+
+
+def every_row_report(before_rev: str | None) -> None:
+    cases = [("this tree", str(REPO))]
+    with tempfile.TemporaryDirectory(prefix="bench-positioning-") as tmp:
+        if before_rev:
+            cases.insert(0, (f"before ({before_rev})", export(before_rev, tmp)))
+        print("1-hour 1 kHz log, a fix on every row (3.6 M fixes), placed and its chainage "
+              "written; target <= 1 s")  # fmt: skip
+        for name, src in cases:
+            r = every_row(src)
+            print(
+                f"  {name:>20}: {r['wall_s']:6.2f} s wall, {r['cpu_s']:6.2f} s CPU, "
+                f"+{r['added_mb']:5.0f} MB peak RSS; {r['n_considered']} of {r['n_fixes']} "
+                f"fixes projected; scale {r['scale']:.5f}, chainage error max "
+                f"{r['err_max_m']:.2f} m, median {r['err_median_m']:.2f} m"
+            )
+
+
 if __name__ == "__main__":
-    main()
+    if "--child" in sys.argv:
+        every_row_child()
+    else:
+        ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+        ap.add_argument("--before", help="git revision to run the every-row case on too")
+        ns = ap.parse_args()
+        main()
+        every_row_report(ns.before)

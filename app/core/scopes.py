@@ -2,8 +2,10 @@
 
 A key holds a set of scopes. ``read`` lets it read, ``write`` lets it upload and change
 ordinary data (runs, tracks, vehicles, limits, surveys), ``admin`` lets it destroy or
-rewrite history: every DELETE, editing a vehicle's parameters (its runs are reprocessed)
-and calibrating a vehicle (a calibration may be applied as a new vehicle version). The
+rewrite history: every DELETE, editing a vehicle's parameters (its runs are reprocessed),
+calibrating a vehicle (a calibration may be applied as a new vehicle version) and storing a
+track's centerline (it replaces the old line, kept nowhere, as a DELETE would, and decides
+where every later run of the track is placed). The
 scope a request needs is decided from its method and path alone, before its body is read
 (see :mod:`app.api.access`).
 """
@@ -26,6 +28,7 @@ READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 ADMIN_WRITES: tuple[tuple[str, re.Pattern[str]], ...] = (
     ("PATCH", re.compile(r"^/api/v1/vehicles/[^/]+$")),
     ("POST", re.compile(r"^/api/v1/vehicles/[^/]+/calibrate$")),
+    ("PUT", re.compile(r"^/api/v1/tracks/[^/]+/centerline$")),
 )
 """Writes other than DELETE that need ``admin``: (method, path pattern)."""
 

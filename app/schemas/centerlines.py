@@ -3,8 +3,83 @@
 from __future__ import annotations
 
 from datetime import datetime
+from typing import Any
 
 from pydantic import BaseModel, Field
+
+from engine.positioning import MAX_VERTICES
+
+_POSITION: dict[str, Any] = {
+    "type": "array",
+    "description": "[longitude, latitude] in WGS84 degrees (x before y: longitude -180 to 180, "
+    "latitude -90 to 90), an optional third value (height, m) ignored",
+    "items": {"type": "number", "minimum": -180, "maximum": 180},
+    "minItems": 2,
+    "maxItems": 3,
+}
+_LINE_STRING: dict[str, Any] = {
+    "type": "object",
+    "title": "LineString",
+    "required": ["type", "coordinates"],
+    "properties": {
+        "type": {"const": "LineString"},
+        "coordinates": {
+            "type": "array",
+            "items": _POSITION,
+            "minItems": 2,
+            "maxItems": MAX_VERTICES,
+            "description": "The vertices in order of chainage (at least two distinct ones; "
+            "the line may not cross itself)",
+        },
+    },
+}
+_FEATURE: dict[str, Any] = {
+    "type": "object",
+    "title": "Feature",
+    "required": ["type", "geometry"],
+    "properties": {
+        "type": {"const": "Feature"},
+        "geometry": _LINE_STRING,
+        "properties": {
+            "type": ["object", "null"],
+            "description": "Free properties; start_chainage_m (m) is the chainage of the "
+            "first vertex (else the query parameter, else 0)",
+            "properties": {"start_chainage_m": {"type": "number"}},
+        },
+    },
+}
+CENTERLINE_GEOJSON_SCHEMA: dict[str, Any] = {
+    "title": "CenterlineGeoJson",
+    "description": "A GeoJSON LineString in WGS84 [longitude, latitude], bare, as a Feature or "
+    "as a FeatureCollection of exactly one Feature. Its chainage starts at start_chainage_m "
+    "and grows with the geodesic length along the line.",
+    "oneOf": [
+        _LINE_STRING,
+        _FEATURE,
+        {
+            "type": "object",
+            "title": "FeatureCollection",
+            "required": ["type", "features"],
+            "properties": {
+                "type": {"const": "FeatureCollection"},
+                "features": {"type": "array", "items": _FEATURE, "minItems": 1, "maxItems": 1},
+            },
+        },
+    ],
+}
+"""The JSON body of ``PUT /tracks/{track}/centerline`` (documentation: the engine reads and
+checks it, naming the vertex at fault)."""
+
+CENTERLINE_CSV_SCHEMA: dict[str, Any] = {
+    "type": "string",
+    "title": "CenterlineCsv",
+    "description": "CSV text with a header naming chainage_m (or chainage), lat and lon (or "
+    "latitude, longitude, lng ...), then one vertex per line: chainage in m, strictly "
+    "increasing (a jump at a repeated point is a chainage equation) and within 5 % of the "
+    "line's geodesic length; latitude and longitude in WGS84 degrees. Example lines: "
+    "'chainage_m,lat,lon', '11900,50.0,10.0', '11950,50.00039,10.00026'.",
+}
+"""The CSV body of ``PUT /tracks/{track}/centerline``."""
 
 
 class CenterlinePublic(BaseModel):

@@ -298,10 +298,22 @@ class RunPositioningPublic(BaseModel):
     scale: float = Field(description="Odometer scale factor found (true / logged distance)")
     residual_rms_m: float = Field(description="RMS of the fit's residuals over the fixes used, m")
     n_fixes: int = Field(description="Fixes in the log")
+    n_considered: int | None = Field(
+        default=None,
+        description="Fixes projected onto the line: those of the log thinned to at most 10 a "
+        "second (GNSS receivers give no more; None: placed before thinning existed)",
+    )
     n_used: int = Field(description="Fixes the fit used")
-    n_rejected: int = Field(description="Fixes off the line or outliers of the fit")
-    offset_median_m: float = Field(description="Median lateral offset of the fixes used, m")
-    offset_p95_m: float = Field(description="95th percentile of the lateral offset, m")
+    n_rejected: int = Field(description="Fixes considered that were off the line or outliers")
+    offset_median_m: float = Field(description="Median distance of the fixes used from the line, m")
+    offset_p95_m: float = Field(description="95th percentile of that distance, m")
+    lateral_offset_m: float | None = Field(
+        default=None,
+        description="Median signed lateral offset of the fixes used, m: positive left of the "
+        "line, negative right of it, looking towards increasing chainage. A run whose offset "
+        "exceeds 3 m is refused as being on a neighbouring track (None: placed before this "
+        "was recorded)",
+    )
     pieces: int = Field(description="Pieces of the piecewise-linear odometer fit")
     knots_m: list[float] = Field(description="Odometer distances where the scale changes, m")
 

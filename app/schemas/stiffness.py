@@ -9,7 +9,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from .common import Name, StrictModel
 
@@ -97,8 +97,12 @@ class SurveyFields(StrictModel):
     @model_validator(mode="before")
     @classmethod
     def _blank_is_unset(cls, data: Any) -> Any:
+        # a blank form field is an unset option; the survey itself (csv) is never an option
         if isinstance(data, dict):
-            return {k: v for k, v in data.items() if not (isinstance(v, str) and not v.strip())}
+            return {
+                k: v for k, v in data.items()
+                if k not in SurveyFields.model_fields or not (isinstance(v, str) and not v.strip())
+            }  # fmt: skip
         return data
 
     @model_validator(mode="after")
@@ -115,6 +119,15 @@ class SurveyCreateJson(SurveyFields):
 
     csv: str = Field(description="The survey as CSV text: chainage_m,level_mm")
     filename: str | None = Field(default=None, max_length=255)
+
+    @field_validator("csv")
+    @classmethod
+    def _not_empty(cls, v: str) -> str:
+        if not v.strip():
+            raise ValueError(
+                "the survey CSV is empty: give its text, a header chainage_m,level_mm and rows"
+            )
+        return v
 
 
 class SurveyPublic(BaseModel):

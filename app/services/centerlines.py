@@ -15,9 +15,12 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Track, TrackCenterline
 from app.services.errors import Invalid, NotFound
+from engine.budget import TimeBudget
+from engine.errors import BudgetExceeded
 from engine.positioning import (
     Centerline,
     CenterlineError,
+    FixesBesideLine,
     FixesOffLine,
     Placement,
     PositioningError,
@@ -35,6 +38,21 @@ CONTENT_TYPES = GEOJSON_TYPES + CSV_TYPES
 
 def _invalid(exc: CenterlineError) -> Invalid:
     return Invalid(str(exc), field=exc.field or "body", row=exc.row, kind=type(exc).__name__)
+
+
+MAX_INT_DIGITS = 30
+"""Most digits of an integer in a centerline's JSON: degrees and metres need a handful; Python
+refuses to convert more than 4 300, and a 1 MB body could hold 250 000."""
+
+
+def _json_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INT_DIGITS:
+        raise Invalid(
+            f"the centerline's JSON holds an integer of {len(text.lstrip('-'))} digits (at "
+            f"most {MAX_INT_DIGITS}): coordinates are degrees and chainage is metres",
+            field="body",
+        )
+    return int(text)
 
 
 def read_centerline(
@@ -62,13 +80,19 @@ def read_centerline(
                 )
             return centerline_from_csv(text), "csv"
         try:
-            obj = json.loads(text)
+            obj = json.loads(text, parse_int=_json_int)
         except json.JSONDecodeError as exc:
             raise Invalid(
                 f"the centerline is not valid JSON: {exc.msg} at line {exc.lineno}, column "
                 f"{exc.colno}",
                 field="body",
                 row=exc.lineno,
+            ) from None
+        except RecursionError:
+            raise Invalid(
+                "the centerline's JSON is nested too deeply to read: a GeoJSON LineString is "
+                "at most four levels deep (FeatureCollection, Feature, coordinates, position)",
+                field="body",
             ) from None
         return centerline_from_geojson(obj, start_chainage_m), "geojson"
     except CenterlineError as exc:
@@ -167,20 +191,26 @@ class Placed:
     placement: Placement
 
 
-def place_by_gnss(log: RunLog, line: Centerline) -> Placed:
-    """Place a run on the track's centerline by its GNSS fixes.
+def place_by_gnss(log: RunLog, line: Centerline, budget: TimeBudget | None = None) -> Placed:
+    """Place a run on the track's centerline by its GNSS fixes (the caller holds a processing
+    slot: the fit's work is bounded, but it is a processing stage like the inversion).
 
     Raises
     ------
     Invalid
-        The fixes are missing, too few, too far off the line (``median_offset_m`` given) or do
-        not follow it (another line, the wrong track); nothing is stored.
+        The fixes are missing, too few, too far off the line (``median_offset_m`` given),
+        steadily beside it (``lateral_offset_m``: a neighbouring track) or do not follow it
+        (another line, the wrong track), or ``budget`` ran out; nothing is stored.
     """
     try:
-        placed, fit = place_log(log, line)
+        placed, fit = place_log(log, line, budget=budget)
     except PositioningError as exc:
         facts: dict[str, Any] = {"field": "file", "kind": type(exc).__name__}
         if isinstance(exc, FixesOffLine):
             facts["median_offset_m"] = round(exc.median_offset_m, 1)
+        if isinstance(exc, FixesBesideLine):
+            facts["lateral_offset_m"] = round(exc.lateral_offset_m, 1)
         raise Invalid(str(exc), **facts) from None
+    except BudgetExceeded as exc:
+        raise Invalid.from_engine(exc) from None
     return Placed(placed, fit)

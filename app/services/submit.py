@@ -26,6 +26,7 @@ from sqlalchemy.orm import Session
 from app.db.models import Run, RunInput, RunSignals, Track, Vehicle
 from app.schemas.common import url_name_problem
 from app.schemas.tracks import TrackParamsFields
+from engine.budget import TimeBudget
 from engine.errors import EngineError, LogFormatError
 from engine.pipeline import RunCheck, check_run
 from engine.runlog import RunLog
@@ -297,8 +298,13 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         track_name = track.name if track is not None else sub.track
         line = load_centerline(s, track.id) if track is not None else None
     if sub.start_chainage_m is None and line is not None and sub.log.lat_deg is not None:
-        # Positions from GNSS: the fixes and the odometer give start, direction and scale.
-        placed = place_by_gnss(sub.log, line)
+        # Positions from GNSS: the fixes and the odometer give start, direction and scale; a
+        # processing stage, so under a processing slot and the processing budget.
+        with ctx.slots:
+            budget = TimeBudget(
+                settings.processing_budget_s, "GNSS placement", "TRACKPROFILE_PROCESSING_BUDGET_S"
+            )
+            placed = place_by_gnss(sub.log, line, budget)
         assert placed.log.chainage_m is not None
         sub = dataclasses.replace(
             sub, log=placed.log, start_chainage_m=float(placed.log.chainage_m[0]),

@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
 
@@ -75,6 +76,18 @@ def parse_survey_csv(data: bytes) -> tuple[NDArray[np.float64], NDArray[np.float
     except UnicodeDecodeError:
         raise _bad("the survey is not UTF-8 text (a CSV with chainage_m,level_mm)") from None
     reader = csv.reader(io.StringIO(text))
+    try:
+        return _parse_rows(reader)
+    except csv.Error as exc:
+        # the csv module's own limits (a field over 128 KB, a NUL byte): no survey has them
+        raise _bad(
+            f"row {reader.line_num}: not a readable CSV row ({exc}); expected numbers "
+            "chainage_m,level_mm",
+            row=reader.line_num,
+        ) from None
+
+
+def _parse_rows(reader: Iterator[list[str]]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     header = next(reader, None)
     if header is None or not any(h.strip() for h in header):
         raise _bad("the survey is empty: expected a header chainage_m,level_mm and rows")

@@ -9,19 +9,31 @@
 from .centerline import MAX_VERTICES, Centerline, Located, geodesic_chainage
 from .errors import (
     CenterlineError,
+    FixesBesideLine,
     FixesDoNotFollowLine,
     FixesOffLine,
     NoFixes,
     PositioningError,
     TooFewFixes,
 )
-from .fit import MAX_OFFSET_M, MIN_FIXES, SCALE_RANGE, Placement, place_run
+from .fit import (
+    FIX_INTERVAL_S,
+    LATERAL_TOLERANCE_M,
+    MAX_FIXES,
+    MAX_OFFSET_M,
+    MIN_FIXES,
+    SCALE_RANGE,
+    Placement,
+    place_run,
+    thin_fixes,
+)
 from .formats import centerline_from_csv, centerline_from_geojson
 from .runs import place_log
 
 __all__ = [
-    "MAX_OFFSET_M", "MAX_VERTICES", "MIN_FIXES", "SCALE_RANGE", "CenterlineError", "Centerline",
+    "FIX_INTERVAL_S", "LATERAL_TOLERANCE_M", "MAX_FIXES", "MAX_OFFSET_M", "MAX_VERTICES",
+    "MIN_FIXES", "SCALE_RANGE", "CenterlineError", "Centerline", "FixesBesideLine",
     "FixesDoNotFollowLine", "FixesOffLine", "Located", "NoFixes", "Placement",
     "PositioningError", "TooFewFixes", "centerline_from_csv", "centerline_from_geojson",
-    "geodesic_chainage", "place_log", "place_run",
+    "geodesic_chainage", "place_log", "place_run", "thin_fixes",
 ]  # fmt: skip

@@ -40,10 +40,14 @@ class Located:
         Chainage of the nearest point of the line, m (NaN where the fix was NaN).
     offset_m : ndarray
         Distance from the line (lateral offset), m.
+    lateral_m : ndarray
+        Signed lateral offset, m: ``offset_m`` positive left of the line, negative right of
+        it, looking towards increasing chainage.
     """
 
     chainage_m: NDArray[np.float64]
     offset_m: NDArray[np.float64]
+    lateral_m: NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -165,15 +169,16 @@ class Centerline:
         Returns
         -------
         Located
-            ``chainage_m`` (m) and ``offset_m`` (m, >= 0).
+            ``chainage_m`` (m), ``offset_m`` (m, >= 0) and the signed ``lateral_m`` (m).
         """
         lon = np.asarray(lon_deg, dtype=np.float64).ravel()
         lat = np.asarray(lat_deg, dtype=np.float64).ravel()
         chain = np.full(lon.shape, np.nan)
         off = np.full(lon.shape, np.nan)
+        side = np.full(lon.shape, np.nan)
         ok = np.isfinite(lon) & np.isfinite(lat)
         if not ok.any():
-            return Located(chain, off)
+            return Located(chain, off, side)
         px, py = self.to_plane(lon[ok], lat[ok])
         pts = shapely.points(px, py)
         idx = self._tree.query_nearest(pts, all_matches=False)
@@ -187,8 +192,11 @@ class Centerline:
         u = np.clip(np.einsum("ij,ij->i", p - a, d) / length2, 0.0, 1.0)
         foot = a + u[:, None] * d
         off[ok] = np.hypot(*(p - foot).T)
+        # the cross product's sign: left of the segment's direction (= increasing chainage)
+        left = d[:, 0] * (p - a)[:, 1] - d[:, 1] * (p - a)[:, 0] >= 0
+        side[ok] = np.where(left, off[ok], -off[ok])
         chain[ok] = self.chainage_m[seg] + u * (self.chainage_m[seg + 1] - self.chainage_m[seg])
-        return Located(chain, off)
+        return Located(chain, off, side)
 
     def point_at(self, chainage_m: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Local metres (east, north) of the points at the given chainages (clipped to the

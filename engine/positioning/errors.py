@@ -53,6 +53,23 @@ class FixesOffLine(PositioningError):
         self.median_offset_m = median_offset_m
 
 
+class FixesBesideLine(FixesOffLine):
+    """The fixes follow the line, but steadily to one side of it: a neighbouring track.
+
+    Attributes
+    ----------
+    median_offset_m : float
+        Size of the steady offset, m.
+    lateral_offset_m : float
+        The median signed lateral offset, m (positive: left of the line looking towards
+        increasing chainage).
+    """
+
+    def __init__(self, message: str, *, median_offset_m: float, lateral_offset_m: float):
+        super().__init__(message, median_offset_m=median_offset_m)
+        self.lateral_offset_m = lateral_offset_m
+
+
 class FixesDoNotFollowLine(PositioningError):
     """The fixes are near the line but do not move along it as the odometer does (another
     line crossing or running close, a wrong track, or a broken speed signal)."""

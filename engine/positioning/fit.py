@@ -12,6 +12,10 @@ effective number of independent samples (GNSS errors wander: neighbouring fixes 
 independent). The fit is robust: a RANSAC start over pairs of fixes, then iteratively
 reweighted least squares with Huber weights; fixes farther than ``max_offset_m`` from the line
 are not used.
+
+The fixes are thinned to :data:`FIX_INTERVAL_S` (and at most :data:`MAX_FIXES`) before they are
+projected, so the work is bounded whatever the log's row rate: see :func:`thin_fixes` for why
+the fit loses nothing by it.
 """
 
 from __future__ import annotations
@@ -22,12 +26,28 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..budget import TimeBudget
 from .centerline import Centerline
-from .errors import FixesDoNotFollowLine, FixesOffLine, NoFixes, TooFewFixes
+from .errors import FixesBesideLine, FixesDoNotFollowLine, FixesOffLine, NoFixes, TooFewFixes
 
 MAX_OFFSET_M = 10.0
-"""Farthest a fix may lie from the centerline and still be used, m: GNSS error (1-3 m with a
-wandering bias) plus a parallel track (4-5 m away) stays inside; 50 m off does not."""
+"""Farthest a fix may lie from the centerline and still be used, m: single fixes of a run on
+the line stray this far (1-3 m GNSS error with a wandering bias, multipath outliers); whether
+the run as a whole is on this track is :data:`LATERAL_TOLERANCE_M`'s question."""
+
+LATERAL_TOLERANCE_M = 3.0
+"""Largest steady sideways offset of a run from the centerline, m: the median signed lateral
+offset of the fixes the fit used. Beyond it the run is refused as being on another track:
+neighbouring track centres are 3.4-5 m apart (4.0-4.5 m on most main lines), while a run on
+its own track is off by its GNSS bias (1-2 m for code GNSS; a short run sees one value of it)
+plus how far the centerline is drawn from the track's middle (it should be within a metre: a
+line drawn midway between two tracks, ~2 m from each, leaves little room for the bias)."""
+
+FIX_INTERVAL_S = 0.1
+"""Shortest time between two fixes the fit uses, s (10 Hz): see :func:`thin_fixes`."""
+
+MAX_FIXES = 40_000
+"""Most fixes one fit uses (an hour at 10 Hz fits): longer runs are thinned further."""
 
 MIN_FIXES = 10
 """Fewest fixes near the line a placement needs."""
@@ -77,12 +97,18 @@ class Placement:
         RMS of the residuals of the fixes used, m.
     n_fixes : int
         Fixes in the log.
+    n_considered : int
+        Fixes left after thinning to :data:`FIX_INTERVAL_S` (:func:`thin_fixes`): those
+        projected onto the line.
     n_used : int
         Fixes the fit used (near the line and following it).
     n_rejected : int
-        ``n_fixes - n_used``: off the line or outliers of the fit.
+        ``n_considered - n_used``: off the line or outliers of the fit.
     offset_median_m, offset_p95_m : float
-        Median and 95th percentile of the lateral offset of the fixes used, m.
+        Median and 95th percentile of the lateral offset (distance) of the fixes used, m.
+    lateral_offset_m : float
+        Median signed lateral offset of the fixes used, m: positive left of the line, negative
+        right of it, looking towards increasing chainage (a steady offset: another track).
     odo_span_m : tuple of float
         First and last odometer distance of the run, m.
     """
@@ -99,12 +125,18 @@ class Placement:
     n_rejected: int
     offset_median_m: float
     offset_p95_m: float
+    lateral_offset_m: float = 0.0
+    n_considered: int = 0
     odo_span_m: tuple[float, float] = field(default=(0.0, 0.0))
 
     def chainage(self, odo_m: ArrayLike) -> NDArray[np.float64]:
         """Chainage at odometer distances ``odo_m`` (m), m."""
         o = np.asarray(odo_m, dtype=np.float64)
-        return _design(o, self.knots_m) @ np.array([self.c0_m, self.slope, *self.slope_changes])
+        # a hinge at a time: a log's worth of samples times every knot would not fit in memory
+        c = self.c0_m + self.slope * o
+        for b, dk in zip(self.knots_m, self.slope_changes, strict=True):
+            c += dk * np.maximum(0.0, o - b)
+        return c
 
     def local_scale(self, odo_m: ArrayLike) -> NDArray[np.float64]:
         """``|dc/d(odo)|`` at odometer distances ``odo_m`` (m): the local odometer scale."""
@@ -123,10 +155,12 @@ class Placement:
             "scale": self.scale,
             "residual_rms_m": self.residual_rms_m,
             "n_fixes": self.n_fixes,
+            "n_considered": self.n_considered,
             "n_used": self.n_used,
             "n_rejected": self.n_rejected,
             "offset_median_m": self.offset_median_m,
             "offset_p95_m": self.offset_p95_m,
+            "lateral_offset_m": self.lateral_offset_m,
             "pieces": len(self.knots_m) + 1,
             "knots_m": list(self.knots_m),
         }
@@ -256,6 +290,55 @@ def _add_knots(
     return knots, beta, w
 
 
+def thin_fixes(
+    time_s: ArrayLike,
+    has_fix: ArrayLike,
+    *,
+    interval_s: float = FIX_INTERVAL_S,
+    max_fixes: int | None = MAX_FIXES,
+) -> NDArray[np.int64]:
+    """Indices of the fixes the fit uses: the first fix in each ``interval_s`` of time, the
+    interval widened so that at most ``max_fixes`` remain.
+
+    Why the fit loses nothing by it: GNSS receivers give at most 10-20 fixes a second, so a
+    log with a fix on every row (1 kHz) repeats or interpolates them; and what limits the fit
+    is the fixes' wandering bias (1-3 m, correlated over 10-30 s), not their number: at 10 Hz
+    the white part of the error averages to ~1.5 m / sqrt(n) (8 cm over a 1 km run at 30 m/s,
+    under 1 cm over an hour), far below the bias. The model's finest detail is a slope change every
+    :data:`MIN_PIECE_M` (2 km), searched on bins of a tenth of that (200 m): 10 Hz leaves 20
+    fixes per bin at 100 m/s, and :data:`MAX_FIXES` leaves 8 per bin on a 1 000 km run.
+
+    Parameters
+    ----------
+    time_s : array_like, shape (n,)
+        Sample times, s (increasing).
+    has_fix : array_like of bool, shape (n,)
+        Where the log has a fix.
+    interval_s : float
+        Shortest time between kept fixes, s (0: keep all).
+    max_fixes : int or None
+        Most fixes kept (None: no limit).
+
+    Returns
+    -------
+    ndarray of int
+        Sample indices of the kept fixes, increasing.
+    """
+    idx = np.flatnonzero(np.asarray(has_fix, dtype=bool))
+    if idx.size < 2:
+        return idx
+    t = np.asarray(time_s, dtype=np.float64)[idx]
+    span = float(t[-1] - t[0])
+    step = max(float(interval_s), span / max_fixes if max_fixes else 0.0)
+    if step <= 0:
+        return idx
+    # rounded, not floored: fixes exactly at the interval (a 10 Hz receiver) all stay, whatever
+    # the rounding of their times
+    bucket = np.rint((t - t[0]) / step).astype(np.int64)
+    first = np.concatenate([[True], bucket[1:] != bucket[:-1]])
+    return idx[first]
+
+
 def place_run(
     centerline: Centerline,
     time_s: ArrayLike,
@@ -264,6 +347,10 @@ def place_run(
     lon_deg: ArrayLike,
     *,
     max_offset_m: float = MAX_OFFSET_M,
+    lateral_tolerance_m: float = LATERAL_TOLERANCE_M,
+    fix_interval_s: float = FIX_INTERVAL_S,
+    max_fixes: int | None = MAX_FIXES,
+    budget: TimeBudget | None = None,
 ) -> Placement:
     """Fit a run's odometer to its GNSS fixes projected onto the centerline.
 
@@ -279,6 +366,12 @@ def place_run(
         Fixes, WGS84 degrees, NaN at samples without one.
     max_offset_m : float
         Farthest a fix may lie from the line and still be used, m.
+    lateral_tolerance_m : float
+        Largest median signed lateral offset of the fixes used, m (:data:`LATERAL_TOLERANCE_M`).
+    fix_interval_s, max_fixes : float, int or None
+        How the fixes are thinned before they are projected (:func:`thin_fixes`).
+    budget : TimeBudget, optional
+        Checked between the stages (projection, robust start, piecewise fit).
 
     Returns
     -------
@@ -296,31 +389,44 @@ def place_run(
     FixesDoNotFollowLine
         The fixes near the line do not advance along it as the odometer does (no fit with a
         scale within :data:`SCALE_RANGE` explains :data:`MIN_INLIER_FRACTION` of them).
+    FixesBesideLine
+        The fixes follow the line but a steady offset more than ``lateral_tolerance_m`` to
+        one side (a neighbouring track).
+    BudgetExceeded
+        ``budget`` ran out (checked between stages).
     """
     odo_all = np.asarray(odo_m, dtype=np.float64)
-    lat = np.asarray(lat_deg, dtype=np.float64)
-    lon = np.asarray(lon_deg, dtype=np.float64)
-    has = np.isfinite(lat) & np.isfinite(lon)
+    lat_all = np.asarray(lat_deg, dtype=np.float64)
+    lon_all = np.asarray(lon_deg, dtype=np.float64)
+    has = np.isfinite(lat_all) & np.isfinite(lon_all)
     n_fixes = int(has.sum())
     if n_fixes == 0:
         raise NoFixes(
             "the log has no GNSS fixes (its latitude and longitude columns are empty): give "
             "start_chainage_m, or fixes to place the run on the centerline"
         )
-    odo = odo_all[has]
-    loc = centerline.locate(lon[has], lat[has])
+    kept = thin_fixes(
+        np.asarray(time_s, dtype=np.float64), has, interval_s=fix_interval_s,
+        max_fixes=max_fixes,
+    )  # fmt: skip
+    odo, lat, lon = odo_all[kept], lat_all[kept], lon_all[kept]
+    n_considered = int(kept.size)
+    loc = centerline.locate(lon, lat)
+    if budget is not None:
+        budget.check("projecting the GNSS fixes onto the centerline")
     near = loc.offset_m <= max_offset_m
     median_off = float(np.median(loc.offset_m))
-    if near.sum() < MIN_INLIER_FRACTION * n_fixes:
+    if near.sum() < MIN_INLIER_FRACTION * n_considered:
         hint = ""
-        swapped = np.abs(lon[has]) <= 90.0
+        swapped = np.abs(lon) <= 90.0
         if swapped.all():
-            alt = centerline.locate(lat[has], lon[has])
+            alt = centerline.locate(lat, lon)
             if float(np.median(alt.offset_m)) <= max_offset_m:
                 hint = " (with latitude and longitude swapped they would fit: check the columns)"
         raise FixesOffLine(
             f"the run's GNSS fixes lie a median {median_off:.1f} m from the track's centerline "
-            f"(at most {max_offset_m:g} m expected; {int(near.sum())} of {n_fixes} fixes within "
+            f"(at most {max_offset_m:g} m expected; {int(near.sum())} of {n_considered} fixes "
+            f"within "
             f"it){hint}: is this the right track, and its centerline the right line?",
             median_offset_m=median_off,
         )
@@ -331,6 +437,8 @@ def place_run(
         )
     o, c = odo[near], loc.chainage_m[near]
     c0, k, count = _ransac(o, c)
+    if budget is not None:
+        budget.check("the robust start of the GNSS fit")
     if count < MIN_INLIER_FRACTION * o.size:
         k_free = float(np.polyfit(o, c, 1)[0]) if np.ptp(o) > 0 else 0.0
         raise FixesDoNotFollowLine(
@@ -341,6 +449,8 @@ def place_run(
             "line crossing or alongside, or the wrong track?"
         )
     knots, beta, w = _add_knots(o, c, np.array([c0, k]))
+    if budget is not None:
+        budget.check("the piecewise GNSS fit")
     slopes = np.cumsum(beta[1:])
     if np.any(np.sign(slopes) != np.sign(k)) or np.any(
         (np.abs(slopes) < SCALE_RANGE[0]) | (np.abs(slopes) > SCALE_RANGE[1])
@@ -357,6 +467,18 @@ def place_run(
     lengths = np.diff(edges)
     scale = float(np.sum(np.abs(slopes) * lengths) / max(np.sum(lengths), 1e-9))
     off_used = loc.offset_m[near][used]
+    lateral = float(np.median(loc.lateral_m[near][used]))
+    if abs(lateral) > lateral_tolerance_m:
+        side = "left" if lateral > 0 else "right"
+        raise FixesBesideLine(
+            f"the run's GNSS fixes follow the track's centerline but a steady "
+            f"{abs(lateral):.1f} m to its {side} (median over {int(used.sum())} fixes, looking "
+            f"towards increasing chainage; at most {lateral_tolerance_m:g} m expected): the "
+            "run looks to be on a neighbouring track. Upload it to that track, correct this "
+            "track's centerline, or give start_chainage_m to place it without GNSS",
+            median_offset_m=abs(lateral),
+            lateral_offset_m=lateral,
+        )
     return Placement(
         c0_m=float(beta[0]),
         slope=float(beta[1]),
@@ -367,8 +489,10 @@ def place_run(
         residual_rms_m=float(np.sqrt(np.mean(r * r))),
         n_fixes=n_fixes,
         n_used=int(used.sum()),
-        n_rejected=n_fixes - int(used.sum()),
+        n_rejected=n_considered - int(used.sum()),
         offset_median_m=float(np.median(off_used)),
         offset_p95_m=float(np.percentile(off_used, 95)),
+        lateral_offset_m=lateral,
+        n_considered=n_considered,
         odo_span_m=(lo, hi),
     )

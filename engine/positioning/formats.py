@@ -15,6 +15,13 @@ from ..logio.roles import role_aliases
 from .centerline import MAX_VERTICES, Centerline, geodesic_chainage
 from .errors import CenterlineError
 
+CHAINAGE_LENGTH_TOLERANCE = 0.05
+"""Largest relative difference between a CSV's chainage and the line's geodesic length (over
+the segments that have a length: a chainage equation is a jump at a repeated point). Surveyed
+chainage follows the ground length to well under 1 %, a polyline's chords shorten its curves
+by less than 0.5 %; beyond 5 % the column is in another unit or belongs to another line, and
+the odometer fit (scale 0.85-1.15) would otherwise absorb the difference unseen."""
+
 
 def _number(value: Any, what: str, row: int | None = None) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -135,11 +142,22 @@ def centerline_from_csv(text: str) -> Centerline:
     Raises
     ------
     CenterlineError
-        A missing column, a field that is not a number (naming the line), and every problem
-        :class:`Centerline` checks (lines are named as vertices, vertex 1 being line 2).
+        A missing column, a field that is not a number (naming the line), a row the csv
+        module cannot read (a field over its 128 KB limit), a chainage that departs from the
+        line's geodesic length by more than :data:`CHAINAGE_LENGTH_TOLERANCE`, and every
+        problem :class:`Centerline` checks (lines are named as vertices, vertex 1 being line 2).
     """
-    rows = list(csv.reader(io.StringIO(text.lstrip("\ufeff"))))
-    rows = [r for r in rows if r and any(c.strip() for c in r)]
+    reader = csv.reader(io.StringIO(text.lstrip("\ufeff")))
+    try:
+        rows = [r for r in reader if r and any(c.strip() for c in r)]
+    except csv.Error as exc:
+        # the csv module's own limits (a field over 128 KB, a NUL byte): no centerline has them
+        raise CenterlineError(
+            f"line {reader.line_num}: not a readable CSV row ({exc}); expected numbers "
+            "chainage_m,lat,lon",
+            field="body",
+            row=reader.line_num,
+        ) from None
     if not rows:
         raise CenterlineError("the CSV is empty: expected a header chainage_m,lat,lon", row=1)
     names = [c.strip() for c in rows[0]]
@@ -181,4 +199,22 @@ def centerline_from_csv(text: str) -> Centerline:
             "needs at least two",
             field="coordinates",
         )
-    return Centerline(out["lon"], out["lat"], out["chainage_m"])
+    line = Centerline(out["lon"], out["lat"], out["chainage_m"])
+    _check_chainage_length(line)
+    return line
+
+
+def _check_chainage_length(line: Centerline) -> None:
+    step = np.diff(geodesic_chainage(line.lon_deg, line.lat_deg))
+    moving = step > 0
+    length = float(step.sum())
+    along = float(np.diff(line.chainage_m)[moving].sum())
+    if abs(along / length - 1.0) > CHAINAGE_LENGTH_TOLERANCE:
+        raise CenterlineError(
+            f"the chainage_m column runs {along:.1f} m along the line but the line is "
+            f"{length:.1f} m long (geodesic, WGS84; jumps at repeated points, chainage "
+            f"equations, not counted): {100 * (along / length - 1):+.0f} %, beyond the "
+            f"{100 * CHAINAGE_LENGTH_TOLERANCE:.0f} % allowed. Is the chainage in metres, and "
+            "does it belong to this line?",
+            field="chainage_m",
+        )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..budget import TimeBudget
 from ..runlog import RunLog
 from .centerline import Centerline
 from .errors import NoFixes
@@ -11,7 +12,11 @@ from .fit import MAX_OFFSET_M, Placement, place_run
 
 
 def place_log(
-    log: RunLog, centerline: Centerline, *, max_offset_m: float = MAX_OFFSET_M
+    log: RunLog,
+    centerline: Centerline,
+    *,
+    max_offset_m: float = MAX_OFFSET_M,
+    budget: TimeBudget | None = None,
 ) -> tuple[RunLog, Placement]:
     """Place a run by its GNSS fixes: the log with its chainage column set from the fit.
 
@@ -28,6 +33,8 @@ def place_log(
         The track's centerline.
     max_offset_m : float
         Farthest a fix may lie from the line and still be used, m.
+    budget : TimeBudget, optional
+        Checked between the fit's stages.
 
     Returns
     -------
@@ -47,8 +54,9 @@ def place_log(
         )
     odo = log.distance()
     fit = place_run(
-        centerline, log.time_s, odo, log.lat_deg, log.lon_deg, max_offset_m=max_offset_m
-    )
+        centerline, log.time_s, odo, log.lat_deg, log.lon_deg, max_offset_m=max_offset_m,
+        budget=budget,
+    )  # fmt: skip
     speed = log.speed_mps * fit.local_scale(odo) if log.speed_mps is not None else None
     placed = dataclasses.replace(log, chainage_m=fit.chainage(odo), speed_mps=speed)
     return placed, fit

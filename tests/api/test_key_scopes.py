@@ -45,6 +45,8 @@ def _missing(r, scope: str) -> None:
         ("DELETE", "/api/v1/tracks/L/surveys/3", "admin"),
         ("PATCH", "/api/v1/vehicles/car", "admin"),
         ("POST", "/api/v1/vehicles/car/calibrate", "admin"),
+        ("PUT", "/api/v1/tracks/L/centerline", "admin"),  # one rule for storing and deleting
+        ("DELETE", "/api/v1/tracks/L/centerline", "admin"),
     ],
 )
 def test_each_request_needs_its_scope(method, path, scope) -> None:

@@ -15,8 +15,11 @@ import pytest
 
 from engine.logio import parse_run_csv
 from engine.positioning import (
+    LATERAL_TOLERANCE_M,
+    MAX_FIXES,
     Centerline,
     CenterlineError,
+    FixesBesideLine,
     FixesDoNotFollowLine,
     FixesOffLine,
     NoFixes,
@@ -25,6 +28,7 @@ from engine.positioning import (
     centerline_from_geojson,
     place_log,
     place_run,
+    thin_fixes,
 )
 from engine.synthetic import make_run
 from support.gnss import (
@@ -80,6 +84,9 @@ def test_locate_gives_chainage_and_lateral_offset(line: Centerline) -> None:
     got = line.locate(lon, lat)
     np.testing.assert_allclose(got.chainage_m, LINE_START_CHAINAGE_M + s, atol=0.02)
     np.testing.assert_allclose(got.offset_m, 3.0, atol=0.02)
+    np.testing.assert_allclose(got.lateral_m, 3.0, atol=0.02)  # left, looking up the chainage
+    right = line.locate(*to_lonlat(x + 3.0 * ty, y - 3.0 * tx))
+    np.testing.assert_allclose(right.lateral_m, -3.0, atol=0.02)
 
 
 def test_csv_centerline_with_explicit_chainage_and_an_equation() -> None:
@@ -120,6 +127,29 @@ def test_csv_chainage_must_grow_and_columns_must_be_there() -> None:
         centerline_from_csv("chainage_m,lat,lon\n0,50,10\n10,n/a,10\n")
 
 
+@pytest.mark.parametrize(("factor", "refused"), [(1.39, True), (0.9, True), (1.03, False)])
+def test_csv_chainage_far_from_the_line_length_is_refused_naming_both(
+    factor: float, refused: bool
+) -> None:
+    """A CSV whose chainage runs 39 % longer (or 10 % shorter) than the line's geodesic
+    length is refused naming both lengths; 3 % (within the 5 % tolerance) is kept, and so is
+    a 200 m chainage equation at a repeated point (not a length)."""
+    s = np.arange(0.0, 1000.0, 10.0)
+    lon, lat = to_lonlat(*plan_xy(s))
+    ch = factor * s
+    rows = [f"{c},{b:.9f},{a:.9f}" for c, a, b in zip(ch, lon, lat, strict=True)]
+    rows.insert(50, f"{ch[49] + 200.0},{lat[49]:.9f},{lon[49]:.9f}")  # the equation
+    after = zip(ch[50:], rows[51:], strict=True)
+    rows[51:] = [f"{c + 200.0},{r.split(',', 1)[1]}" for c, r in after]
+    text = "chainage_m,lat,lon\n" + "\n".join(rows) + "\n"
+    if refused:
+        with pytest.raises(CenterlineError, match=r"runs \d+\.\d m along.*is 990\.\d m long") as e:
+            centerline_from_csv(text)
+        assert e.value.field == "chainage_m"
+    else:
+        assert centerline_from_csv(text).end_chainage_m == pytest.approx(ch[-1] + 200.0)
+
+
 def test_two_start_chainages_that_disagree_are_refused() -> None:
     with pytest.raises(CenterlineError, match="given twice"):
         centerline_from_geojson(copy.deepcopy(FEATURE), start_chainage_m=0.0)
@@ -156,13 +186,72 @@ def test_noisy_fixes_with_outliers_and_decreasing_direction(line: Centerline) ->
     assert fit.scale == pytest.approx(1 / 0.994, abs=0.002)
 
 
-def test_fixes_on_a_parallel_track_place_the_run_on_this_line(line: Centerline) -> None:
-    """A run on the neighbouring track 4.5 m away: offsets ~4.5 m, chainage still right."""
+@pytest.mark.parametrize(("lateral_m", "side"), [(4.5, "left"), (-8.0, "right")])
+def test_fixes_on_a_neighbouring_track_are_refused_naming_offset_and_side(
+    line: Centerline, lateral_m: float, side: str
+) -> None:
+    """A run whose fixes lie a steady 4.5 m (the next track) or 8 m from the line is refused
+    beyond LATERAL_TOLERANCE_M, naming the offset and the side it lies on."""
     t, true = constant_run()
-    lat, lon = gnss_fixes(true, t, lateral_m=4.5, bias_m=0.0, seed=2)
+    lat, lon = gnss_fixes(true, t, lateral_m=lateral_m, bias_m=0.5, seed=2)
+    with pytest.raises(FixesBesideLine, match=rf"steady {abs(lateral_m):.0f}\.\d m to its {side}"):
+        place_run(line, t, 30.0 * t, lat, lon)
+    # a looser tolerance places it, the offset reported with its sign
+    fit = place_run(line, t, 30.0 * t, lat, lon, lateral_tolerance_m=10.0)
+    assert fit.lateral_offset_m == pytest.approx(lateral_m, abs=0.6)
+
+
+def test_a_run_on_the_line_with_a_biased_gnss_is_placed(line: Centerline) -> None:
+    """A run on this track, its centerline drawn 1 m off the rails' middle and its GNSS
+    biased by a steady ~1 m (a 33 s run sees one value of a bias wandering over 30 s): within
+    LATERAL_TOLERANCE_M, placed, the offset reported with its sign."""
+    t, true = constant_run()
+    lat, lon = gnss_fixes(true, t, lateral_m=-1.0, bias_m=1.0, seed=2)
     fit = place_run(line, t, 30.0 * t, lat, lon)
-    assert 3.0 < fit.offset_median_m < 6.0
-    assert np.max(np.abs(fit.chainage(30.0 * t) - true)) < 0.6
+    assert -LATERAL_TOLERANCE_M < fit.lateral_offset_m < -1.0
+    assert np.max(np.abs(fit.chainage(30.0 * t) - true)) < 3.0  # the bias's along-track part
+
+
+@pytest.mark.parametrize("receiver_hz", [10.0, 500.0])
+def test_thinning_fixes_leaves_the_placement_unchanged(
+    line: Centerline, receiver_hz: float
+) -> None:
+    """A fix on every row of a 500 Hz log, with a wandering bias, 1.5 m white noise and 2 %
+    outliers: from a 10 Hz receiver held on every row (what a logger writes), and with noise
+    of its own on every row (the most thinning to 10 Hz can throw away). The placement from
+    the thinned fixes stays within 0.15 m / 0.3 m of the one from every fix over the whole run
+    (the placement's own error against the truth is metres here: the bias), the scale within
+    the same tolerance per 500 m (the run is 1 km) and the lateral offset within 0.2 m."""
+    t, true = constant_run()
+    lat, lon = gnss_fixes(true, t, rate_hz=receiver_hz, white_m=1.5, bias_m=1.0, seed=7)
+    rng = np.random.default_rng(7)
+    bad = np.isfinite(lon) & (rng.random(t.size) < 0.02)
+    lon[bad] += rng.normal(0.0, 3e-4, int(bad.sum()))  # ~20 m east-west outliers
+    fix = np.flatnonzero(np.isfinite(lat))
+    held = fix[np.searchsorted(fix, np.arange(t.size), side="right") - 1]
+    lat, lon = lat[held], lon[held]
+    odo = 0.995 * 30.0 * t
+    every = place_run(line, t, odo, lat, lon, fix_interval_s=0.0, max_fixes=None)
+    thinned = place_run(line, t, odo, lat, lon)
+    assert every.n_considered == every.n_fixes == t.size
+    assert thinned.n_considered == pytest.approx(t.size / 50, rel=0.01)
+    tolerance = 0.15 if receiver_hz == 10.0 else 0.3
+    assert np.max(np.abs(thinned.chainage(odo) - every.chainage(odo))) < tolerance
+    assert thinned.scale == pytest.approx(every.scale, abs=tolerance / 500.0)
+    assert thinned.lateral_offset_m == pytest.approx(every.lateral_offset_m, abs=0.2)
+
+
+def test_thin_fixes_keeps_a_10_hz_receiver_whole_and_caps_the_count() -> None:
+    """Fixes at exactly 10 Hz all stay (time rounding does not drop any); an hour of fixes on
+    every row of a 1 kHz log becomes 36 000; MAX_FIXES bounds a longer run."""
+    t = np.arange(0.0, 60.0, 0.001)
+    every_100th = np.zeros(t.size, bool)
+    every_100th[::100] = True
+    assert thin_fixes(t, every_100th).size == 600
+    hour = np.arange(0.0, 3600.0, 0.001)
+    assert thin_fixes(hour, np.ones(hour.size, bool)).size in (36_000, 36_001)  # both ends
+    ten_hours = np.arange(0.0, 36_000.0, 0.05)
+    assert thin_fixes(ten_hours, np.ones(ten_hours.size, bool)).size <= MAX_FIXES + 1
 
 
 def test_a_scale_change_along_a_long_run_is_fitted_piecewise() -> None:
@@ -216,7 +305,8 @@ def test_fixes_of_another_line_crossing_this_one_do_not_follow_it(line: Centerli
     near = np.abs(d) < 8.0
     lat2, lon2 = np.where(near, lat, np.nan), np.where(near, lon, np.nan)
     with pytest.raises(FixesDoNotFollowLine, match="do not follow the centerline"):
-        place_run(line, t, 30.0 * t, lat2, lon2)
+        # every one of the half second's fixes (thinned to 10 Hz they would be too few)
+        place_run(line, t, 30.0 * t, lat2, lon2, fix_interval_s=0.0)
 
 
 def test_no_fixes_and_too_few_fixes(line: Centerline) -> None:

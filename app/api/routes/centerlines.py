@@ -12,7 +12,11 @@ from fastapi.responses import JSONResponse
 from app.api.deps import CtxDep, SessionDep
 from app.core.errors import ApiError
 from app.db.models import TrackCenterline
-from app.schemas.centerlines import CenterlinePublic
+from app.schemas.centerlines import (
+    CENTERLINE_CSV_SCHEMA,
+    CENTERLINE_GEOJSON_SCHEMA,
+    CenterlinePublic,
+)
 from app.services.centerlines import (
     CONTENT_TYPES,
     as_geojson,
@@ -46,9 +50,9 @@ CENTERLINE_BODY_DOC: dict[str, Any] = {
         "chainage_m,lat,lon with the chainage of every vertex. At most the body limit "
         "(TRACKPROFILE_MAX_BODY_KB).",
         "content": {
-            "application/geo+json": {"schema": {"type": "object"}},
-            "application/json": {"schema": {"type": "object"}},
-            "text/csv": {"schema": {"type": "string"}},
+            "application/geo+json": {"schema": CENTERLINE_GEOJSON_SCHEMA},
+            "application/json": {"schema": CENTERLINE_GEOJSON_SCHEMA},
+            "text/csv": {"schema": CENTERLINE_CSV_SCHEMA},
         },
     }
 }

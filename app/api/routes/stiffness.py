@@ -171,6 +171,7 @@ SURVEY_BODY_DOC: dict[str, Any] = {
             "multipart/form-data": {
                 "schema": {
                     "type": "object",
+                    "additionalProperties": False,
                     "required": ["file", "wheel_load_n"],
                     "properties": {
                         "file": {"type": "string", "format": "binary"},
