@@ -64,6 +64,19 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+def _failure_facts(exc: Exception, doing: str) -> dict[str, Any]:
+    """What a job that failed records: an engine error by its facts, anything else as an
+    internal error with the exception's message (its cause, for whoever reads the job)."""
+    if isinstance(exc, EngineError):
+        return engine_error_facts(exc)
+    cause = str(exc)[:500]
+    return {
+        "message": f"internal error while {doing} ({type(exc).__name__}"
+        + (f": {cause})" if cause else ")"),
+        "kind": "InternalError",
+    }
+
+
 class Heartbeat:
     """Refreshes a claim (a run's, or a calibration's) every ``interval`` seconds until stopped."""
 
@@ -257,7 +270,14 @@ class Worker:
             self.checkpoint_when_idle()
             return False
         with self.ctx.slots:
-            self.calibrate(cal_id)
+            try:
+                self.calibrate(cal_id)
+            except Exception as exc:
+                # a failure outside the fit (its inputs, storing it) would otherwise repeat at
+                # every retry and end as "interrupted repeatedly", its cause lost
+                log.exception("calibration %s failed", cal_id)
+                with self.ctx.db.session() as s:
+                    self._fail_calibration(s, cal_id, _failure_facts(exc, "calibrating"))
         self.ctx.memory.busy()
         return True
 
@@ -333,7 +353,11 @@ class Worker:
                 )  # fmt: skip
                 return
             request = dict(cal.request)
-            vp, version, runs, t_from, t_to = calibration_inputs(s, cal)
+            try:
+                vp, version, runs, t_from, t_to = calibration_inputs(s, cal)
+            except EngineError as exc:  # e.g. a stored load that makes no vehicle
+                self._fail_calibration(s, cal_id, engine_error_facts(exc))
+                return
 
         def fit() -> dict[str, Any]:
             with Heartbeat(
@@ -377,10 +401,7 @@ class Worker:
             facts = engine_error_facts(exc)
         except Exception as exc:
             log.exception("%s %s failed", doing, job_id)
-            facts = {
-                "message": f"internal error while {doing} ({type(exc).__name__})",
-                "kind": "InternalError",
-            }
+            facts = _failure_facts(exc, doing)
         with self.ctx.db.session() as s:
             fail(s, job_id, facts)
         return None
