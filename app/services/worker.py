@@ -29,6 +29,7 @@ from app.services.errors import engine_error_facts
 from engine.errors import EngineError
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
+from engine.vehicle_plausibility import ImplausibleResult
 
 from .calibration import (
     calibration_inputs,
@@ -548,12 +549,15 @@ class Worker:
         )
 
     def _fail(self, s: Session, run_id: int, detail: dict[str, Any]) -> None:
+        # A run that had a result (reprocessed after a vehicle edit), or whose result the
+        # vehicle made implausible, keeps its log: restoring the vehicle must bring it back.
+        had_result = s.scalar(select(Run.vehicle_version).where(Run.id == run_id)) is not None
         failed = _rowcount(
             s,
             update(Run)
             .where(Run.id == run_id, Run.claimed_by == self.id, Run.status == "processing")
             .values(status="failed", stage=None, error=detail, processed_at=utcnow()),
         )
-        if failed == 1:
+        if failed == 1 and not had_result and detail.get("kind") != ImplausibleResult.__name__:
             s.execute(delete(RunInput).where(RunInput.run_id == run_id))
         s.commit()
