@@ -9,8 +9,9 @@ were computed with (``Run.vehicle_version``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 from sqlalchemy import delete, func, select, update
 from sqlalchemy.exc import IntegrityError
@@ -24,6 +25,8 @@ from engine.vehicle_plausibility import check_vehicle, implausibilities, vehicle
 from .errors import Conflict, Invalid, NotFound
 from .integrate import remove_run_from_track
 from .profiles import delete_profile
+
+T = TypeVar("T")
 
 
 def checked_params(params: dict[str, Any], field: str = "params") -> VehicleParams:
@@ -128,6 +131,46 @@ def reprocess_vehicle_runs(session: Session, vehicle_id: int) -> int:
         )  # fmt: skip
         session.expire_all()
     return len(ids)
+
+
+def reprocessing_left(session: Session, track_id: int) -> int:
+    """Runs of the track being processed again after a vehicle edit (they had a result)."""
+    return int(
+        session.scalar(
+            select(func.count())
+            .select_from(Run)
+            .where(
+                Run.track_id == track_id,
+                Run.status == "processing",
+                Run.vehicle_version.is_not(None),
+            )
+        )
+        or 0
+    )
+
+
+def require_settled(session: Session, track_id: int, what: str) -> None:
+    """:class:`Conflict` (``status`` "updating") while a vehicle edit reprocesses runs of
+    the track: its aggregate, register and separation are then rebuilt run by run, and a
+    reader would see a mixture of old and new results (a defect's level flipping)."""
+    left = reprocessing_left(session, track_id)
+    if left:
+        raise Conflict(
+            f"the track is updating: a vehicle edit is reprocessing its runs ({left} left); "
+            f"its {what} is answered once the new state is complete, read again in a few "
+            "seconds",
+            status="updating",
+            runs_left=left,
+        )
+
+
+def read_settled(session: Session, track_id: int, what: str, read: Callable[[], T]) -> T:
+    """``read()`` of a track's derived data, refused (:func:`require_settled`) when a
+    reprocessing was under way before or after it: never a half-rebuilt state."""
+    require_settled(session, track_id, what)
+    out = read()
+    require_settled(session, track_id, what)
+    return out
 
 
 def edit_vehicle(

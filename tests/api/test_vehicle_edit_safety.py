@@ -194,3 +194,55 @@ def test_failed_calibration_stores_its_cause(client: TestClient, three_runs, mon
     assert cal["status"] == "failed"
     assert "the stored runs could not be read" in cal["error"]["message"]
     assert "RuntimeError" in cal["error"]["message"]
+
+
+@pytest.mark.slow
+def test_reads_during_a_reprocessing_storm_never_see_a_mixture(client: TestClient) -> None:
+    """12 runs of one track reprocessed by a vehicle edit while 8 threads make 200 reads of
+    the track's profile, register and stiffness: every answer is the complete new state or
+    says the track is updating (409, status "updating"; a stiffness answer may also be the
+    state before its separation with updating true), never a half-rebuilt one; at least one
+    read fell inside the rebuild (the test would see a mixture if there were one)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    runs = []
+    for i in range(12):
+        run = make_run(length=120.0, zones=[SoftZone(60.0, 64.0, 0.5)], speed=22.0 + i % 4,
+                       start_chainage_m=10.0, jitter=0.03, sensor=REALISTIC_SENSOR,
+                       seed=40 + i)  # fmt: skip
+        buf = io.StringIO()
+        write_run_csv(run.log, buf, digits=8)
+        runs.append({"csv": buf.getvalue().encode(), "start": 10.0})
+    ids = []
+    for i, r in enumerate(runs):
+        when = f"2026-02-{i + 1:02d}T08:00:00"
+        resp = upload(client, r["csv"], track="line-a", vehicle="table1",
+                      start_chainage_m=r["start"], recorded_at=when)  # fmt: skip
+        assert resp.status_code in (200, 201), resp.text
+        ids.append(resp.json()["id"])
+    _settled(client, ids)
+    paths = ("profile", "defects", "stiffness")
+    r = client.patch(f"{V}/table1", json={"params": {"ms": 17500}})
+    assert r.status_code == 200, r.text
+
+    def read(k: int) -> tuple[str, int, Any]:
+        path = paths[k % 3]
+        resp = client.get(f"/api/v1/tracks/line-a/{path}")
+        return path, resp.status_code, resp.json()
+
+    with ThreadPoolExecutor(8) as pool:
+        answers = list(pool.map(read, range(200)))
+    _settled(client, ids)
+    time.sleep(0.5)  # the last run's separation, done after its commit
+    new = {p: client.get(f"/api/v1/tracks/line-a/{p}").json() for p in paths}
+    assert new["defects"], "the soft zone is in the new register"
+    updating = 0
+    for path, status, body in answers:
+        if status == 409:
+            assert body["detail"]["status"] == "updating", body
+            updating += 1
+        elif path == "stiffness" and body["updating"]:
+            updating += 1
+        else:
+            assert (status, body) == (200, new[path]), path
+    assert updating > 0
