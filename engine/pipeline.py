@@ -21,6 +21,7 @@ from .runlog import RunLog
 from .stiffness import fit_zone
 from .track import TrackParams
 from .vehicle import TABLE1, VehicleParams
+from .vehicle_plausibility import check_result
 from .wheel_force import dynamic_wheel_forces, force_spectrum
 
 Method = Literal["spectral", "filtered-direct", "least-squares", "direct"]
@@ -54,6 +55,10 @@ class ProcessConfig:
         Soft-spot thresholds.
     fit_stiffness : bool
         Fit each zone's extent and stiffness loss with the static beam model.
+    check_result : bool
+        Refuse a result beyond what a track can show
+        (:func:`~engine.vehicle_plausibility.check_result`). Off only to score methods
+        that are known to drift (benchmarks comparing candidates).
     """
 
     method: Method = "spectral"
@@ -63,6 +68,7 @@ class ProcessConfig:
     taper: float = 0.3
     detection: DetectionConfig = field(default_factory=DetectionConfig)
     fit_stiffness: bool = True
+    check_result: bool = True
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -261,7 +267,9 @@ def process_run(
     Raises
     ------
     InversionError
-        If the log is too short for the band, too slow, or its sampling too coarse.
+        If the log is too short for the band, too slow, or its sampling too coarse;
+        :class:`~engine.vehicle_plausibility.ImplausibleResult` if the level or a dip lies
+        beyond what any track can show under the vehicle (its parameters are wrong).
     BudgetExceeded
         If ``budget`` is spent before the result is complete.
     """
@@ -313,6 +321,9 @@ def process_run(
     load = 0.5 * (loads[0] + loads[1])
     spots = _soft_spots(grid, residual, dips, cfg, trk, load)
     spent("the soft-spot detection")
+    # a wrong vehicle turns into dips no track can have: fail rather than report them
+    if cfg.check_result:
+        check_result(fused, baseline, [s.depth_mm for s in spots], vehicle, trk)
     geometry_check = is_smooth_rail(robust_sigma(residual))
     if not geometry_check.smooth:
         # a dip may be rail geometry: depth only, never a stiffness-loss figure

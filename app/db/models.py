@@ -108,8 +108,9 @@ class Vehicle(Base):
         return {name: float(getattr(self, name)) for name in VEHICLE_PARAM_NAMES}
 
 
-VERSION_SOURCES = ("created", "manual", "calibration")
-"""What made a vehicle version: registration, a manual edit, an applied calibration."""
+VERSION_SOURCES = ("created", "manual", "calibration", "restore")
+"""What made a vehicle version: registration, a manual edit, an applied calibration, an
+earlier version restored."""
 
 
 class VehicleVersion(Base):

@@ -50,6 +50,11 @@ else:
 
 PARAM_NAMES = tuple(VehicleParamsSchema.model_fields)
 
+BODY_MASS_BOUNDS: tuple[float, float] = next(
+    f.metadata["bounds"] for f in dataclasses.fields(VehicleParams) if f.name == "ms"
+)
+"""Physical range of a body mass, kg (the engine's ``VehicleParams.ms``)."""
+
 
 class VehicleCreate(StrictModel):
     """A new vehicle: a name and its parameters, nested in ``params`` or given at top level."""
@@ -116,6 +121,31 @@ class VehicleEdit(StrictModel):
     note: str | None = Field(default=None, max_length=2000, description="Why (kept with it)")
 
 
+class VehicleEditPreview(BaseModel):
+    """What an edit would do (``PATCH ...?dry_run=true``); nothing was stored."""
+
+    dry_run: Literal[True] = True
+    vehicle: str
+    version: int = Field(description="The version the edit would make")
+    params: dict[str, float] = Field(description="The parameters after the edit, SI")
+    changes: dict[str, tuple[float, float]] = Field(
+        description="Each parameter that would change: [now, after]"
+    )
+    runs_reprocessed: int = Field(description="Runs that would be processed again")
+    plausible: bool = Field(description="Whether the vehicle would be plausible as a whole")
+    problems: list[str] = Field(description="Why it is not (empty when it is)")
+    quantities: dict[str, float] = Field(
+        description="Derived quantities judged: gyration_ratio, bounce_hz, pitch_hz, "
+        "axle_hop_*_hz, deflection_*_mm (static suspension), wheel_load_*_kn (static)"
+    )
+
+
+class VehicleRestore(StrictModel):
+    """Why an earlier version is restored (optional)."""
+
+    note: str | None = Field(default=None, max_length=2000, description="Why (kept with it)")
+
+
 class VehicleVersionPublic(BaseModel):
     """One parameter set a vehicle has had."""
 
@@ -123,7 +153,7 @@ class VehicleVersionPublic(BaseModel):
 
     version: int
     params: dict[str, float] = Field(description="VehicleParams fields, SI")
-    source: str = Field(description="created, manual or calibration")
+    source: str = Field(description="created, manual, calibration or restore")
     calibration_id: int | None
     created_by: str | None = Field(description="API key name or 'automatic'")
     note: str | None
@@ -154,8 +184,9 @@ class CalibrateRequest(StrictModel):
         description="Make a significant result the vehicle's next version and reprocess its runs",
     )
     load_kg: float | None = Field(
-        default=None, gt=0, allow_inf_nan=False,
-        description="Known body mass (load/tare figure), kg: the only way to change m_s",
+        default=None, ge=BODY_MASS_BOUNDS[0], le=BODY_MASS_BOUNDS[1], allow_inf_nan=False,
+        description=f"Known body mass (load/tare figure), kg, {BODY_MASS_BOUNDS[0]:g} to "
+        f"{BODY_MASS_BOUNDS[1]:g} (the body mass's physical range): the only way to change m_s",
     )  # fmt: skip
 
 

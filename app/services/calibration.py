@@ -23,11 +23,12 @@ from engine.calibration import CalibrationConfig, CalibrationRun, calibrate
 from engine.errors import ParameterError
 from engine.health import HealthAlert, ParameterEstimate, health_alerts
 from engine.vehicle import VehicleParams
+from engine.vehicle_plausibility import VehicleImplausible, implausibilities
 
 from .errors import Conflict, Invalid, NotFound
 from .loads import declared_body_mass
 from .logs import unpack_log
-from .vehicles import new_version
+from .vehicles import checked_params, new_version
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +81,9 @@ def request_calibration(
         A calibration of this vehicle is already queued or running.
     """
     _config(fit, load_kg)  # checked now, so a bad request changes nothing
+    if load_kg is not None:
+        # the body mass must make a vehicle with the rest (and lie in its own range)
+        checked_params(vehicle.params_dict() | {"ms": load_kg}, field="load_kg")
     if run_ids is not None:
         if not run_ids:
             raise Invalid(
@@ -268,6 +272,8 @@ def store_calibration(
                 f"not applied: the vehicle changed meanwhile (version {base_version} -> "
                 f"{vehicle.version}); calibrate again"
             )
+        elif found := implausibilities(VehicleParams.from_dict(result["params"])):
+            result["apply_note"] = "not applied: " + VehicleImplausible(found).args[0]
         else:
             params = VehicleParams.from_dict(result["params"])
             version, queued = new_version(

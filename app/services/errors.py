@@ -87,6 +87,9 @@ def engine_error_facts(exc: EngineError) -> dict[str, Any]:
             detail["row"] = exc.row
     if isinstance(exc, ParameterError) and exc.field is not None:
         detail["field"] = exc.field
+    quantity = getattr(exc, "quantity", None)
+    if quantity is not None:  # a derived quantity out of range (whole-vehicle plausibility)
+        detail["quantity"] = quantity
     if isinstance(exc, BudgetExceeded):
         detail["limit_s"] = exc.budget_s
     detail["kind"] = type(exc).__name__

@@ -23,6 +23,7 @@ Units: chainage in m (aligned), levels and geometry in mm, forces in N, complian
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -43,6 +44,7 @@ from app.db.models import (
     TrackStiffnessSpot,
     Vehicle,
 )
+from engine.errors import EngineError
 from engine.separation import NOT_SEPARABLE_MESSAGE, Pass, SeparationResult, separate
 from engine.track import TrackParams
 
@@ -80,6 +82,8 @@ UPDATING = (
 """What is said while a window's separation waits (``StiffnessWindow.updating``)."""
 
 _DTYPE = np.dtype("<f4")
+
+log = logging.getLogger(__name__)
 
 
 def run_stiffness_basis(single_pass_valid: bool | None) -> tuple[str | None, str | None]:
@@ -154,6 +158,11 @@ def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[P
         fv[at : at + CHUNK_POINTS] = np.where(np.isfinite(part), float(load), np.nan)
     out = []
     for (kind, pid), (lv, fv) in sorted(passes.items()):
+        # A wheel force that is not a compression (a pass stored under a vehicle that was not
+        # plausible) cannot be separated: its points are left out, not the whole stretch, so
+        # that removing any pass (a run deleted, a vehicle restored) always succeeds.
+        with np.errstate(invalid="ignore"):
+            fv[~(fv > 0)] = np.nan
         fv[~np.isfinite(lv)] = np.nan
         lv[~np.isfinite(fv)] = np.nan
         if np.isfinite(lv).any():
@@ -229,14 +238,21 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
         i0 = r_lo * CHUNK_POINTS
         n = (r_hi - r_lo + 1) * CHUNK_POINTS
         grid = (i0 + np.arange(n, dtype=np.float64)) * GRID_STEP_M
-        res = separate(
-            [
-                Pass(chainage_m=grid, level_mm=p.level_mm, force_n=p.force_n, kind=p.kind,
-                     label=p.label)
-                for p in passes
-            ],
-            params,
-        )  # fmt: skip
+        try:
+            res = separate(
+                [
+                    Pass(chainage_m=grid, level_mm=p.level_mm, force_n=p.force_n, kind=p.kind,
+                         label=p.label)
+                    for p in passes
+                ],
+                params,
+            )  # fmt: skip
+        except EngineError:
+            # the stretch is left without a separation rather than failing the change that
+            # asked for it (a run's delete, a store): the next change there tries again
+            log.warning("separation of track %s chunks %d-%d failed", track_id, a, b,
+                        exc_info=True)  # fmt: skip
+            continue
         cols = {name: _on_grid(res, name, i0, n) for name in STIFFNESS_ARRAYS}
         cols["n_passes"] = np.nan_to_num(cols["n_passes"], nan=0.0)
         rows = []

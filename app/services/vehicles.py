@@ -9,27 +9,36 @@ were computed with (``Run.vehicle_version``).
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, TypeVar
 
-from sqlalchemy import delete, select, update
+from sqlalchemy import delete, func, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, RunInput, SoftSpot, Vehicle, VehicleVersion
 from engine.errors import ParameterError
 from engine.vehicle import VehicleParams
+from engine.vehicle_plausibility import check_vehicle, implausibilities, vehicle_quantities
 
-from .errors import Conflict, Invalid
+from .errors import Conflict, Invalid, NotFound
 from .integrate import remove_run_from_track
 from .profiles import delete_profile
 
+T = TypeVar("T")
+
 
 def checked_params(params: dict[str, Any], field: str = "params") -> VehicleParams:
-    """The engine's vehicle from a parameter mapping; Invalid naming the parameter otherwise."""
+    """The engine's vehicle from a parameter mapping, plausible as a whole
+    (:func:`engine.vehicle_plausibility.check_vehicle`); Invalid naming the parameter, or
+    the derived quantity out of range, otherwise."""
     try:
-        return VehicleParams.from_dict(params)
+        vp = VehicleParams.from_dict(params)
+        check_vehicle(vp, field=field)
     except ParameterError as exc:
         raise Invalid.from_engine(exc, field=field) from None
+    return vp
 
 
 def create_vehicle(
@@ -124,6 +133,46 @@ def reprocess_vehicle_runs(session: Session, vehicle_id: int) -> int:
     return len(ids)
 
 
+def reprocessing_left(session: Session, track_id: int) -> int:
+    """Runs of the track being processed again after a vehicle edit (they had a result)."""
+    return int(
+        session.scalar(
+            select(func.count())
+            .select_from(Run)
+            .where(
+                Run.track_id == track_id,
+                Run.status == "processing",
+                Run.vehicle_version.is_not(None),
+            )
+        )
+        or 0
+    )
+
+
+def require_settled(session: Session, track_id: int, what: str) -> None:
+    """:class:`Conflict` (``status`` "updating") while a vehicle edit reprocesses runs of
+    the track: its aggregate, register and separation are then rebuilt run by run, and a
+    reader would see a mixture of old and new results (a defect's level flipping)."""
+    left = reprocessing_left(session, track_id)
+    if left:
+        raise Conflict(
+            f"the track is updating: a vehicle edit is reprocessing its runs ({left} left); "
+            f"its {what} is answered once the new state is complete, read again in a few "
+            "seconds",
+            status="updating",
+            runs_left=left,
+        )
+
+
+def read_settled(session: Session, track_id: int, what: str, read: Callable[[], T]) -> T:
+    """``read()`` of a track's derived data, refused (:func:`require_settled`) when a
+    reprocessing was under way before or after it: never a half-rebuilt state."""
+    require_settled(session, track_id, what)
+    out = read()
+    require_settled(session, track_id, what)
+    return out
+
+
 def edit_vehicle(
     session: Session,
     vehicle: Vehicle,
@@ -142,6 +191,105 @@ def edit_vehicle(
     if params.to_dict() == vehicle.params_dict():
         raise Invalid("the parameters given are the vehicle's current ones", field="params")
     out = new_version(session, vehicle, params, source="manual", created_by=created_by, note=note)
+    session.commit()
+    return out
+
+
+def runs_to_reprocess(session: Session, vehicle_id: int) -> int:
+    """How many runs a new version of the vehicle would reprocess (those with a stored log)."""
+    return int(
+        session.scalar(
+            select(func.count())
+            .select_from(Run)
+            .join(RunInput, RunInput.run_id == Run.id)
+            .where(Run.vehicle_id == vehicle_id)
+        )
+        or 0
+    )
+
+
+@dataclass(frozen=True)
+class EditPreview:
+    """What an edit would do, stored nothing (``PATCH ...?dry_run=true``)."""
+
+    params: dict[str, float]
+    """The vehicle's parameters after the edit, SI."""
+    changes: dict[str, tuple[float, float]]
+    """Each parameter that changes: (now, after)."""
+    version: int
+    """The version the edit would make."""
+    runs_reprocessed: int
+    plausible: bool
+    problems: list[str]
+    """Why the parameters are not a plausible vehicle (empty when they are)."""
+    quantities: dict[str, float]
+    """The derived quantities judged (engine.vehicle_plausibility.RANGES)."""
+
+
+def preview_edit(session: Session, vehicle: Vehicle, changes: dict[str, Any]) -> EditPreview:
+    """What :func:`edit_vehicle` would do with ``changes``; nothing is stored.
+
+    A parameter out of its own range is still Invalid (there is no vehicle to judge); a
+    vehicle that is implausible as a whole is answered with ``plausible`` False and why.
+    """
+    if not changes:
+        raise Invalid("give at least one parameter to change", field="params")
+    try:
+        vp = VehicleParams.from_dict({**vehicle.params_dict(), **changes})
+    except ParameterError as exc:
+        raise Invalid.from_engine(exc, field="params") from None
+    now, after = vehicle.params_dict(), vp.to_dict()
+    found = implausibilities(vp)
+    return EditPreview(
+        params=after,
+        changes={k: (now[k], v) for k, v in after.items() if now.get(k) != v},
+        version=vehicle.version + 1,
+        runs_reprocessed=runs_to_reprocess(session, vehicle.id),
+        plausible=not found,
+        problems=[f.message for f in found],
+        quantities=vehicle_quantities(vp),
+    )
+
+
+def restore_version(
+    session: Session,
+    vehicle: Vehicle,
+    version: int,
+    *,
+    created_by: str | None = None,
+    note: str | None = None,
+) -> tuple[int, int]:
+    """Make an earlier version's parameters the vehicle's next version (its runs are
+    reprocessed with them). Commits; returns ``(version, runs queued)``.
+
+    What the versions in between produced does not matter: their results are replaced.
+    Restoring the parameters the vehicle has now changes nothing (``(current, 0)``).
+
+    Raises
+    ------
+    NotFound
+        No such version of this vehicle.
+    Invalid
+        The version's parameters are not a plausible vehicle (one stored before the checks).
+    """
+    row = session.scalar(
+        select(VehicleVersion).where(
+            VehicleVersion.vehicle_id == vehicle.id, VehicleVersion.version == version
+        )
+    )
+    if row is None:
+        raise NotFound(
+            f"vehicle {vehicle.name!r} has no version {version} (it is at version "
+            f"{vehicle.version})",
+            field="version",
+        )
+    params = checked_params(dict(row.params))
+    if params.to_dict() == vehicle.params_dict():
+        return vehicle.version, 0
+    out = new_version(
+        session, vehicle, params, source="restore", created_by=created_by,
+        note=note or f"restored version {version}",
+    )  # fmt: skip
     session.commit()
     return out
 

@@ -29,6 +29,7 @@ from app.services.errors import engine_error_facts
 from engine.errors import EngineError
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
+from engine.vehicle_plausibility import ImplausibleResult
 
 from .calibration import (
     calibration_inputs,
@@ -62,6 +63,19 @@ def _pid_alive(pid: int) -> bool:
     except PermissionError:
         return True
     return True
+
+
+def _failure_facts(exc: Exception, doing: str) -> dict[str, Any]:
+    """What a job that failed records: an engine error by its facts, anything else as an
+    internal error with the exception's message (its cause, for whoever reads the job)."""
+    if isinstance(exc, EngineError):
+        return engine_error_facts(exc)
+    cause = str(exc)[:500]
+    return {
+        "message": f"internal error while {doing} ({type(exc).__name__}"
+        + (f": {cause})" if cause else ")"),
+        "kind": "InternalError",
+    }
 
 
 class Heartbeat:
@@ -257,7 +271,14 @@ class Worker:
             self.checkpoint_when_idle()
             return False
         with self.ctx.slots:
-            self.calibrate(cal_id)
+            try:
+                self.calibrate(cal_id)
+            except Exception as exc:
+                # a failure outside the fit (its inputs, storing it) would otherwise repeat at
+                # every retry and end as "interrupted repeatedly", its cause lost
+                log.exception("calibration %s failed", cal_id)
+                with self.ctx.db.session() as s:
+                    self._fail_calibration(s, cal_id, _failure_facts(exc, "calibrating"))
         self.ctx.memory.busy()
         return True
 
@@ -333,7 +354,11 @@ class Worker:
                 )  # fmt: skip
                 return
             request = dict(cal.request)
-            vp, version, runs, t_from, t_to = calibration_inputs(s, cal)
+            try:
+                vp, version, runs, t_from, t_to = calibration_inputs(s, cal)
+            except EngineError as exc:  # e.g. a stored load that makes no vehicle
+                self._fail_calibration(s, cal_id, engine_error_facts(exc))
+                return
 
         def fit() -> dict[str, Any]:
             with Heartbeat(
@@ -377,10 +402,7 @@ class Worker:
             facts = engine_error_facts(exc)
         except Exception as exc:
             log.exception("%s %s failed", doing, job_id)
-            facts = {
-                "message": f"internal error while {doing} ({type(exc).__name__})",
-                "kind": "InternalError",
-            }
+            facts = _failure_facts(exc, doing)
         with self.ctx.db.session() as s:
             fail(s, job_id, facts)
         return None
@@ -527,12 +549,15 @@ class Worker:
         )
 
     def _fail(self, s: Session, run_id: int, detail: dict[str, Any]) -> None:
+        # A run that had a result (reprocessed after a vehicle edit), or whose result the
+        # vehicle made implausible, keeps its log: restoring the vehicle must bring it back.
+        had_result = s.scalar(select(Run.vehicle_version).where(Run.id == run_id)) is not None
         failed = _rowcount(
             s,
             update(Run)
             .where(Run.id == run_id, Run.claimed_by == self.id, Run.status == "processing")
             .values(status="failed", stage=None, error=detail, processed_at=utcnow()),
         )
-        if failed == 1:
+        if failed == 1 and not had_result and detail.get("kind") != ImplausibleResult.__name__:
             s.execute(delete(RunInput).where(RunInput.run_id == run_id))
         s.commit()

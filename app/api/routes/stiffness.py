@@ -26,6 +26,7 @@ from app.services.context import AppContext
 from app.services.stiffness import UPDATING, stiffness_with_vehicles
 from app.services.submit import clean_filename
 from app.services.surveys import SurveyInput, create_survey, delete_survey, get_survey, list_surveys
+from app.services.vehicles import read_settled
 
 from .lookup import get_track
 
@@ -66,7 +67,10 @@ def read_track_stiffness(
     """
     trk = get_track(session, track)
     from_m, to_m = window.from_m, window.to_m
-    sep = stiffness_with_vehicles(session, trk.id, from_m, to_m)
+    sep = read_settled(
+        session, trk.id, "stiffness",
+        lambda: stiffness_with_vehicles(session, trk.id, from_m, to_m),
+    )  # fmt: skip
     cols = sep.columns
     if format == "csv":
         lines = []

@@ -34,6 +34,7 @@ from app.services.register import (
     track_register,
 )
 from app.services.report import REPORT_CSP
+from app.services.vehicles import read_settled, require_settled
 from engine.register import Defect, Limits
 
 from .lookup import get_track
@@ -65,9 +66,13 @@ def read_aggregated_profile(
     """
     trk = get_track(session, track)
     if format == "csv":
+        require_settled(session, trk.id, "profile")
         csv = exports.track_profile_csv(ctx, trk.id, window)
         return csv_answer(csv, f"track-{trk.id}-profile.csv")
-    payload = aggregated_profile_view(session, trk, window, max_points)
+    payload = read_settled(
+        session, trk.id, "profile",
+        lambda: aggregated_profile_view(session, trk, window, max_points),
+    )  # fmt: skip
     return Response(orjson.dumps(payload), media_type="application/json")
 
 
@@ -109,7 +114,7 @@ def read_defects(
     depth and stiffness loss, their trends per month, status and priority from the track's
     limits; most urgent first (priority, then depth)."""
     trk = get_track(session, track)
-    defects = track_register(session, trk.id)
+    defects = read_settled(session, trk.id, "register", lambda: track_register(session, trk.id))
     return _defects_answer(
         session, trk.id, defects, format, include == "history", f"track-{trk.id}-defects.csv"
     )
@@ -133,7 +138,7 @@ def read_alerts(
     trk = get_track(session, track)
     defects = [
         d
-        for d in track_register(session, trk.id)
+        for d in read_settled(session, trk.id, "register", lambda: track_register(session, trk.id))
         if d.level is not None and d.level_since is not None and d.level_since >= when
     ]
     return _defects_answer(
@@ -186,7 +191,7 @@ def read_report(
     profile and the defects, the top defects, the limits and the runs. No scripts, no
     external resources: it can be saved, mailed or printed as it is."""
     trk = get_track(session, track)
-    html = exports.track_report(session, trk, top)
+    html = read_settled(session, trk.id, "report", lambda: exports.track_report(session, trk, top))
     disposition = "attachment" if download else "inline"
     return HTMLResponse(
         html,

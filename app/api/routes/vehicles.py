@@ -1,11 +1,12 @@
 """Vehicles: ``GET/POST /api/v1/vehicles``, ``GET/PATCH /api/v1/vehicles/{vehicle}`` (id or
-name), parameter versions, calibrations from the vehicle's runs, suspension health."""
+name), parameter versions and restoring one, calibrations from the vehicle's runs, suspension
+health."""
 
 from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Path, Query
 from sqlalchemy import func, select
 
 from app.api.convert import calibration_public, vehicle_public
@@ -20,9 +21,11 @@ from app.schemas.vehicles import (
     HealthPointPublic,
     VehicleCreate,
     VehicleEdit,
+    VehicleEditPreview,
     VehicleHealthPublic,
     VehicleParamsSchema,
     VehiclePublic,
+    VehicleRestore,
     VehiclesPublic,
     VehicleVersionPublic,
     VehicleVersionsPublic,
@@ -81,15 +84,57 @@ def read_vehicle(session: SessionDep, vehicle: str) -> VehiclePublic:
     return vehicle_public(get_vehicle(session, vehicle))
 
 
-@router.patch("/{vehicle}", response_model=VehiclePublic)
+@router.patch("/{vehicle}", response_model=VehiclePublic | VehicleEditPreview)
 def edit_vehicle(
-    ctx: CtxDep, session: SessionDep, vehicle: str, body: VehicleEdit, caller: CallerDep
-) -> VehiclePublic:
-    """Change some parameters by hand: a new version; the vehicle's runs are reprocessed."""
+    ctx: CtxDep,
+    session: SessionDep,
+    vehicle: str,
+    body: VehicleEdit,
+    caller: CallerDep,
+    dry_run: Annotated[
+        bool, Query(description="Answer what the edit would do; store nothing")
+    ] = False,
+) -> VehiclePublic | VehicleEditPreview:
+    """Change some parameters by hand: a new version; the vehicle's runs are reprocessed.
+
+    422 naming the parameter, or the derived quantity (``quantity``), when the vehicle would
+    not be physically plausible as a whole. With ``dry_run=true`` nothing is stored: the
+    answer says which parameters would change, how many runs would be reprocessed and
+    whether the vehicle would be plausible (and why not)."""
     v = get_vehicle(session, vehicle)
+    if dry_run:
+        p = vehicles.preview_edit(session, v, body.params)
+        return VehicleEditPreview(
+            vehicle=v.name, version=p.version, params=p.params, changes=p.changes,
+            runs_reprocessed=p.runs_reprocessed, plausible=p.plausible, problems=p.problems,
+            quantities=p.quantities,
+        )  # fmt: skip
     _, queued = vehicles.edit_vehicle(
         session, v, body.params, created_by=caller_name(session, caller), note=body.note
     )
+    if queued:
+        ctx.wake_worker()
+    session.refresh(v)
+    return vehicle_public(v)
+
+
+@router.post("/{vehicle}/versions/{version}/restore", response_model=VehiclePublic)
+def restore_version(
+    ctx: CtxDep,
+    session: SessionDep,
+    vehicle: str,
+    version: Annotated[int, Path(ge=1, le=2**31 - 1)],
+    caller: CallerDep,
+    body: VehicleRestore | None = None,
+) -> VehiclePublic:
+    """Make an earlier version's parameters current again (as a new version) and reprocess
+    the vehicle's runs with them, whatever the versions between produced; 404 for a version
+    the vehicle never had. Restoring the current parameters changes nothing."""
+    v = get_vehicle(session, vehicle)
+    _, queued = vehicles.restore_version(
+        session, v, version, created_by=caller_name(session, caller),
+        note=None if body is None else body.note,
+    )  # fmt: skip
     if queued:
         ctx.wake_worker()
     session.refresh(v)
