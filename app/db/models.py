@@ -226,6 +226,9 @@ class Run(Base):
     # GNSS placement (issue 11): engine.positioning.Placement.to_dict(); None when the run was
     # placed by its start chainage.
     positioning: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    # What the run could see: engine.results.DetectionLimit.to_dict() (smallest detectable
+    # stiffness loss per zone length); None until processed.
+    detection_limit: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     # Retention: when the run's detail (profile, signals, log) was removed; NULL = kept.
     detail_expired_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
 

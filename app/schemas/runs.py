@@ -272,6 +272,23 @@ class RunPositioningPublic(BaseModel):
     knots_m: list[float] = Field(description="Odometer distances where the scale changes, m")
 
 
+class DetectionLimitPublic(BaseModel):
+    """What one pass could see: the smallest stiffness loss its detector finds per zone length.
+
+    A zone that weak makes a dip as deep as the pass's detection threshold (found about half
+    the time); weaker zones are not seen. The threshold is the detector's own (5 robust
+    standard deviations of the pass's residual profile, at least 0.06 mm): the sensor noise
+    the inversion measured, and rail geometry where the rail has it.
+    """
+
+    zone_length_m: list[float] = Field(description="Zone lengths, m")
+    min_loss_pct: list[float | None] = Field(
+        description="Smallest detectable stiffness loss for each length, % of nominal; null "
+        "where even a 95 % loss would not reach the threshold"
+    )
+    threshold_mm: float = Field(description="The pass's detection threshold (dip depth), mm")
+
+
 class RunPublic(BaseModel):
     """A stored run: metadata, processing state, quality indicators."""
 
@@ -329,6 +346,11 @@ class RunPublic(BaseModel):
     )
     stiffness_message: str | None = Field(
         default=None, description="Plain words when the run's dips cannot be read as stiffness"
+    )
+    detection_limit: DetectionLimitPublic | None = Field(
+        default=None,
+        description="What this pass could see: the smallest stiffness loss it can detect "
+        "for 3 m and 6 m zones, from its own noise (null until processed)",
     )
     content_hash: str
     options: dict[str, Any]
