@@ -37,7 +37,7 @@ RUN_STATUSES = ("processing", "done", "failed")
 RUN_STAGES = ("queued", "inverting", "storing")
 """What a ``processing`` run is doing: waiting for a worker, in the engine, being written."""
 
-ALIGNMENT_STATUSES = ("reference", "aligned", "unaligned")
+ALIGNMENT_STATUSES = ("reference", "aligned", "placed", "unaligned")
 """How a processed run sits on its track's chainage: the reference of its stretch (nothing was
 there before it, offset 0), aligned to the track's aggregated profile, or not alignable (kept
 as logged and left out of the aggregate and the register). NULL: not processed yet."""

@@ -236,7 +236,7 @@ class RunError(BaseModel):
     kind: str | None = None
 
 
-AlignmentStatus = Literal["reference", "aligned", "unaligned"]
+AlignmentStatus = Literal["reference", "aligned", "placed", "unaligned"]
 
 
 class RunAlignmentPublic(BaseModel):
@@ -244,8 +244,9 @@ class RunAlignmentPublic(BaseModel):
 
     status: AlignmentStatus = Field(
         description="reference (first data on its stretch, offset 0), aligned (offset found by "
-        "cross-correlation with the track's aggregated profile) or unaligned (no trustworthy "
-        "match: kept as logged, left out of the track's aggregate and register)"
+        "cross-correlation with the track's aggregated profile), placed (no trustworthy "
+        "match yet: joined the track's aggregate and register at its logged chainage, aligned "
+        "again as the track gains passes) or unaligned (no profile to place)"
     )
     offset_m: float = Field(description="Offset added to the run's logged chainage, m")
     correlation: float | None = Field(
