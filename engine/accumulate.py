@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .align import align_profiles
+from .align import Alignment, align_profiles
 from .detect import DetectionConfig, find_dips, robust_baseline, robust_sigma
 from .errors import ParameterError
 from .geometry_check import is_smooth_rail
@@ -127,21 +127,30 @@ class CombinedNoise:
     halves : bool
         Whether the noise was measured by split halves (False with one pass: the pass's own
         spread is used).
+    roughness_mm : float
+        Spread of what the two halves share, mm: the rail's own level (support scatter,
+        geometry) and the method's errors common to every pass, from the robust covariance
+        of the halves' means (noise does not correlate between them). 0 with one pass.
     """
 
     noise_mm: NDArray[np.float64]
     scale: float
     halves: bool
+    roughness_mm: float = 0.0
 
 
 def combined_noise(res: NDArray[np.float64], sigma: NDArray[np.float64]) -> CombinedNoise:
     """Measured noise of the inverse-variance weighted mean of the residuals ``res``
     (passes x points, mm) of passes with noise ``sigma`` (mm).
 
-    The passes are dealt into two halves of about equal weight (alternately, from the least
-    noisy); per point the difference of the halves' means times ``sqrt(W1 W2) / (W1 + W2)``
-    (``W`` the sums of weights there) has the variance of the full mean's error if the
-    weights are right, and ``scale`` corrects them by its measured spread.
+    The passes, in the order given (recording order), are cut into an earlier and a later
+    half of about equal weight; per point the difference of the halves' means times
+    ``sqrt(W1 W2) / (W1 + W2)`` (``W`` the sums of weights there) has the variance of the
+    full mean's error if the weights are right and the passes' errors independent, and
+    ``scale`` corrects that by its measured spread. Passes close in time that share an error
+    (one vehicle's campaign, one season) stay on one side, so the error they share is
+    measured too and the noise falls more slowly than ``1/sqrt(N)``, as it does. An error
+    common to every pass cannot be told from the track by any split.
     """
     w = 1.0 / sigma**2
     _, sw = weighted_mean(res, w)
@@ -149,20 +158,24 @@ def combined_noise(res: NDArray[np.float64], sigma: NDArray[np.float64]) -> Comb
         with np.errstate(divide="ignore"):
             noise = np.where(sw > 0, sigma[0] * np.ones(res.shape[1]), np.nan)
         return CombinedNoise(noise, 1.0, False)
-    order = np.argsort(sigma)
-    half = np.zeros(res.shape[0], dtype=bool)
-    half[order[::2]] = True
+    cum = np.cumsum(w)
+    half = cum - 0.5 * w <= 0.5 * cum[-1]
+    if half.all() or not half.any():
+        half = np.arange(res.shape[0]) < res.shape[0] // 2 + (res.shape[0] % 2)
     m1, w1 = weighted_mean(res[half], w[half])
     m2, w2 = weighted_mean(res[~half], w[~half])
     both = (w1 > 0) & (w2 > 0)
-    scale = 1.0
+    scale, rough = 1.0, 0.0
     if both.sum() >= 40:
         with np.errstate(invalid="ignore", divide="ignore"):
             u = (m1 - m2) * np.sqrt(w1 * w2) / (w1 + w2) * np.sqrt(w1 + w2)
         scale = robust_sigma(u[both])
+        # 4 cov(m1, m2) = var(m1 + m2) - var(m1 - m2), each spread robust to the zones
+        cov4 = robust_sigma((m1 + m2)[both]) ** 2 - robust_sigma((m1 - m2)[both]) ** 2
+        rough = math.sqrt(max(cov4, 0.0) / 4.0)
     with np.errstate(divide="ignore"):
         noise = np.where(sw > 0, scale / np.sqrt(sw), np.nan)
-    return CombinedNoise(noise, float(scale), True)
+    return CombinedNoise(noise, float(scale), True, rough)
 
 
 @dataclass(frozen=True)
@@ -213,8 +226,10 @@ class AggregateDetection:
         Depth a dip needs per point, mm.
     pass_noise_mm : ndarray
         Each pass's measured noise, mm.
+    roughness_mm : float
+        Spread of what every pass shares (:attr:`CombinedNoise.roughness_mm`), mm.
     smooth : bool
-        Whether the combined residual is smooth rail (losses fitted) or not.
+        Whether that roughness is smooth rail (losses fitted) or not.
     spots : list of AggregateSpot
         What was found, by chainage.
     """
@@ -224,6 +239,7 @@ class AggregateDetection:
     noise: CombinedNoise
     threshold_mm: NDArray[np.float64]
     pass_noise_mm: NDArray[np.float64]
+    roughness_mm: float
     smooth: bool
     spots: list[AggregateSpot]
 
@@ -254,7 +270,8 @@ def detect_on_aggregate(
         Nominal rail and supports (for the loss fit).
     config : DetectionConfig, optional
         Detector settings: a dip needs ``noise_factor`` times the combined level's measured
-        noise at its place, and at least ``min_depth_mm``.
+        noise at its place and the rail's own roughness (root sum of squares), and at least
+        ``min_depth_mm``.
     lambda_min_m, lambda_max_m : float
         Band of the levels, m.
 
@@ -277,7 +294,11 @@ def detect_on_aggregate(
     sigma = pass_noise(lv, step, cfg.baseline_window_m)
     mean, _ = weighted_mean(res, 1.0 / sigma**2)
     noise = combined_noise(res, sigma)
-    thr = np.maximum(cfg.min_depth_mm, cfg.noise_factor * noise.noise_mm)
+    # a dip must stand out of the noise and of the rail's own roughness (what every pass
+    # shares), as a single pass's dip must stand out of its residual's whole spread: the
+    # noise falls with passes, the roughness stays
+    roughness = noise.roughness_mm
+    thr = np.maximum(cfg.min_depth_mm, cfg.noise_factor * np.sqrt(noise.noise_mm**2 + roughness**2))
     # the detector's own threshold is one number: scaling the residual by min_depth / thr(x)
     # makes "below -min_depth" mean "below -thr(x)" at every point
     with np.errstate(invalid="ignore"):
@@ -287,10 +308,8 @@ def detect_on_aggregate(
         noise_factor=1e-12, min_length_m=cfg.min_length_m, edge_m=cfg.edge_m,
     )  # fmt: skip
     dips, _ = find_dips(grid, scaled, flat)
-    # the rail's own roughness in the mean: its spread less the measured noise's share (a
-    # noisy mean of smooth rail is smooth rail)
-    spread, nz = robust_sigma(mean), float(np.nanmedian(noise.noise_mm))
-    smooth = bool(is_smooth_rail(math.sqrt(max(spread**2 - nz**2, 0.0))).smooth)
+    # a noisy mean of smooth rail is smooth rail: the roughness decides
+    smooth = bool(is_smooth_rail(roughness).smooth)
     fitted: list[tuple[float, float, float, float]] = []
     if dips and smooth and load_n is not None:
         # the single-pass fit and merge of overlapping zones, on the combined residual
@@ -315,7 +334,7 @@ def detect_on_aggregate(
             j for j in covering if float(np.nanmean(res[j, inside])) <= 0.5 * m_all
         )  # fmt: skip
         spots.append(AggregateSpot(a, b, peak, depth, loss, sig, supporting, covering))
-    return AggregateDetection(grid, mean, noise, thr, sigma, smooth, spots)
+    return AggregateDetection(grid, mean, noise, thr, sigma, roughness, smooth, spots)
 
 
 def align_to_others(
@@ -326,22 +345,30 @@ def align_to_others(
     *,
     max_shift_m: float = 10.0,
     min_z: float = MIN_Z,
-) -> tuple[float, float]:
+) -> tuple[float, float, bool]:
     """Offset of pass ``j`` against the weighted mean of the other passes (levels on
-    ``grid``, passes x points, mm), and the correlation's significance; offset 0 when it is
-    below ``min_z`` or the search found no peak inside ``+-max_shift_m``."""
+    ``grid``, passes x points, mm), the correlation's significance and whether the offset is
+    trusted (:func:`trusted`; offset 0 when not)."""
     others = np.ones(levels_mm.shape[0], dtype=bool)
     others[j] = False
     ref, _ = weighted_mean(levels_mm[others], weights[others])
     own = levels_mm[j]
     if np.isfinite(ref).sum() < 8 or np.isfinite(own).sum() < 8:
-        return 0.0, float("nan")
-    al = align_profiles(grid, ref, grid, own, max_shift_m=max_shift_m, min_correlation=-1.0)
-    z = al.z_score
-    edge = "edge" in al.reason
-    if edge or not math.isfinite(z) or z < min_z:
-        return 0.0, float(z)
-    return float(al.offset_m), float(z)
+        return 0.0, float("nan"), False
+    al = align_profiles(grid, ref, grid, own, max_shift_m=max_shift_m)
+    if not trusted(al, min_z=min_z):
+        return 0.0, float(al.z_score), False
+    return float(al.offset_m), float(al.z_score), True
+
+
+def trusted(al: Alignment, *, min_z: float = MIN_Z, min_overlap_m: float = 60.0) -> bool:
+    """Whether an offset found by :func:`engine.align.align_profiles` can be used: a clear
+    correlation (``al.ok``), or a peak inside the search (not at its edge, over at least
+    ``min_overlap_m``) significant at ``min_z``."""
+    if al.ok:
+        return True
+    inside = "edge" not in al.reason and al.overlap_m >= min_overlap_m
+    return inside and math.isfinite(al.z_score) and al.z_score >= min_z
 
 
 def accumulate(
@@ -405,9 +432,9 @@ def accumulate(
         w = 1.0 / pass_noise(levels, step_m, window_m) ** 2
         new = offsets.copy()
         for j in range(n):
-            off, z = align_to_others(grid, levels, w, j, max_shift_m=max_shift_m, min_z=min_z)
+            off, z, ok = align_to_others(grid, levels, w, j, max_shift_m=max_shift_m, min_z=min_z)
             zs[j] = z
-            aligned[j] = math.isfinite(z) and z >= min_z
+            aligned[j] = ok
             new[j] = offsets[j] + off
         # the frame: the logged starts' mean is the best estimate of the true one
         new -= new.mean()

@@ -65,9 +65,10 @@ def correlation_z(x: NDArray[np.float64], y: NDArray[np.float64], max_lag: int =
 
     Two unrelated series of ``n`` samples correlate by chance with a standard deviation of
     ``sqrt((1 + 2 sum_k rho_x(k) rho_y(k)) / n)`` (Bartlett), ``rho`` their own
-    autocorrelations: smooth (band-limited) profiles have few independent samples, so the
-    same correlation means less on them. Measured on the two series, nothing assumed of their
-    noise.
+    autocorrelations: smooth (band-limited) profiles have few independent samples ``n_eff``,
+    so the same correlation means less on them. Returned as Fisher's ``atanh(r)
+    sqrt(n_eff - 3)`` (equal to ``r / sd`` for weak correlations, and not capped near 1).
+    Measured on the two series, nothing assumed of their noise.
     """
     ok = np.isfinite(x) & np.isfinite(y)
     xm, ym = x[ok] - x[ok].mean(), y[ok] - y[ok].mean()
@@ -78,7 +79,9 @@ def correlation_z(x: NDArray[np.float64], y: NDArray[np.float64], max_lag: int =
     r = float(np.dot(xm, ym)) / den
     k = min(max_lag, n // 4)
     var = (1.0 + 2.0 * float(np.dot(_autocorrelation(xm, k), _autocorrelation(ym, k)))) / n
-    return r / math.sqrt(max(var, 1.0 / n))
+    n_eff = 1.0 / max(var, 1.0 / n)
+    # Fisher's transform: near |r| = 1 the plain r / sd saturates at sqrt(n_eff)
+    return math.atanh(min(max(r, -0.999999), 0.999999)) * math.sqrt(max(n_eff - 3.0, 1.0))
 
 
 def align_profiles(

@@ -26,8 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
-from engine.accumulate import MIN_Z
-from engine.align import Alignment, align_profiles
+from engine.accumulate import MIN_Z, trusted
+from engine.align import align_profiles
 from engine.chainage import GRID_STEP_M
 from engine.detect import robust_baseline, robust_sigma
 from engine.errors import EngineError
@@ -108,15 +108,6 @@ def own_spread(level_mm: NDArray[np.float64]) -> float:
     """Robust spread of a profile's residual against its 40 m baseline, mm (grid step
     :data:`GRID_STEP_M`)."""
     return robust_sigma(level_mm - robust_baseline(level_mm, GRID_STEP_M, 40.0))
-
-
-def trusted(al: Alignment) -> bool:
-    """Whether an offset found by :func:`engine.align.align_profiles` can be used: a clear
-    correlation, or a peak inside the search significant at :data:`MIN_Z`."""
-    if al.ok:
-        return True
-    inside = "edge" not in al.reason and al.overlap_m >= MIN_OVERLAP_M
-    return inside and math.isfinite(al.z_score) and al.z_score >= MIN_Z
 
 
 def grid_index_range(lo_m: float, hi_m: float) -> tuple[int, int]:
@@ -252,7 +243,7 @@ def align_to_track(
             "placed", 0.0, None, None, PLACED_REASON.format(why=why, shift=MAX_SHIFT_M)
         )
     corr = float(al.correlation) if math.isfinite(al.correlation) else None
-    if not trusted(al):
+    if not trusted(al, min_overlap_m=MIN_OVERLAP_M):
         why = al.reason
         z = al.z_score if math.isfinite(al.z_score) else 0.0
         spread = own_spread(own)

@@ -147,8 +147,8 @@ def realign_placed(session: Session, track_id: int, c_lo: int, c_hi: int) -> tup
     for j, rid in enumerate(run_ids):
         if rid not in placed:
             continue
-        off, z = align_to_others(grid, levels, weights, j, max_shift_m=MAX_SHIFT_M)
-        if off == 0.0:
+        off, z, ok = align_to_others(grid, levels, weights, j, max_shift_m=MAX_SHIFT_M)
+        if not ok:
             continue
         levels[j] = sample_at(grid + off, levels[j], grid)
         span = _shift_stored_levels(session, track_id, rid, off)
