@@ -126,10 +126,11 @@ def cmd_realign(ns: argparse.Namespace) -> int:
             surveys = realign_surveys(s, track.id)
             s.commit()
             counts = {st: sum(1 for _, a in done if a.status == st)
-                      for st in ("reference", "aligned", "unaligned")}  # fmt: skip
+                      for st in ("reference", "aligned", "placed", "unaligned")}  # fmt: skip
             print(
                 f"track {track.id} ({track.name}): {len(done)} runs: {counts['reference']} "
-                f"reference, {counts['aligned']} aligned, {counts['unaligned']} unaligned"
+                f"reference, {counts['aligned']} aligned, {counts['placed']} placed, "
+                f"{counts['unaligned']} unaligned"
                 + (f"; {len(surveys)} surveys" if surveys else "")
             )
     return 0

@@ -6,6 +6,7 @@ see the same loaded profile, so the offset is where their cross-correlation peak
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,10 @@ class Alignment:
         Whether the offset can be trusted (enough overlap, a clear correlation peak).
     reason : str
         Why not, when ``ok`` is false.
+    z_score : float
+        How far the correlation at that offset stands above what two unrelated profiles of
+        the same roughness reach by chance over that overlap, in standard deviations
+        (:func:`correlation_z`): the peak's significance, whatever the profiles' noise.
     """
 
     offset_m: float
@@ -37,6 +42,46 @@ class Alignment:
     overlap_m: float
     ok: bool
     reason: str = ""
+    z_score: float = float("nan")
+
+
+def _autocorrelation(x: NDArray[np.float64], max_lag: int) -> NDArray[np.float64]:
+    """Normalised autocorrelation of a zero-mean series at lags ``1..max_lag``."""
+    n = x.size
+    den = float(np.dot(x, x))
+    if den <= 0 or n < 2:
+        return np.zeros(max_lag)
+    m = min(max_lag, n - 1)
+    out = np.zeros(max_lag)
+    f = np.fft.rfft(x, 2 * n)
+    ac = np.fft.irfft(f * np.conj(f))[1 : m + 1]
+    out[:m] = ac / den
+    return out
+
+
+def correlation_z(x: NDArray[np.float64], y: NDArray[np.float64], max_lag: int = 200) -> float:
+    """Significance of the normalised correlation of two equally long series, in standard
+    deviations of its null distribution.
+
+    Two unrelated series of ``n`` samples correlate by chance with a standard deviation of
+    ``sqrt((1 + 2 sum_k rho_x(k) rho_y(k)) / n)`` (Bartlett), ``rho`` their own
+    autocorrelations: smooth (band-limited) profiles have few independent samples ``n_eff``,
+    so the same correlation means less on them. Returned as Fisher's ``atanh(r)
+    sqrt(n_eff - 3)`` (equal to ``r / sd`` for weak correlations, and not capped near 1).
+    Measured on the two series, nothing assumed of their noise.
+    """
+    ok = np.isfinite(x) & np.isfinite(y)
+    xm, ym = x[ok] - x[ok].mean(), y[ok] - y[ok].mean()
+    n = xm.size
+    den = math.sqrt(float(np.dot(xm, xm)) * float(np.dot(ym, ym)))
+    if n < 8 or den <= 0:
+        return float("nan")
+    r = float(np.dot(xm, ym)) / den
+    k = min(max_lag, n // 4)
+    var = (1.0 + 2.0 * float(np.dot(_autocorrelation(xm, k), _autocorrelation(ym, k)))) / n
+    n_eff = 1.0 / max(var, 1.0 / n)
+    # Fisher's transform: near |r| = 1 the plain r / sd saturates at sqrt(n_eff)
+    return math.atanh(min(max(r, -0.999999), 0.999999)) * math.sqrt(max(n_eff - 3.0, 1.0))
 
 
 def align_profiles(
@@ -114,10 +159,15 @@ def align_profiles(
         if den < 0:
             shift += 0.5 * (c0 - c2) / den
     offset = shift * step
+    best_lag = int(lags[j])
+    if best_lag >= 0:
+        z = correlation_z(a[best_lag:], b[: n - best_lag])
+    else:
+        z = correlation_z(a[:best_lag], b[-best_lag:])
     if j in (0, lags.size - 1):
-        return Alignment(offset, best, float(over[j]), False,
-                         f"best match at the edge of the +-{max_shift_m:g} m search")  # fmt: skip
+        edge = f"best match at the edge of the +-{max_shift_m:g} m search"
+        return Alignment(offset, best, float(over[j]), False, edge, z)
     if best < min_correlation:
         return Alignment(offset, best, float(over[j]), False,
-                         f"correlation {best:.2f} below {min_correlation:g}")  # fmt: skip
-    return Alignment(offset, best, float(over[j]), True)
+                         f"correlation {best:.2f} below {min_correlation:g}", z)  # fmt: skip
+    return Alignment(offset, best, float(over[j]), True, "", z)

@@ -17,7 +17,7 @@ import numpy as np
 from .chainage import GRID_STEP_M
 from .detect import DetectionConfig
 from .direct import direct_inverse, filtered_direct_inverse
-from .errors import EngineError
+from .errors import EngineError, ParameterError
 from .irregularity import SPECTRA, random_profile, read_profile_csv
 from .logio import (
     GRAVITY_MODES,
@@ -29,7 +29,7 @@ from .logio import (
 )
 from .pipeline import METHODS, ProcessConfig, check_run, process_run
 from .runlog import RunLog
-from .sensor import SensorModel
+from .sensor import SENSOR_GRADES, SensorModel, sensor_for_grade
 from .simulate import simulate
 from .synthetic import to_runlog
 from .track import SoftZone, Track, TrackParams
@@ -157,14 +157,28 @@ def _cmd_simulate(ns: argparse.Namespace) -> int:
         dt=ns.dt,
         direction=ns.direction,
     )
-    sensor = SensorModel(
-        accel_noise=ns.accel_noise,
-        gyro_noise=ns.gyro_noise,
-        accel_bias=ns.accel_bias,
-        gyro_bias=ns.gyro_bias,
-        sample_rate_hz=ns.rate,
-        digits=ns.digits,
-    )
+    if ns.sensor_grade is not None:
+        typed = [
+            f for f in ("accel_noise", "gyro_noise", "accel_bias", "gyro_bias") if getattr(ns, f)
+        ]
+        if typed:
+            raise ParameterError(
+                f"--sensor-grade replaces the sensor figures: drop --{typed[0].replace('_', '-')}",
+                field="sensor_grade",
+            )
+        sensor = sensor_for_grade(
+            ns.sensor_grade, ns.rate or 1.0 / ns.dt, seed=ns.seed,
+            digits=8 if ns.digits is None else ns.digits,
+        )  # fmt: skip
+    else:
+        sensor = SensorModel(
+            accel_noise=ns.accel_noise,
+            gyro_noise=ns.gyro_noise,
+            accel_bias=ns.accel_bias,
+            gyro_bias=ns.gyro_bias,
+            sample_rate_hz=ns.rate,
+            digits=ns.digits,
+        )
     log = to_runlog(sim, sensor, seed=ns.seed, chainage=ns.with_chainage)
     write_run_csv(log, Path(ns.out))
     if ns.truth:
@@ -266,6 +280,10 @@ def _cmd_process(ns: argparse.Namespace) -> int:
         json.dumps([s.to_dict() for s in res.soft_spots], indent=1) + "\n"
     )
     (out / "quality.json").write_text(json.dumps(res.quality.to_dict(), indent=1) + "\n")
+    if res.detection_limit is not None:
+        (out / "detection_limit.json").write_text(
+            json.dumps(res.detection_limit.to_dict(), indent=1) + "\n"
+        )
     print(
         f"{ok.sum()} profile points, {len(res.soft_spots)} soft spot(s) written to {out}",
         file=sys.stderr,
@@ -349,6 +367,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--accel-bias", type=float, default=0.0, help="accel bias, m/s^2")
     s.add_argument("--gyro-bias", type=float, default=0.0, help="gyro bias, rad/s")
     s.add_argument("--digits", type=int, default=None, help="significant digits written")
+    s.add_argument(
+        "--sensor-grade",
+        choices=tuple(SENSOR_GRADES),
+        default=None,
+        help="an IMU class instead of the noise/bias figures (densities over the output "
+        "band, per-pass bias from --seed, wander, quantisation, jitter; docs/sensors.md)",
+    )
     s.add_argument("--seed", type=int, default=None, help="random seed (noise, jitter)")
     s.add_argument("--with-chainage", action="store_true", help="also write a chainage_m column, m")
     s.add_argument("--out", required=True, help="output run CSV")

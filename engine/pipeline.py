@@ -22,6 +22,7 @@ from .stiffness import fit_zone
 from .track import TrackParams
 from .vehicle import TABLE1, VehicleParams
 from .vehicle_plausibility import check_result
+from .visibility import detection_limit
 from .wheel_force import dynamic_wheel_forces, force_spectrum
 
 Method = Literal["spectral", "filtered-direct", "least-squares", "direct"]
@@ -316,10 +317,15 @@ def process_run(
     spent("the wheel forces")
     baseline = robust_baseline(fused, step, cfg.detection.baseline_window_m)
     residual = fused - baseline
-    dips, _thr = find_dips(grid, residual, cfg.detection)
+    dips, thr = find_dips(grid, residual, cfg.detection)
     loads = vehicle.static_axle_loads()
     load = 0.5 * (loads[0] + loads[1])
     spots = _soft_spots(grid, residual, dips, cfg, trk, load)
+    limit = detection_limit(
+        thr, params=trk, load=load, lambda_min_m=cfg.lambda_min_m,
+        lambda_max_m=cfg.lambda_max_m, taper=cfg.taper, step_m=step,
+        baseline_window_m=cfg.detection.baseline_window_m,
+    )  # fmt: skip
     spent("the soft-spot detection")
     # a wrong vehicle turns into dips no track can have: fail rather than report them
     if cfg.check_result:
@@ -353,4 +359,5 @@ def process_run(
         front_force_n=front_force,
         rear_force_n=rear_force,
         geometry_check=geometry_check,
+        detection_limit=limit,
     )

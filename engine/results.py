@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -100,6 +101,35 @@ class GeometryCheck:
 
 
 @dataclass(frozen=True)
+class DetectionLimit:
+    """The smallest stiffness loss a pass can detect, per zone length.
+
+    Attributes
+    ----------
+    zone_length_m : tuple of float
+        Zone lengths, m.
+    min_loss_pct : tuple of float
+        Smallest detectable loss for each, % of nominal support stiffness; NaN where even
+        the largest loss the model reports (:data:`engine.stiffness.MAX_LOSS`) stays below
+        the threshold.
+    threshold_mm : float
+        The detector's depth threshold on this pass, mm.
+    """
+
+    zone_length_m: tuple[float, ...]
+    min_loss_pct: tuple[float, ...]
+    threshold_mm: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (NaN as None) with the field names above."""
+        return {
+            "zone_length_m": [float(x) for x in self.zone_length_m],
+            "min_loss_pct": [None if not math.isfinite(x) else float(x) for x in self.min_loss_pct],
+            "threshold_mm": float(self.threshold_mm),
+        }
+
+
+@dataclass(frozen=True)
 class ProcessResult:
     """Everything the pipeline derives from one run log.
 
@@ -128,6 +158,9 @@ class ProcessResult:
     geometry_check : GeometryCheck or None
         Whether the rail is smooth at the noise level, i.e. the soft spots' stiffness-loss
         figures are valid (they are NaN when not; None only for results built by hand).
+    detection_limit : DetectionLimit or None
+        The smallest stiffness loss this pass could detect per zone length, from its own
+        detection threshold (None only for results built by hand).
     """
 
     chainage_m: NDArray[np.float64]
@@ -142,3 +175,4 @@ class ProcessResult:
     front_force_n: NDArray[np.float64] | None = None
     rear_force_n: NDArray[np.float64] | None = None
     geometry_check: GeometryCheck | None = None
+    detection_limit: DetectionLimit | None = None

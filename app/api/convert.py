@@ -5,7 +5,13 @@ from __future__ import annotations
 from typing import Any
 
 from app.db.models import Calibration, Run, Track, Vehicle
-from app.schemas.runs import RunAlignmentPublic, RunError, RunPositioningPublic, RunPublic
+from app.schemas.runs import (
+    DetectionLimitPublic,
+    RunAlignmentPublic,
+    RunError,
+    RunPositioningPublic,
+    RunPublic,
+)
 from app.schemas.tracks import TrackPublic
 from app.schemas.vehicles import (
     CalibrationPublic,
@@ -59,6 +65,11 @@ def run_public(run: Run) -> RunPublic:
         mean_wheel_force_n=run.mean_wheel_force_n,
         stiffness_basis=basis,  # type: ignore[arg-type]
         stiffness_message=message,
+        detection_limit=(
+            DetectionLimitPublic.model_validate(run.detection_limit)
+            if run.detection_limit
+            else None
+        ),
         content_hash=run.content_hash,
         options=run.options or {},
         positioning=(

@@ -37,7 +37,7 @@ RUN_STATUSES = ("processing", "done", "failed")
 RUN_STAGES = ("queued", "inverting", "storing")
 """What a ``processing`` run is doing: waiting for a worker, in the engine, being written."""
 
-ALIGNMENT_STATUSES = ("reference", "aligned", "unaligned")
+ALIGNMENT_STATUSES = ("reference", "aligned", "placed", "unaligned")
 """How a processed run sits on its track's chainage: the reference of its stretch (nothing was
 there before it, offset 0), aligned to the track's aggregated profile, or not alignable (kept
 as logged and left out of the aggregate and the register). NULL: not processed yet."""
@@ -227,6 +227,9 @@ class Run(Base):
     # GNSS placement (issue 11): engine.positioning.Placement.to_dict(); None when the run was
     # placed by its start chainage.
     positioning: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    # What the run could see: engine.results.DetectionLimit.to_dict() (smallest detectable
+    # stiffness loss per zone length); None until processed.
+    detection_limit: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     # Retention: when the run's detail (profile, signals, log) was removed; NULL = kept.
     detail_expired_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
 

@@ -270,7 +270,7 @@ class RunError(BaseModel):
     kind: str | None = None
 
 
-AlignmentStatus = Literal["reference", "aligned", "unaligned"]
+AlignmentStatus = Literal["reference", "aligned", "placed", "unaligned"]
 
 
 class RunAlignmentPublic(BaseModel):
@@ -278,8 +278,9 @@ class RunAlignmentPublic(BaseModel):
 
     status: AlignmentStatus = Field(
         description="reference (first data on its stretch, offset 0), aligned (offset found by "
-        "cross-correlation with the track's aggregated profile) or unaligned (no trustworthy "
-        "match: kept as logged, left out of the track's aggregate and register)"
+        "cross-correlation with the track's aggregated profile), placed (no trustworthy "
+        "match yet: joined the track's aggregate and register at its logged chainage, aligned "
+        "again as the track gains passes) or unaligned (no profile to place)"
     )
     offset_m: float = Field(description="Offset added to the run's logged chainage, m")
     correlation: float | None = Field(
@@ -316,6 +317,23 @@ class RunPositioningPublic(BaseModel):
     )
     pieces: int = Field(description="Pieces of the piecewise-linear odometer fit")
     knots_m: list[float] = Field(description="Odometer distances where the scale changes, m")
+
+
+class DetectionLimitPublic(BaseModel):
+    """What one pass could see: the smallest stiffness loss its detector finds per zone length.
+
+    A zone that weak makes a dip as deep as the pass's detection threshold (found about half
+    the time); weaker zones are not seen. The threshold is the detector's own (5 robust
+    standard deviations of the pass's residual profile, at least 0.06 mm): the sensor noise
+    the inversion measured, and rail geometry where the rail has it.
+    """
+
+    zone_length_m: list[float] = Field(description="Zone lengths, m")
+    min_loss_pct: list[float | None] = Field(
+        description="Smallest detectable stiffness loss for each length, % of nominal; null "
+        "where even a 95 % loss would not reach the threshold"
+    )
+    threshold_mm: float = Field(description="The pass's detection threshold (dip depth), mm")
 
 
 class RunPublic(BaseModel):
@@ -375,6 +393,11 @@ class RunPublic(BaseModel):
     )
     stiffness_message: str | None = Field(
         default=None, description="Plain words when the run's dips cannot be read as stiffness"
+    )
+    detection_limit: DetectionLimitPublic | None = Field(
+        default=None,
+        description="What this pass could see: the smallest stiffness loss it can detect "
+        "for 3 m and 6 m zones, from its own noise (null until processed)",
     )
     content_hash: str
     options: dict[str, Any]

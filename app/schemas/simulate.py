@@ -6,10 +6,11 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
+from app.services.errors import Invalid
 from app.services.simulation import SimulationSpec
 from app.services.window import CHAINAGE_LIMIT_M
 from engine.irregularity import SPECTRA
-from engine.sensor import SensorModel
+from engine.sensor import SENSOR_GRADES, SensorModel, sensor_for_grade
 from engine.synthetic import REALISTIC_SENSOR
 from engine.track import SoftZone
 
@@ -94,6 +95,15 @@ class SimulateRequest(StrictModel):
         description="'ideal' (exact signals), 'realistic' (the accuracy requirement's noise) "
         "or explicit noise figures",
     )
+    sensor_grade: str | None = Field(
+        default=None,
+        max_length=40,
+        description="An IMU class instead of `sensor`: "
+        + "; ".join(f"{k}: {g.label}" for k, g in SENSOR_GRADES.items())
+        + " (noise densities, per-pass bias drawn from the seed, bias wander, quantisation, "
+        "jitter; GET /api/v1/simulate/sensor-grades). Null: `sensor` applies",
+        json_schema_extra={"enum": [*SENSOR_GRADES, None], "x-values": list(SENSOR_GRADES)},
+    )
     jitter: float = Field(
         default=0.05, ge=0, le=0.3, description="Support stiffness scatter (0.05 = ±5 %)"
     )
@@ -103,6 +113,14 @@ class SimulateRequest(StrictModel):
         default=None, description="Rail geometry (null: a straight rail, the paper's case)"
     )
 
+    @field_validator("sensor_grade")
+    @classmethod
+    def _known_grade(cls, grade: str | None) -> str | None:
+        if grade is not None and grade not in SENSOR_GRADES:
+            choices = ", ".join(SENSOR_GRADES)
+            raise ValueError(f"unknown sensor grade {grade!r}; expected one of {choices}")
+        return grade
+
     @field_validator("zones")
     @classmethod
     def _zones_sorted(cls, zones: list[ZoneSpec]) -> list[ZoneSpec]:
@@ -110,7 +128,12 @@ class SimulateRequest(StrictModel):
 
     def to_spec(self) -> SimulationSpec:
         """The service's plain description of this request (engine types, the sensor chosen)."""
-        if self.sensor == "ideal":
+        if self.sensor_grade is not None:
+            if "sensor" in self.model_fields_set:
+                raise Invalid("give either sensor or sensor_grade, not both", field="sensor_grade")
+            # the simulation's rate (1 kHz) is the log's; the seed draws the pass's bias
+            sensor = sensor_for_grade(self.sensor_grade, 1000.0, seed=self.seed)
+        elif self.sensor == "ideal":
             sensor = SensorModel()
         elif self.sensor == "realistic":
             sensor = REALISTIC_SENSOR
@@ -129,7 +152,10 @@ class SimulateRequest(StrictModel):
             jitter=self.jitter,
             seed=self.seed,
             recorded_at=self.recorded_at,
-            record=self.model_dump(mode="json"),
+            # without a grade the record is what it was before grades (the same fingerprint)
+            record=self.model_dump(
+                mode="json", exclude={"sensor_grade"} if self.sensor_grade is None else None
+            ),
             irregularity=None if self.irregularity is None else self.irregularity.spectrum,
             irregularity_seed=None if self.irregularity is None else self.irregularity.seed,
         )

@@ -146,7 +146,7 @@ class SurveyPublic(BaseModel):
     chainage_min_m: float = Field(description="Start, m (aligned)")
     chainage_max_m: float = Field(description="End, m (aligned)")
     chainage_offset_m: float
-    alignment_status: Literal["reference", "aligned", "unaligned"]
+    alignment_status: Literal["reference", "aligned", "placed", "unaligned"]
     alignment_correlation: float | None
     alignment_reason: str | None
     duplicate: bool = Field(default=False, description="True when the same file was stored")

@@ -144,22 +144,37 @@ def expected_points(
     """What the aggregate of chunks ``a..b`` must hold: the grid (m) and the aggregation of
     the levels of each chunk's newest runs (:func:`newest_runs`; None: no run there). Read
     only."""
+    grid, run_ids, levels, _ = newest_levels(session, track_id, a, b)
+    return grid, (aggregate_levels(grid, levels) if run_ids else None)
+
+
+def newest_levels(
+    session: Session, track_id: int, a: int, b: int, *, with_force: bool = False
+) -> tuple[NDArray[np.float64], list[int], NDArray[np.float64], NDArray[np.float64] | None]:
+    """The aligned levels of the runs that make chunks ``a..b``'s aggregate
+    (:func:`newest_runs`): the grid (m), the run ids (ascending), their levels (runs x points,
+    mm, NaN where a run has none) and, with ``with_force``, the wheel force under them (N,
+    NaN where not kept). Read only."""
     t = TrackRunLevels.__table__
     keys = newest_runs(track_id, a, b)
+    cols = [t.c.run_id, t.c.chunk, t.c.levels] + ([t.c.force_n] if with_force else [])
     rows = session.execute(
-        select(t.c.run_id, t.c.chunk, t.c.levels).join(
-            keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk)
-        )
+        select(*cols).join(keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk))
     ).all()
     i0 = a * CHUNK_POINTS
     n = (b - a + 1) * CHUNK_POINTS
-    run_row = {rid: k for k, rid in enumerate(sorted({r[0] for r in rows}))}
+    run_ids = sorted({r[0] for r in rows})
+    run_row = {rid: k for k, rid in enumerate(run_ids)}
     levels = np.full((len(run_row), n), np.nan)
-    for rid, chunk, blob in rows:
+    forces = np.full((len(run_row), n), np.nan) if with_force else None
+    for row in rows:
+        rid, chunk, blob = row[0], row[1], row[2]
         at = (chunk - a) * CHUNK_POINTS
         levels[run_row[rid], at : at + CHUNK_POINTS] = unpack_f4(blob)
+        if forces is not None and row[3] is not None:
+            forces[run_row[rid], at : at + CHUNK_POINTS] = unpack_f4(row[3])
     grid = (i0 + np.arange(n, dtype=np.float64)) * GRID_STEP_M
-    return grid, (aggregate_levels(grid, levels) if rows else None)
+    return grid, run_ids, levels, forces
 
 
 def pack_chunk(

@@ -4,8 +4,15 @@ Logged start chainages are off by metres (odometer slip, GPS). Before a run join
 aggregate and register, its profile is cross-correlated (``engine.align.align_profiles``) with
 the track's aggregated profile over the run's stretch; the offset found is stored on the run
 and added wherever its chainage is served. A run over a stretch where the track has no data yet
-is the reference there (offset 0). A run whose match is not trustworthy is flagged
-``unaligned`` with the reason and kept out of the aggregate and the register.
+is the reference there (offset 0). A run whose match is not trustworthy is not dropped: it is
+``placed`` at its logged (or GNSS-placed) chainage, joins the aggregate and the register with
+that position's uncertainty, and is aligned again as the aggregate gains passes
+(:func:`app.services.integrate.realign_placed`). Only a run with no profile is ``unaligned``.
+
+A match is trusted when the correlation is clear (:data:`MIN_CORRELATION`) or significant
+(:data:`engine.accumulate.MIN_Z` standard deviations above chance for profiles that rough over
+that overlap, :func:`engine.align.correlation_z`): a MEMS pass correlates weakly with a
+few-pass aggregate yet peaks unmistakably at the right offset.
 
 Units: chainage in m, levels in mm.
 """
@@ -19,9 +26,12 @@ import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
+from engine.accumulate import MIN_Z, trusted
 from engine.align import align_profiles
 from engine.chainage import GRID_STEP_M
+from engine.detect import robust_baseline, robust_sigma
 from engine.errors import EngineError
+from engine.geometry_check import SMOOTH_RAIL_SIGMA_MM
 
 from .aggregate import read_aggregate_grid
 
@@ -48,8 +58,9 @@ class RunAlignment:
 
     Attributes
     ----------
-    status : {"reference", "aligned", "unaligned"}
-        Reference of its stretch (offset 0), aligned, or not alignable.
+    status : {"reference", "aligned", "placed", "unaligned"}
+        Reference of its stretch (offset 0), aligned, placed at its logged chainage (its
+        offset uncertain; it still joins the aggregate), or without a profile to place.
     offset_m : float
         Chainage offset added to the run's chainages, m (0 unless aligned).
     correlation : float or None
@@ -69,7 +80,34 @@ class RunAlignment:
     @property
     def merged(self) -> bool:
         """Whether the run joins the aggregate and the register."""
-        return self.status in ("reference", "aligned")
+        return self.status in MERGED_STATUSES
+
+
+MERGED_STATUSES = ("reference", "aligned", "placed")
+"""Alignment states whose runs make the aggregate and the register."""
+
+PLACED_REASON = (
+    "joined at its logged chainage: {why} (offset searched within +-{shift:g} m against the "
+    "track's aggregated profile); its position is as uncertain as the logged start, and it "
+    "is aligned again as the track gains passes"
+)
+
+
+CHANCE_Z = 4.0
+"""Significance below which a correlation peak is no evidence that a pass is of this stretch
+(the best of ~80 offsets of two unrelated profiles reaches about 3)."""
+
+CLEAR_PASS_MM = SMOOTH_RAIL_SIGMA_MM
+"""A pass whose own residual spread (level minus its 40 m baseline, mm) is at most this sees
+the rail clearly: if it still matches nothing (significance below :data:`CHANCE_Z`) it is not
+of this stretch (another track, a wrong chainage) and is left ``unaligned``. A noisier pass
+could not have matched and is placed."""
+
+
+def own_spread(level_mm: NDArray[np.float64]) -> float:
+    """Robust spread of a profile's residual against its 40 m baseline, mm (grid step
+    :data:`GRID_STEP_M`)."""
+    return robust_sigma(level_mm - robust_baseline(level_mm, GRID_STEP_M, 40.0))
 
 
 def grid_index_range(lo_m: float, hi_m: float) -> tuple[int, int]:
@@ -200,12 +238,25 @@ def align_to_track(
             max_shift_m=MAX_SHIFT_M, min_overlap_m=MIN_OVERLAP_M, min_correlation=MIN_CORRELATION,
         )  # fmt: skip
     except EngineError as exc:
-        return RunAlignment("unaligned", 0.0, None, None, f"cannot align: {exc}")
-    corr = float(al.correlation) if math.isfinite(al.correlation) else None
-    if not al.ok:
+        why = f"cannot align: {exc}"
         return RunAlignment(
-            "unaligned", 0.0, corr, float(al.overlap_m),
-            f"{al.reason} (offset searched within +-{MAX_SHIFT_M:g} m against the track's "
-            "aggregated profile)",
+            "placed", 0.0, None, None, PLACED_REASON.format(why=why, shift=MAX_SHIFT_M)
+        )
+    corr = float(al.correlation) if math.isfinite(al.correlation) else None
+    if not trusted(al, min_overlap_m=MIN_OVERLAP_M):
+        why = al.reason
+        z = al.z_score if math.isfinite(al.z_score) else 0.0
+        spread = own_spread(own)
+        if z < CHANCE_Z and spread <= CLEAR_PASS_MM:
+            return RunAlignment(
+                "unaligned", 0.0, corr, float(al.overlap_m),
+                f"{why}, significance {z:.1f}: the run sees the rail clearly (residual spread "
+                f"{spread:.3f} mm) and matches nothing within +-{MAX_SHIFT_M:g} m of its logged "
+                "chainage, so it is kept out of the track's aggregate and register",
+            )  # fmt: skip
+        why += f", significance {z:.1f} below {MIN_Z:g}"
+        return RunAlignment(
+            "placed", 0.0, corr, float(al.overlap_m),
+            PLACED_REASON.format(why=why, shift=MAX_SHIFT_M),
         )  # fmt: skip
     return RunAlignment("aligned", float(al.offset_m), corr, float(al.overlap_m), None)

@@ -21,9 +21,18 @@ from sqlalchemy import case, delete, func, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
+from engine.accumulate import align_to_others, pass_noise
+from engine.chainage import GRID_STEP_M
 
-from .aggregate import drop_run_levels, recompute_aggregate, store_run_levels
-from .alignment import RunAlignment, align_to_track, on_track_grid
+from .aggregate import (
+    CHUNK_POINTS,
+    drop_run_levels,
+    newest_levels,
+    recompute_aggregate,
+    store_run_levels,
+)
+from .alignment import MAX_SHIFT_M, RunAlignment, align_to_track, on_track_grid, sample_at
+from .packing import unpack_f4
 from .profiles import fuse_axles, read_profile
 from .stiffness import clear_pending, pending_chunks, recompute_all, recompute_stiffness
 
@@ -92,11 +101,103 @@ def add_run_to_track(
         chunks = store_run_levels(session, run.track_id, run.id, i_lo, levels, force)
         if chunks is not None:
             recompute_aggregate(session, run.track_id, *chunks)
+            moved = realign_placed(session, run.track_id, *chunks)
+            if moved is not None:
+                chunks = (min(chunks[0], moved[0]), max(chunks[1], moved[1]))
             if separation == "now":
                 recompute_stiffness(session, run.track_id, *chunks)
             elif separation == "later":
                 _mark_separation_pending(session, run.track_id, *chunks)
     return al
+
+
+REALIGN_CHUNKS = 8
+"""Chunks (2 km) around the middle of a new run's stretch over which the placed runs there are
+aligned again: plenty for a clear correlation peak, the cost that of 2 km."""
+
+
+def realign_placed(session: Session, track_id: int, c_lo: int, c_hi: int) -> tuple[int, int] | None:
+    """Align the ``placed`` runs over chunks ``c_lo..c_hi`` again, each against the
+    noise-weighted mean of the other runs there (``engine.accumulate.align_to_others``):
+    as the track gains passes that mean grows clear enough to place them. A run whose offset
+    is now trusted moves (its stored levels shifted) and becomes ``aligned``; the aggregate is
+    rebuilt where runs moved. Returns the chunks changed (None: no run moved). The caller
+    holds the track's lock.
+    """
+    mid = (c_lo + c_hi) // 2
+    a = max(c_lo, mid - REALIGN_CHUNKS // 2)
+    b = min(c_hi, a + REALIGN_CHUNKS - 1)
+    lv = TrackRunLevels.__table__
+    placed = set(
+        session.scalars(
+            select(Run.id).where(
+                Run.track_id == track_id, Run.alignment_status == "placed",
+                Run.id.in_(select(lv.c.run_id).where(lv.c.track_id == track_id,
+                                                     lv.c.chunk.between(a, b))),
+            )
+        )
+    )  # fmt: skip
+    if not placed:
+        return None
+    grid, run_ids, levels, _ = newest_levels(session, track_id, a, b)
+    if len(run_ids) < 3:
+        return None
+    weights = 1.0 / pass_noise(levels, float(grid[1] - grid[0]), 40.0) ** 2
+    changed: tuple[int, int] | None = None
+    for j, rid in enumerate(run_ids):
+        if rid not in placed:
+            continue
+        off, z, ok = align_to_others(grid, levels, weights, j, max_shift_m=MAX_SHIFT_M)
+        if not ok:
+            continue
+        levels[j] = sample_at(grid + off, levels[j], grid)
+        span = _shift_stored_levels(session, track_id, rid, off)
+        run = session.get(Run, rid)
+        assert run is not None
+        run.chainage_offset_m = (run.chainage_offset_m or 0.0) + off
+        run.alignment_status = "aligned"
+        run.alignment_reason = f"aligned later against the other passes (significance {z:.1f})"
+        if span is not None:
+            lo, hi = (
+                span if changed is None else (min(changed[0], span[0]), max(changed[1], span[1]))
+            )
+            changed = (lo, hi)
+    if changed is not None:
+        recompute_aggregate(session, track_id, *changed)
+    return changed
+
+
+def _shift_stored_levels(
+    session: Session, track_id: int, run_id: int, offset_m: float
+) -> tuple[int, int] | None:
+    """Move a run's stored aligned levels and forces by ``offset_m`` along the track; the
+    chunks covered before or after (None: it had none)."""
+    lv = TrackRunLevels.__table__
+    rows = session.execute(
+        select(lv.c.chunk, lv.c.levels, lv.c.force_n).where(lv.c.run_id == run_id)
+    ).all()
+    if not rows:
+        return None
+    c0, c1 = min(r[0] for r in rows), max(r[0] for r in rows)
+    n = (c1 - c0 + 1) * CHUNK_POINTS
+    levels = np.full(n, np.nan)
+    force = np.full(n, np.nan)
+    has_force = all(r[2] is not None for r in rows)
+    for chunk, blob, fblob in rows:
+        at = (chunk - c0) * CHUNK_POINTS
+        levels[at : at + CHUNK_POINTS] = unpack_f4(blob)
+        if has_force:
+            force[at : at + CHUNK_POINTS] = unpack_f4(fblob)
+    x = (c0 * CHUNK_POINTS + np.arange(n, dtype=np.float64)) * GRID_STEP_M
+    i_lo, new_levels = on_track_grid(x, levels, offset_m)
+    new_force = on_track_grid(x, force, offset_m)[1] if has_force else None
+    if new_force is not None and new_force.size < new_levels.size:
+        new_force = None
+    drop_run_levels(session, run_id)
+    kept = None if new_force is None else new_force[: new_levels.size]
+    stored = store_run_levels(session, track_id, run_id, i_lo, new_levels, kept)
+    lo, hi = (c0, c1) if stored is None else (min(c0, stored[0]), max(c1, stored[1]))
+    return lo, hi
 
 
 def _mark_separation_pending(session: Session, track_id: int, c_lo: int, c_hi: int) -> None:

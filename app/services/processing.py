@@ -189,6 +189,7 @@ def store_result(
     run.chainage_min_m = float(covered[0]) if covered.size else None
     run.chainage_max_m = float(covered[-1]) if covered.size else None
     run.quality = {k: finite_or_none(v) for k, v in res.quality.to_dict().items()}
+    run.detection_limit = None if res.detection_limit is None else res.detection_limit.to_dict()
     run.method = res.method
     run.n_soft_spots = len(res.soft_spots)
     run.processing_s = processed.seconds

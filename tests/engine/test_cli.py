@@ -77,3 +77,24 @@ def test_help_states_units(cmd):
     out = subprocess.run([sys.executable, "-m", "engine", cmd, "--help"], capture_output=True,
                          text=True, cwd=REPO, check=True).stdout  # fmt: skip
     assert " m" in out or "m/s" in out
+
+
+def test_simulate_with_a_sensor_grade_and_process_writes_its_detection_limit(tmp_path, capsys):
+    """`simulate --sensor-grade` logs the grade's noise (as the inversion measures it);
+    `process` writes the pass's detection limit; typed figures with a grade are refused."""
+    quiet, noisy = tmp_path / "fibre.csv", tmp_path / "consumer.csv"
+    limits = []
+    for grade, run in (("fibre-optic", quiet), ("consumer-mems", noisy)):
+        assert main([*SIM, "--sensor-grade", grade, "--seed", "4", "--out", str(run)]) == 0
+        out = tmp_path / grade
+        assert main(["process", str(run), "--start-chainage", "24.13", "--out", str(out)]) == 0
+        q = json.loads((out / "quality.json").read_text())
+        lim = json.loads((out / "detection_limit.json").read_text())
+        assert lim["zone_length_m"] == [3.0, 6.0]
+        limits.append((q["noise_accel_mps2"], lim["min_loss_pct"][0]))
+    (na_q, lim_q), (na_n, lim_n) = limits
+    assert na_q == pytest.approx(0.005, rel=0.1) and na_n == pytest.approx(0.050, rel=0.1)
+    assert lim_n > lim_q
+    assert main([*SIM, "--sensor-grade", "tactical-mems", "--accel-noise", "0.01",
+                 "--out", str(tmp_path / "x.csv")]) == 2  # fmt: skip
+    assert "--sensor-grade" in capsys.readouterr().err

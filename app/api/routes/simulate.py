@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Response
@@ -12,6 +13,7 @@ from app.schemas.runs import RunCreated
 from app.schemas.simulate import SimulatePublic, SimulateRequest, TruthPublic
 from app.services.simulation import simulate_and_submit
 from engine.irregularity import SPECTRA
+from engine.sensor import SENSOR_GRADES
 
 from .runs import answer_submission
 
@@ -22,6 +24,12 @@ router = APIRouter(tags=["simulate"])
 def list_spectra() -> dict[str, str]:
     """The rail-irregularity spectra a simulation can use, by name, with their source."""
     return {name: sp.source for name, sp in SPECTRA.items()}
+
+
+@router.get("/simulate/sensor-grades", response_model=dict[str, dict[str, float | str]])
+def list_sensor_grades() -> dict[str, dict[str, float | str]]:
+    """The IMU grades a simulation can use (``sensor_grade``), by name, with their figures."""
+    return {name: dataclasses.asdict(g) for name, g in SENSOR_GRADES.items()}
 
 
 @router.post(

@@ -114,10 +114,12 @@ export async function render(main, [id]) {
   const spots = (spotsAnswer || []).slice().sort((a, b) => a.start_m - b.start_m);
 
   // ---- summary -------------------------------------------------------------------------------
+  // A pass never says "no soft spot" without what it could not have seen (its detection limit).
+  const unseen = unseenText(run.detection_limit);
   const summary = h("p", { class: "summary", id: "run-summary" },
     spots.length === 0
-      ? "No soft spot detected on this run."
-      : `${plural(spots.length, "soft spot")} detected — shaded in orange on the profile below, deepest ${fmt(Math.max(...spots.map((s) => s.depth_mm)), 2)} mm.`);
+      ? `No soft spot detected. ${unseen}`
+      : `${plural(spots.length, "soft spot")} detected — shaded in orange on the profile below, deepest ${fmt(Math.max(...spots.map((s) => s.depth_mm)), 2)} mm. ${unseen}`);
   main.appendChild(summary);
   // Honesty (issue 10): where one pass cannot tell rail geometry from stiffness its dips are
   // listed by depth only; over smooth rail the single-pass losses stay, labelled as such.
@@ -270,7 +272,7 @@ export async function render(main, [id]) {
           h("th", { scope: "col", class: "num" }, h("abbr", { title: TERMS.depth }, "Depth (mm)")),
           h("th", { scope: "col", class: "num" }, h("abbr", { title: TERMS.loss }, run.stiffness_basis === "single pass" ? "Stiffness loss (%, single pass)" : "Stiffness loss (%)")), h("th", { scope: "col" }, h("span", { class: "visually-hidden" }, "Actions")))),
         h("tbody", {}, spotRows)))
-      : h("p", { class: "muted" }, "None detected."),
+      : h("p", { class: "muted" }, `None detected. ${unseen}`),
   ));
 
   // ---- metadata and quality -----------------------------------------------------------------
@@ -290,6 +292,24 @@ export async function render(main, [id]) {
     stopped = true;
     clearTimeout(timer);
   };
+}
+
+/**
+ * What a pass could not have seen, in words, from its detection limit
+ * ({zone_length_m: [...], min_loss_pct: [... or null], threshold_mm}).
+ */
+export function unseenText(limit) {
+  if (!limit || !Array.isArray(limit.zone_length_m) || limit.zone_length_m.length === 0) {
+    return "What this pass could detect is not known (processed before detection limits were reported; reprocess it to see).";
+  }
+  const parts = limit.zone_length_m.map((len, i) => {
+    const loss = limit.min_loss_pct[i];
+    return loss === null || loss === undefined
+      ? `any loss over ${fmt(len, 0)} m`
+      : `losses below ${fmt(loss, 0)} % over ${fmt(len, 0)} m`;
+  });
+  const list = parts.length > 1 ? `${parts.slice(0, -1).join(", ")} or ${parts[parts.length - 1]}` : parts[0];
+  return `This pass could not see ${list} (its detection threshold: dips of ${fmt(limit.threshold_mm, 2)} mm).`;
 }
 
 function interpolate(xs, ys, x) {

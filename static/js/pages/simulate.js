@@ -70,6 +70,20 @@ export async function render(main) {
     });
   }
 
+  // IMU grade: a class of real sensor (noise densities, per-pass bias, wander, quantisation,
+  // jitter; the service's SENSOR_GRADES) instead of the figures typed below.
+  const gradeSel = h("select", { id: "sim-sensor-grade" }, h("option", { value: "" }, "The noise figures below"));
+  const syncGrade = () => {
+    for (const input of Object.values(noiseInputs)) input.disabled = gradeSel.value !== "";
+    presetSel.disabled = gradeSel.value !== "";
+  };
+  gradeSel.addEventListener("change", syncGrade);
+  apiFetch("/api/v1/simulate/sensor-grades").then((grades) => {
+    for (const [name, g] of Object.entries(grades)) {
+      gradeSel.appendChild(h("option", { value: name }, `${g.label}: ${fmt(g.accel_density_ug, 0)} µg/√Hz, ${fmt(g.gyro_arw_deg_rth, 2)} °/√h`));
+    }
+  }).catch(() => {});
+
   // Vehicle (a stored vehicle or an engine preset such as "heavy") and rail geometry (a
   // straight rail, or a random profile of a standard spectrum: the same spectrum and seed is the
   // same physical track, so runs of different vehicles over it can be separated).
@@ -136,6 +150,7 @@ export async function render(main) {
         h("button", { type: "button", class: "button small", onclick: () => addZone(150, 154, 40).focus() }, "Add a zone")),
       h("fieldset", {},
         h("legend", {}, "Sensor noise"),
+        field("IMU grade", gradeSel, "A class of real IMU, or your own figures."),
         field("Preset", presetSel),
         h("div", { class: "grid-2" },
           field("Accel noise σ (m/s²)", noiseInputs.accel_noise),
@@ -176,13 +191,13 @@ export async function render(main) {
     }
     const noise = {};
     for (const [k, input] of Object.entries(noiseInputs)) {
-      check(input, `The ${k.replace("_", " ")}`);
+      if (!input.disabled) check(input, `The ${k.replace("_", " ")}`);
       noise[k] = Number(input.value || 0);
     }
     const seed = seedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(seedInput.value)));
     const railSeed = railSeedInput.value === "" ? 0 : Math.max(0, Math.trunc(Number(railSeedInput.value)));
     const rail = railSel.value ? { spectrum: railSel.value, seed: railSeed } : null;
-    return { errors, request: { length_m: length, speed_mps: speedKmh / 3.6, zones, ...noise, seed, vehicle: vehicleSel.value, rail, track: trackInput.value.trim() || null } };
+    return { errors, request: { length_m: length, speed_mps: speedKmh / 3.6, zones, ...noise, sensor_grade: gradeSel.value || null, seed, vehicle: vehicleSel.value, rail, track: trackInput.value.trim() || null } };
   }
 
   form.addEventListener("submit", async (ev) => {
@@ -299,6 +314,11 @@ export async function render(main) {
 /** The service's POST /api/v1/simulate body for the form's request. */
 function simulateBody(req) {
   const quiet = req.accel_noise === 0 && req.gyro_noise === 0 && req.accel_bias === 0 && req.gyro_bias === 0;
+  const sensor = req.sensor_grade ? { sensor_grade: req.sensor_grade } : {
+    sensor: quiet ? "ideal" : {
+      accel_noise: req.accel_noise, gyro_noise: req.gyro_noise, accel_bias: req.accel_bias, gyro_bias: req.gyro_bias,
+    },
+  };
   return {
     // an irregular rail is a track of its own (spectrum and seed): runs over it can be compared
     track: req.track || (req.rail ? `simulated ${req.rail.spectrum} seed ${req.rail.seed}` : "simulated"),
@@ -307,9 +327,7 @@ function simulateBody(req) {
     length_m: req.length_m,
     speed_mps: req.speed_mps,
     zones: req.zones,
-    sensor: quiet ? "ideal" : {
-      accel_noise: req.accel_noise, gyro_noise: req.gyro_noise, accel_bias: req.accel_bias, gyro_bias: req.gyro_bias,
-    },
+    ...sensor,
     seed: req.seed,
   };
 }

@@ -1,0 +1,152 @@
+"""What a pass can see: the smallest stiffness loss its detector would find, per zone length.
+
+The detector (:func:`engine.detect.find_dips`) reports a dip when the residual profile (level
+minus its running-median baseline) falls below a threshold: ``noise_factor`` robust standard
+deviations of the residual, never less than ``min_depth_mm``. The residual's spread is the
+pass's own noise: the sensor noise carried through the inversion, plus rail geometry where the
+rail has it. A soft zone of a given length and loss makes a dip of a depth the static beam model
+gives (:mod:`engine.stiffness`), passed through the same wavelength band and baseline as a
+measured profile. The detection limit is the loss whose dip just reaches the threshold: a zone
+that weak is found about half the time; weaker ones are not seen, stronger ones are.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .detect import robust_baseline
+from .errors import ParameterError
+from .results import DetectionLimit
+from .stiffness import MAX_LOSS, InfluenceLine, _bandpass_matrix, modal_dips, softening_modes
+from .track import TrackParams
+
+ZONE_LENGTHS_M = (3.0, 6.0)
+"""Zone lengths a run's detection limit is reported for, m: the short and middle soft zones of
+the accuracy requirements (3-10 m)."""
+
+_LOSSES = np.linspace(0.0, MAX_LOSS, 48)
+
+
+def zone_dip_depths(
+    zone_length_m: float,
+    losses: NDArray[np.float64],
+    *,
+    params: TrackParams,
+    load: float,
+    lambda_min_m: float,
+    lambda_max_m: float,
+    taper: float,
+    step_m: float,
+    baseline_window_m: float,
+) -> NDArray[np.float64]:
+    """Depth of the dip a zone of ``zone_length_m`` (m) makes for each loss, mm (positive).
+
+    The zone softens the ``round(length / spacing)`` supports (at least one) it covers; its
+    modelled loaded-level change under the static wheel ``load`` (N) is band-passed to
+    ``[lambda_min_m, lambda_max_m]`` (m) and measured against the detector's running-median
+    baseline of ``baseline_window_m`` (m), as a measured profile is.
+    """
+    s = params.spacing
+    n = max(1, int(round(zone_length_m / s)))
+    sup = (np.arange(n) - 0.5 * (n - 1)) * s
+    half = lambda_max_m * (1 + taper) + 0.5 * n * s + baseline_window_m
+    g = np.arange(-half, half + 1e-9, step_m)
+    infl = InfluenceLine(params)
+    bp = _bandpass_matrix(g.size, step_m, lambda_min_m, lambda_max_m, taper)
+    lam, E = softening_modes(infl(sup[:, None] - sup[None, :]), infl(g[None, :] - sup[:, None]), bp)
+    dips = modal_dips(lam, E, losses, params.k_nominal, load)
+    near = np.abs(g) <= 0.5 * n * s + 2 * lambda_min_m
+    depth = np.empty(losses.size)
+    for i, d in enumerate(dips):
+        depth[i] = max(
+            0.0, -float(np.min((d - robust_baseline(d, step_m, baseline_window_m))[near]))
+        )
+    return depth
+
+
+@lru_cache(maxsize=64)
+def _depth_curve(
+    zone_length_m: float,
+    params: TrackParams,
+    load: float,
+    lambda_min_m: float,
+    lambda_max_m: float,
+    taper: float,
+    step_m: float,
+    baseline_window_m: float,
+) -> NDArray[np.float64]:
+    """Dip depth against :data:`_LOSSES`, made non-decreasing, mm: one per vehicle and band,
+    so a service's runs reuse it."""
+    depth = zone_dip_depths(
+        zone_length_m, _LOSSES, params=params, load=load, lambda_min_m=lambda_min_m,
+        lambda_max_m=lambda_max_m, taper=taper, step_m=step_m,
+        baseline_window_m=baseline_window_m,
+    )  # fmt: skip
+    # the dip deepens with the loss (the maximum smooths the baseline's small wobbles)
+    out: NDArray[np.float64] = np.maximum.accumulate(depth)
+    out.flags.writeable = False
+    return out
+
+
+def detection_limit(
+    threshold_mm: float,
+    *,
+    zone_lengths_m: tuple[float, ...] = ZONE_LENGTHS_M,
+    params: TrackParams | None = None,
+    load: float,
+    lambda_min_m: float,
+    lambda_max_m: float,
+    taper: float,
+    step_m: float,
+    baseline_window_m: float,
+) -> DetectionLimit:
+    """The smallest stiffness loss a detector with ``threshold_mm`` finds, per zone length.
+
+    Parameters
+    ----------
+    threshold_mm : float
+        The detector's depth threshold, mm (what :func:`engine.detect.find_dips` returns).
+    zone_lengths_m : tuple of float
+        Zone lengths, m.
+    params : TrackParams, optional
+        Nominal rail and supports (default UIC60 on 80 kN/mm).
+    load : float
+        Static wheel load, N.
+    lambda_min_m, lambda_max_m, taper : float
+        The profile's wavelength band, m, and its tapers.
+    step_m : float
+        Grid step of the profile, m.
+    baseline_window_m : float
+        The detector's baseline window, m.
+
+    Returns
+    -------
+    DetectionLimit
+        The loss (%) whose dip depth equals the threshold, per length; it falls as the noise
+        (the threshold) falls.
+    """
+    if not (math.isfinite(threshold_mm) and threshold_mm > 0):
+        raise ParameterError(
+            f"threshold_mm must be a positive depth in mm, got {threshold_mm}", field="threshold_mm"
+        )
+    for z in zone_lengths_m:
+        if not (math.isfinite(z) and z > 0):
+            raise ParameterError(
+                f"zone lengths must be positive numbers of m, got {z}", field="zone_lengths_m"
+            )
+    trk = params or TrackParams()
+    out = []
+    for z in zone_lengths_m:
+        deepest = _depth_curve(
+            float(z), trk, float(load), float(lambda_min_m), float(lambda_max_m), float(taper),
+            float(step_m), float(baseline_window_m),
+        )  # fmt: skip
+        if threshold_mm > deepest[-1]:
+            out.append(float("nan"))
+        else:
+            out.append(float(100.0 * np.interp(threshold_mm, deepest, _LOSSES)))
+    return DetectionLimit(tuple(float(z) for z in zone_lengths_m), tuple(out), float(threshold_mm))

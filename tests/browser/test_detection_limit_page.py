@@ -1,0 +1,58 @@
+"""What a pass can see, in a real browser: the run page never says "no soft spot" without the
+pass's detection limit, and the simulate page simulates with an IMU grade."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from browser.harness import LiveServer, wait_for_plot
+
+pytestmark = pytest.mark.browser
+
+
+def test_run_page_says_what_the_pass_could_not_see(page: Any, live_server: LiveServer) -> None:
+    """A consumer-grade pass over a 30 % zone finds nothing; its page says so together with
+    the losses it could not have seen (from GET /runs/{id}'s detection_limit)."""
+    with live_server.api() as api:
+        r = api.post(
+            "/api/v1/simulate?wait=true",
+            json={"track": "limit line", "length_m": 220, "speed_mps": 25, "seed": 4,
+                  "zones": [{"start_m": 100, "end_m": 103, "loss": 0.3}],
+                  "sensor_grade": "consumer-mems"},
+        )  # fmt: skip
+        assert r.status_code == 201, r.text
+        run = r.json()["run"]
+    assert run["n_soft_spots"] == 0
+    loss3 = run["detection_limit"]["min_loss_pct"][0]
+    page.goto(f"{live_server.url}/#/runs/{run['id']}")
+    summary = page.locator("#run-summary")
+    summary.wait_for()
+    text = summary.inner_text()
+    assert text.startswith("No soft spot detected. This pass could not see losses below")
+    assert f"{loss3:.0f} % over 3 m" in text and "over 6 m" in text
+    page.watch.assert_clean()
+
+
+def test_simulate_page_offers_the_imu_grades(page: Any, live_server: LiveServer) -> None:
+    """The grade select lists the service's grades; choosing one disables the typed figures
+    and the simulation runs with that grade."""
+    page.goto(f"{live_server.url}/#/simulate")
+    sel = page.locator("#sim-sensor-grade")
+    page.wait_for_function(
+        "() => document.querySelectorAll('#sim-sensor-grade option').length === 5"
+    )
+    sel.select_option("tactical-mems")
+    assert page.locator("#sim-accel-noise").is_disabled()
+    page.fill("#sim-length", "250")
+    page.locator("#sim-zones tbody tr").nth(1).get_by_role(
+        "button", name="Remove this zone"
+    ).click()
+    with page.expect_response(
+        lambda r: "/api/v1/simulate" in r.url and r.request.method == "POST"
+    ) as resp:
+        page.click("#simulate-button")
+    body = resp.value.request.post_data_json
+    assert body["sensor_grade"] == "tactical-mems" and "sensor" not in body
+    wait_for_plot(page, "#sim-profile-plot", 2)
+    page.watch.assert_clean()
