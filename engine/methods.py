@@ -136,7 +136,7 @@ def spectral(m: MethodInput) -> Inversion:
     )  # fmt: skip
 
 
-def _axle_delays(m: MethodInput, most: int = 200) -> NDArray[np.float64]:
+def _axle_delays(m: MethodInput, most: int = 64) -> NDArray[np.float64]:
     """The rear axle's delay behind the front one at up to ``most`` samples, s."""
     body = m.positions.body
     speed = np.abs(np.gradient(body)) / m.log.dt

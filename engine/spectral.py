@@ -443,7 +443,7 @@ def wiener_bins(
     b = np.einsum("mij,mj->mi", HW, np.stack([A, Q], axis=-1))
     # least-squares levels (a whisker of ridge keeps the few ill-posed bins finite)
     ridge = 1e-9 * np.trace(N, axis1=1, axis2=2).real[:, None, None] * np.eye(2)[None]
-    Ninv = np.linalg.inv(N + ridge)
+    Ninv = _inv2(N + ridge)
     y_ls = np.einsum("mij,mj->mi", Ninv, b)
     power = np.mean(np.abs(y_ls) ** 2, axis=1)
     noise = n_eff * np.mean(np.real(np.diagonal(Ninv, axis1=1, axis2=2)), axis=1)
@@ -471,7 +471,20 @@ def wiener_bins(
         Cinv[:, 0, 1] = -np.conj(c) / det
         Cinv[:, 1, 0] = -c / det
         G = N + Cinv / prior[:, None, None]
-    out: NDArray[np.complex128] = np.linalg.solve(G, b[..., None])[..., 0]
+    out: NDArray[np.complex128] = np.einsum("mij,mj->mi", _inv2(G), b)
+    return out
+
+
+def _inv2(M: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Inverses of a stack of 2x2 matrices (m, 2, 2) in closed form (a few times faster than
+    ``np.linalg.inv`` on small matrices)."""
+    a, b, c, d = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
+    det = a * d - b * c
+    out = np.empty_like(M)
+    out[:, 0, 0] = d / det
+    out[:, 0, 1] = -b / det
+    out[:, 1, 0] = -c / det
+    out[:, 1, 1] = a / det
     return out
 
 
