@@ -216,7 +216,8 @@ def main() -> None:
         "",
         "600 m tracks with German low-disturbance geometry (unless varied), supports "
         "scattered ±5 %, three soft zones each (" + zones + "), runs at 20-28 m/s with the "
-        "shared samples' sensor noise and bias, logged starts off by up to ±2 m, aligned to "
+        "fibre-optic grade's sensor noise and bias (the shared samples'), logged starts off "
+        "by up to ±2 m, aligned to "
         "one another and separated (`engine/separation.py`). Counts are summed and errors "
         f"are the worst over {ns.tracks} tracks. Targets (issue 10): every zone, ends "
         "±1.5 m, loss ±10 pp, no false zone, geometry ≤ 0.15 mm RMS. A zone outside the "

@@ -136,6 +136,30 @@ def spectral(m: MethodInput) -> Inversion:
     )  # fmt: skip
 
 
+def _axle_delays(m: MethodInput, most: int = 64) -> NDArray[np.float64]:
+    """The rear axle's delay behind the front one at up to ``most`` samples, s."""
+    body = m.positions.body
+    speed = np.abs(np.gradient(body)) / m.log.dt
+    pick = np.linspace(0, body.size - 1, min(most, body.size)).astype(np.intp)
+    out: NDArray[np.float64] = m.vehicle.wheelbase / np.maximum(speed[pick], 1e-3)
+    return out
+
+
+def wiener(m: MethodInput) -> Inversion:
+    """The spectral inversion with each bin weighted by the log's own signal-to-noise ratio:
+    the measured sensor noise against the levels' measured power spectrum (Wiener)."""
+    log = m.log
+    inv = spectral_inverse(
+        log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
+        taper=m.taper, wiener=True, axle_delay_s=_axle_delays(m),
+    )  # fmt: skip
+    front, rear = inv.band.at_times(m.axle_times) * 1e3
+    return Inversion(
+        None, None, m.bandpass(front), m.bandpass(rear), inv.noise_accel, inv.noise_gyro,
+        inv.band,
+    )  # fmt: skip
+
+
 def filtered_direct(m: MethodInput) -> Inversion:
     """Time-domain direct inversion with band-limited integration."""
     log = m.log
@@ -174,5 +198,6 @@ METHODS: dict[str, Inverter] = {
     "filtered-direct": filtered_direct,
     "least-squares": least_squares,
     "direct": direct,
+    "wiener": wiener,
 }
 """The inversion methods by name (the first is the default)."""

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from .detect import robust_baseline
 from .errors import ParameterError
 from .results import DetectionLimit
-from .stiffness import MAX_LOSS, InfluenceLine, _bandpass_matrix, modal_dips, softening_modes
+from .stiffness import MAX_LOSS, InfluenceLine, _bandpass_rows, modal_dips
 from .track import TrackParams
 
 ZONE_LENGTHS_M = (3.0, 6.0)
@@ -56,8 +56,11 @@ def zone_dip_depths(
     half = lambda_max_m * (1 + taper) + 0.5 * n * s + baseline_window_m
     g = np.arange(-half, half + 1e-9, step_m)
     infl = InfluenceLine(params)
-    bp = _bandpass_matrix(g.size, step_m, lambda_min_m, lambda_max_m, taper)
-    lam, E = softening_modes(infl(sup[:, None] - sup[None, :]), infl(g[None, :] - sup[:, None]), bp)
+    # the modes of softening the zone's supports (engine.stiffness.softening_modes), each
+    # mode's squared influence band-passed row by row (cheaper than the band-pass matrix)
+    lam, Q = np.linalg.eigh(infl(sup[:, None] - sup[None, :]))
+    C = Q.T @ infl(g[None, :] - sup[:, None])
+    E = _bandpass_rows(C * C, step_m, lambda_min_m, lambda_max_m, taper)
     dips = modal_dips(lam, E, losses, params.k_nominal, load)
     near = np.abs(g) <= 0.5 * n * s + 2 * lambda_min_m
     depth = np.empty(losses.size)

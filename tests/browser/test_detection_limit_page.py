@@ -35,8 +35,8 @@ def test_run_page_says_what_the_pass_could_not_see(page: Any, live_server: LiveS
 
 
 def test_simulate_page_offers_the_imu_grades(page: Any, live_server: LiveServer) -> None:
-    """The grade select lists the service's grades; choosing one disables the typed figures
-    and the simulation runs with that grade."""
+    """The grade select lists the service's grades; choosing one disables the typed figures,
+    the simulation runs with that grade and its result says what the pass could not see."""
     page.goto(f"{live_server.url}/#/simulate")
     sel = page.locator("#sim-sensor-grade")
     page.wait_for_function(
@@ -55,4 +55,5 @@ def test_simulate_page_offers_the_imu_grades(page: Any, live_server: LiveServer)
     body = resp.value.request.post_data_json
     assert body["sensor_grade"] == "tactical-mems" and "sensor" not in body
     wait_for_plot(page, "#sim-profile-plot", 2)
+    assert "This pass could not see losses below" in page.locator("#sim-status").inner_text()
     page.watch.assert_clean()

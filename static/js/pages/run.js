@@ -4,6 +4,7 @@
 import { h, clear, append, announce, fmt, fmtDate, downloadBlob, messageBox, plural } from "../dom.js";
 import { ApiError, apiFetch, apiGetOptional, runErrorMessage } from "../api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, TERMS, zoomControls, zoomTo } from "../plots.js";
+import { unseenText } from "../visibility.js";
 
 const META_FIELDS = [
   ["recorded_at", "Recorded", (v) => fmtDate(v)],
@@ -292,24 +293,6 @@ export async function render(main, [id]) {
     stopped = true;
     clearTimeout(timer);
   };
-}
-
-/**
- * What a pass could not have seen, in words, from its detection limit
- * ({zone_length_m: [...], min_loss_pct: [... or null], threshold_mm}).
- */
-export function unseenText(limit) {
-  if (!limit || !Array.isArray(limit.zone_length_m) || limit.zone_length_m.length === 0) {
-    return "What this pass could detect is not known (processed before detection limits were reported; reprocess it to see).";
-  }
-  const parts = limit.zone_length_m.map((len, i) => {
-    const loss = limit.min_loss_pct[i];
-    return loss === null || loss === undefined
-      ? `any loss over ${fmt(len, 0)} m`
-      : `losses below ${fmt(loss, 0)} % over ${fmt(len, 0)} m`;
-  });
-  const list = parts.length > 1 ? `${parts.slice(0, -1).join(", ")} or ${parts[parts.length - 1]}` : parts[0];
-  return `This pass could not see ${list} (its detection threshold: dips of ${fmt(limit.threshold_mm, 2)} mm).`;
 }
 
 function interpolate(xs, ys, x) {

@@ -6,6 +6,7 @@ import { h, clear, append, announce, field, fmt, messageBox } from "../dom.js";
 import { ApiError, apiFetch, apiFetchAll, apiPostJson, apiSchema } from "../api.js";
 import { applyBounds, numberProblem } from "../formerrors.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, zoomControls } from "../plots.js";
+import { unseenText } from "../visibility.js";
 
 const NOISE_PRESETS = {
   none: { accel_noise: 0, gyro_noise: 0, accel_bias: 0, gyro_bias: 0 },
@@ -230,7 +231,7 @@ export async function render(main) {
       await showResults(result);
       const n = result.soft_spots.length;
       const link = h("a", { href: `#/runs/${enc}`, id: "sim-run-link" }, `open it as run ${id}`);
-      status.show(`Done in ${((performance.now() - t0) / 1000).toFixed(1)} s: ${n} soft spot${n === 1 ? "" : "s"} recovered for ${request.zones.length} true zone${request.zones.length === 1 ? "" : "s"}. The run is stored on the track “simulated”; `, "success", [link, "."]);
+      status.show(`Done in ${((performance.now() - t0) / 1000).toFixed(1)} s: ${n} soft spot${n === 1 ? "" : "s"} recovered for ${request.zones.length} true zone${request.zones.length === 1 ? "" : "s"}. ${answer.run.detection_limit ? `${unseenText(answer.run.detection_limit)} ` : ""}The run is stored on the track “simulated”; `, "success", [link, "."]);
       announce("Simulation done.");
     } catch (err) {
       status.show(`The simulation failed: ${err.message}`, "error",

@@ -1,0 +1,79 @@
+"""Processing cost per pass, inversion methods side by side on every IMU grade.
+
+Run: ``python benchmarks/bench_grades_cost.py [--methods spectral,wiener] [--repeat 15]``
+(about 30 s). One 1 km track (three zones, supports +-5 %), table1 at 24 m/s, logged at 1 kHz
+by each grade of ``engine.sensor.SENSOR_GRADES``; for each log and method the best of
+``--repeat`` calls of ``process_run`` (everything a pass costs: checks, inversion, wheel forces,
+detection, stiffness fits, detection limit) and of the inversion step alone, methods
+interleaved so that a busy machine slows them alike. Prints a markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import numpy as np  # noqa: E402
+from common import machine  # noqa: E402
+
+from engine.methods import METHODS, MethodInput  # noqa: E402
+from engine.pipeline import ProcessConfig, check_run, process_run  # noqa: E402
+from engine.sensor import SENSOR_GRADES, sensor_for_grade  # noqa: E402
+from engine.synthetic import make_run, make_track, to_runlog  # noqa: E402
+from engine.track import SoftZone  # noqa: E402
+from engine.vehicle import TABLE1  # noqa: E402
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("--methods", default="spectral,wiener")
+    p.add_argument("--repeat", type=int, default=15)
+    ns = p.parse_args()
+    methods = ns.methods.split(",")
+    zones = [SoftZone(200, 203, 0.4), SoftZone(500, 506, 0.35), SoftZone(760, 770, 0.5)]
+    run = make_run(track=make_track(1000.0, zones=zones, jitter=0.05, seed=2), seed=2, speed=24.0)
+    best: dict[tuple[str, str], list[float]] = {}
+    for grade in SENSOR_GRADES:
+        log = to_runlog(run.sim, sensor_for_grade(grade, 1000.0, seed=1), seed=2)
+        inputs = {}
+        for m in methods:
+            cfg = ProcessConfig(method=m)  # type: ignore[arg-type]
+            process_run(log, start_chainage_m=run.start_chainage_m, config=cfg)  # warm
+            chk = check_run(log, start_chainage_m=run.start_chainage_m, config=cfg)
+            pos, step = chk.positions, cfg.grid_step_m
+            lo, hi = min(pos.front.min(), pos.rear.min()), max(pos.front.max(), pos.rear.max())
+            grid = np.arange(np.ceil(lo / step) * step, hi + 1e-9, step)
+            inputs[m] = (cfg, MethodInput(
+                log=log, positions=pos, grid=grid, step_m=step, vehicle=TABLE1,
+                f_lo_hz=chk.f_lo_hz, f_hi_hz=chk.f_hi_hz, lambda_min_m=cfg.lambda_min_m,
+                lambda_max_m=cfg.lambda_max_m, taper=cfg.taper,
+            ))  # fmt: skip
+            best[(grade, m)] = [np.inf, np.inf]
+        for _ in range(ns.repeat):
+            for m in methods:
+                cfg, given = inputs[m]
+                t0 = time.perf_counter()
+                process_run(log, start_chainage_m=run.start_chainage_m, config=cfg)
+                t1 = time.perf_counter()
+                METHODS[m](given)
+                t2 = time.perf_counter()
+                b = best[(grade, m)]
+                b[0], b[1] = min(b[0], t1 - t0), min(b[1], t2 - t1)
+    print(f"Machine: {machine()}. Best of {ns.repeat}, ms.\n")
+    print("| grade | " + " | ".join(f"{m}: pass | {m}: inversion" for m in methods) + " |")
+    print("|---|" + "---|---|" * len(methods))
+    for grade in SENSOR_GRADES:
+        cells = [f"{1e3 * v:.1f}" for m in methods for v in best[(grade, m)]]
+        print(f"| {grade} | " + " | ".join(cells) + " |")
+    tot = {m: sum(best[(g, m)][0] for g in SENSOR_GRADES) for m in methods}
+    ratio = [f"{m} {1e3 * tot[m]:.1f} ms ({tot[m] / tot[methods[0]]:.2f}x)" for m in methods]
+    print("\nPer pass, summed over the grades: " + ", ".join(ratio))
+
+
+if __name__ == "__main__":
+    main()
