@@ -1,0 +1,494 @@
+"""A track's geometry quality in EN 13848 terms: D1/D2 level, section SDs and classes,
+isolated defects against speed-class limits, repeatability, trends, survey comparison, GeoJSON.
+
+The level analysed is the track's unloaded geometry where the two-load separation holds
+(``app.services.stiffness``), else the aggregated loaded level (``app.services.aggregate``),
+point by point; each section says which (``basis``: ``unloaded``, ``loaded`` or ``mixed``).
+Passes are each chunk's newest aligned runs (``aggregate.newest_runs``). Everything is
+computed on read from stored arrays: a 10 km track reads and filters in well under a second.
+
+Units: chainage m (aligned), levels mm, speeds km/h, time UTC.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import delete, select
+from sqlalchemy.orm import Session
+
+from app.db.base import utcnow
+from app.db.models import (
+    Run,
+    Survey,
+    SurveyLevels,
+    Track,
+    TrackLineSpeed,
+    TrackQualityLimits,
+    TrackRunLevels,
+)
+from engine.errors import ParameterError
+from engine.pipeline import ProcessConfig
+from engine.track_quality import (
+    BANDS,
+    BandFilter,
+    LineSpeed,
+    QualityLimits,
+    check_line_speeds,
+    isolated_defects,
+    next_limit,
+    predict_crossing,
+    repeatability,
+    section_statistics,
+    speed_at,
+    speed_class,
+)
+
+from .aggregate import CHUNK_POINTS, aggregate_chunk_range, newest_runs, read_aggregate
+from .alignment import GRID_STEP_M
+from .centerlines import load_centerline
+from .errors import Invalid, NotFound
+from .packing import unpack_f4
+from .stiffness import read_stiffness
+
+PRODUCT_BAND_MAX_M = ProcessConfig().lambda_max_m
+"""Longest wavelength the stored levels hold (m): D2 beyond it is missing from the answer."""
+
+REPEATABILITY_BAND = BandFilter("6-70 m", 6.0, 70.0)
+"""Band of the repeatability figure EN 13848-2 asks of a measuring system (lambda >= 6 m)."""
+
+PEAK_MATCH_M = 2.0
+"""A pass's value of a defect is its largest |level| within this distance of the peak, m."""
+
+MIN_SECTION_COVERAGE = 0.5
+"""Least share of a section a pass must cover to count as a pass over it."""
+
+
+# ----------------------------------------------------------------------- settings (stored)
+
+
+def load_quality_limits(session: Session, track_id: int) -> tuple[QualityLimits, datetime | None]:
+    """The track's quality limits and when they were set (None: the defaults)."""
+    row = session.get(TrackQualityLimits, track_id)
+    if row is None:
+        return QualityLimits(), None
+    return QualityLimits.from_dict(row.data), row.updated_at
+
+
+def save_quality_limits(session: Session, track_id: int, data: dict[str, Any]) -> QualityLimits:
+    """Check and store a track's quality limits (keys left out take defaults; caller commits)."""
+    try:
+        limits = QualityLimits.from_dict(data)
+    except (ParameterError, TypeError, ValueError) as exc:
+        field = getattr(exc, "field", None) or "body"
+        raise Invalid(f"quality limits: {exc}", field=field) from None
+    row = session.get(TrackQualityLimits, track_id)
+    if row is None:
+        row = TrackQualityLimits(track_id=track_id, data=limits.to_dict())
+        session.add(row)
+    else:
+        row.data = limits.to_dict()
+    session.flush()
+    return limits
+
+
+def load_line_speeds(session: Session, track_id: int) -> tuple[LineSpeed, ...]:
+    """The track's line speeds by chainage, ordered."""
+    rows = session.scalars(
+        select(TrackLineSpeed)
+        .where(TrackLineSpeed.track_id == track_id)
+        .order_by(TrackLineSpeed.from_m)
+    ).all()
+    return tuple(LineSpeed(r.from_m, r.to_m, r.speed_kmh) for r in rows)
+
+
+def save_line_speeds(
+    session: Session, track_id: int, ranges: list[tuple[float, float, float]]
+) -> tuple[LineSpeed, ...]:
+    """Replace the track's line speeds (``(from_m, to_m, speed_kmh)`` each); Invalid naming the
+    range (``field`` ``ranges[i].to_m`` ...) when one is wrong or two overlap. Caller commits."""
+    speeds = []
+    for i, (a, b, v) in enumerate(ranges):
+        try:
+            speeds.append(LineSpeed(float(a), float(b), float(v)))
+        except ParameterError as exc:
+            raise Invalid(f"ranges[{i}]: {exc}", field=f"ranges[{i}].{exc.field}") from None
+    try:
+        ordered = check_line_speeds(speeds)
+    except ParameterError as exc:
+        raise Invalid(str(exc), field="ranges") from None
+    session.execute(delete(TrackLineSpeed).where(TrackLineSpeed.track_id == track_id))
+    session.add_all(
+        TrackLineSpeed(track_id=track_id, from_m=s.from_m, to_m=s.to_m, speed_kmh=s.speed_kmh)
+        for s in ordered
+    )
+    session.flush()
+    return ordered
+
+
+# ------------------------------------------------------------------------------- reading
+
+
+@dataclass(frozen=True)
+class _Levels:
+    """The track's analysed level on its grid, with its basis and the passes over it."""
+
+    i0: int
+    level_mm: NDArray[np.float64]
+    unloaded: NDArray[np.bool_]
+    passes: dict[int, NDArray[np.float64]]
+    recorded: dict[int, datetime | None]
+
+    @property
+    def chainage_m(self) -> NDArray[np.float64]:
+        return (self.i0 + np.arange(self.level_mm.size, dtype=np.float64)) * GRID_STEP_M
+
+
+def _read_levels(session: Session, track_id: int) -> _Levels | None:
+    stored = aggregate_chunk_range(session, track_id)
+    if stored is None:
+        return None
+    c_lo, c_hi = stored
+    i0, i1 = c_lo * CHUNK_POINTS, (c_hi + 1) * CHUNK_POINTS - 1
+    n = i1 - i0 + 1
+    span = read_aggregate(session, track_id, i0, i1)
+    level = np.where(span.n_runs > 0, span.level_mm, np.nan)
+    sep = read_stiffness(session, track_id)
+    unloaded = np.zeros(n, dtype=bool)
+    if sep.n:
+        idx = np.rint(np.asarray(sep.columns["chainage_m"]) / GRID_STEP_M).astype(np.int64) - i0
+        geo = np.array([np.nan if v is None else v for v in sep.columns["geometry_mm"]])
+        ok = (idx >= 0) & (idx < n) & np.isfinite(geo) & np.asarray(sep.columns["separable"])
+        level[idx[ok]] = geo[ok]
+        unloaded[idx[ok]] = True
+    passes: dict[int, NDArray[np.float64]] = {}
+    t = TrackRunLevels.__table__
+    keys = newest_runs(track_id, c_lo, c_hi)
+    for rid, chunk, blob in session.execute(
+        select(t.c.run_id, t.c.chunk, t.c.levels).join(
+            keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk)
+        )
+    ):
+        arr = passes.setdefault(int(rid), np.full(n, np.nan))
+        at = (chunk - c_lo) * CHUNK_POINTS
+        arr[at : at + CHUNK_POINTS] = unpack_f4(blob)
+    recorded: dict[int, datetime | None] = {}
+    if passes:
+        for rid, when, created in session.execute(
+            select(Run.id, Run.recorded_at, Run.created_at).where(Run.id.in_(list(passes)))
+        ):
+            recorded[int(rid)] = when or created
+    return _Levels(i0, level, unloaded, passes, recorded)
+
+
+def _read_surveys(
+    session: Session, track_id: int, i0: int, n: int
+) -> list[tuple[Survey, NDArray[np.float64]]]:
+    out: dict[int, NDArray[np.float64]] = {}
+    s = SurveyLevels.__table__
+    c_lo = i0 // CHUNK_POINTS
+    for sid, chunk, blob in session.execute(
+        select(s.c.survey_id, s.c.chunk, s.c.levels).where(s.c.track_id == track_id)
+    ):
+        at = (chunk - c_lo) * CHUNK_POINTS
+        if at < 0 or at >= n:
+            continue
+        arr = out.setdefault(int(sid), np.full(n, np.nan))
+        part = unpack_f4(blob)
+        arr[at : at + part.size] = part[: n - at]
+    surveys = {sv.id: sv for sv in session.scalars(select(Survey).where(Survey.id.in_(list(out))))}
+    return [(surveys[k], v) for k, v in sorted(out.items()) if k in surveys]
+
+
+# ------------------------------------------------------------------------------- analysis
+
+
+def _f(v: float | None, nd: int = 3) -> float | None:
+    return None if v is None or not math.isfinite(v) else round(float(v), nd)
+
+
+def _iso(t: datetime | None) -> str | None:
+    return None if t is None else t.isoformat().replace("+00:00", "Z")
+
+
+def _crossing_dict(c: Any) -> dict[str, Any] | None:
+    if c is None:
+        return None
+    return {
+        "level": c[0],
+        "limit_mm": c[1].limit,
+        "reached": c[1].reached,
+        "slope_mm_per_year": _f(c[1].slope_per_year),
+        "date": _iso(c[1].date),
+        "earliest": _iso(c[1].earliest),
+        "latest": _iso(c[1].latest),
+    }
+
+
+def track_quality(
+    session: Session, track: Track, section_m: float = 200.0, *, traces: bool = False
+) -> dict[str, Any]:
+    """The quality answer of ``track`` (see ``app.schemas.quality.QualityPublic``).
+
+    ``section_m``: section length (m, from chainage 0); ``traces``: add the D1/D2 levels
+    (every 1 m) for plotting.
+    """
+    if not (10.0 <= section_m <= 10_000.0):
+        raise Invalid(f"section_m {section_m:g} m not in 10..10000 m", field="section_m")
+    limits, limits_set = load_quality_limits(session, track.id)
+    speeds = load_line_speeds(session, track.id)
+    lv = _read_levels(session, track.id)
+    d2_band = [BANDS["D2"].lambda_min_m, min(BANDS["D2"].lambda_max_m, PRODUCT_BAND_MAX_M)]
+    answer: dict[str, Any] = {
+        "track_id": track.id,
+        "track": track.name,
+        "section_m": section_m,
+        "filters": {
+            name: {
+                "lambda_min_m": b.lambda_min_m,
+                "lambda_max_m": b.lambda_max_m,
+                "order": b.order,
+                "cutoff_db": b.cutoff_db,
+                "zero_phase": True,
+            }
+            for name, b in BANDS.items()
+        },  # fmt: skip
+        "d2_band_m": d2_band,
+        "notes": [],
+        "limits_default": limits_set is None,
+        "sections": [],
+        "defects": [],
+        "repeatability": None,
+        "survey_comparison": [],
+    }
+    if d2_band[1] < BANDS["D2"].lambda_max_m:
+        answer["notes"].append(
+            f"the stored levels hold wavelengths up to {PRODUCT_BAND_MAX_M:g} m: D2 covers "
+            f"{d2_band[0]:g}-{d2_band[1]:g} m of its 25-70 m and understates a recording car's D2"
+        )
+    if lv is None:
+        answer["notes"].append("no aligned run over this track yet")
+        return answer
+    x = lv.chainage_m
+    filt = {name: b.apply(lv.level_mm, GRID_STEP_M) for name, b in BANDS.items()}
+    stats = section_statistics(x, filt, section_m, min_coverage=MIN_SECTION_COVERAGE)
+    pass_filt = {rid: BANDS["D1"].apply(p, GRID_STEP_M) for rid, p in lv.passes.items()}
+    now = utcnow()
+    for st in stats:
+        m = (x >= st.start_m) & (x < st.end_m)
+        covered = m & np.isfinite(lv.level_mm)
+        if not covered.any():
+            continue
+        share_unloaded = float(lv.unloaded[covered].mean())
+        basis = (
+            "unloaded"
+            if share_unloaded >= 0.95
+            else "loaded"
+            if share_unloaded <= 0.05
+            else "mixed"
+        )
+        over = [
+            rid for rid, p in lv.passes.items()
+            if np.isfinite(p[m]).mean() >= MIN_SECTION_COVERAGE
+        ]  # fmt: skip
+        times = [t for r in over if (t := lv.recorded.get(r)) is not None]
+        last = max(times) if times else None
+        mid = 0.5 * (st.start_m + st.end_m)
+        speed = speed_at(speeds, mid)
+        d1 = st.sd_mm["D1"]
+        rep = repeatability([pass_filt[r][m] for r in over]) if len(over) >= 2 else None
+        cls = limits.quality_class(d1, speed)
+        trend = None
+        if cls is not None and cls != "E" and len(over) >= 3:
+            per_pass = [
+                (t, float(np.nanstd(pass_filt[r][m])))
+                for r in over
+                if (t := lv.recorded.get(r)) is not None
+            ]
+            bounds = limits.class_sd_mm[speed_class(speed)]
+            nxt = "ABCDE"["ABCD".index(cls) + 1]
+            crossing = predict_crossing([t for t, _ in per_pass], [v for _, v in per_pass],
+                                        bounds["ABCD".index(cls)])  # fmt: skip
+            trend = _crossing_dict((nxt, crossing))
+        answer["sections"].append({
+            "start_m": st.start_m, "end_m": st.end_m,
+            "d1_sd_mm": _f(d1), "d2_sd_mm": _f(st.sd_mm["D2"]),
+            "coverage": _f(st.coverage, 2), "n_passes": len(over),
+            "last_pass": _iso(last),
+            "days_since_last_pass": None if last is None else _f(_days(now - last), 1),
+            "repeatability_d1_mm": None if rep is None else _f(rep.r95_mm),
+            "speed_kmh": speed, "quality_class": cls, "basis": basis,
+            "next_class": trend,
+        })  # fmt: skip
+    for name in BANDS:
+        for d in isolated_defects(x, filt[name], name, limits, speeds):
+            i = int(round(d.peak_m / GRID_STEP_M)) - lv.i0
+            basis = "unloaded" if lv.unloaded[i] else "loaded"
+            answer["defects"].append(_defect_dict(d, basis, limits, lv, x, name))
+    answer["defects"].sort(key=lambda d: (("immediate", "intervention", "alert").index(d["level"]),
+                                          -abs(d["value_mm"])))  # fmt: skip
+    rep_passes = [REPEATABILITY_BAND.apply(p, GRID_STEP_M) for p in lv.passes.values()]
+    rep = repeatability(rep_passes)
+    answer["repeatability"] = {
+        "band_m": [REPEATABILITY_BAND.lambda_min_m, REPEATABILITY_BAND.lambda_max_m],
+        "r95_mm": _f(rep.r95_mm), "n_pairs": rep.n_pairs, "n_points": rep.n_points,
+        "note": "loaded levels of the passes (each run's own, before the separation)",
+    }  # fmt: skip
+    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, filt, section_m)
+    if traces:
+        step = int(round(1.0 / GRID_STEP_M))
+        keep = np.flatnonzero(np.isfinite(lv.level_mm))[::step]
+        answer["traces"] = {
+            "chainage_m": [round(float(v), 2) for v in x[keep]],
+            "d1_mm": [_f(float(v)) for v in filt["D1"][keep]],
+            "d2_mm": [_f(float(v)) for v in filt["D2"][keep]],
+        }
+    return answer
+
+
+def _defect_dict(
+    d: Any, basis: str, limits: QualityLimits, lv: _Levels, x: NDArray[np.float64], band: str
+) -> dict[str, Any]:
+    triple = limits.limits_at(band, d.speed_kmh)
+    out: dict[str, Any] = {
+        "peak_m": round(d.peak_m, 2), "start_m": round(d.start_m, 2), "end_m": round(d.end_m, 2),
+        "band": band, "value_mm": _f(d.value_mm), "level": d.level, "speed_kmh": d.speed_kmh,
+        "limits_mm": {"alert": triple[0], "intervention": triple[1], "immediate": triple[2]},
+        "basis": basis, "next_limit": None,
+    }  # fmt: skip
+    nxt = next_limit(d.value_mm, triple)
+    if nxt is None:
+        return out
+    near = np.abs(x - d.peak_m) <= PEAK_MATCH_M
+    filt = BANDS[band]
+    series = []
+    for rid, p in lv.passes.items():
+        when = lv.recorded.get(rid)
+        v = filt.apply(p, GRID_STEP_M)[near]
+        if when is not None and np.isfinite(v).any():
+            series.append((when, float(np.nanmax(np.abs(v)))))
+    if len(series) >= 3:
+        crossing = predict_crossing([t for t, _ in series], [v for _, v in series], nxt[1])
+        out["next_limit"] = _crossing_dict((nxt[0], crossing))
+    return out
+
+
+def _survey_comparison(
+    session: Session,
+    track_id: int,
+    lv: _Levels,
+    filt: dict[str, NDArray[np.float64]],
+    section_m: float,
+) -> list[dict[str, Any]]:
+    out = []
+    x = lv.chainage_m
+    for survey, level in _read_surveys(session, track_id, lv.i0, lv.level_mm.size):
+        sf = {name: b.apply(level, GRID_STEP_M) for name, b in BANDS.items()}
+        both = {name: np.where(np.isfinite(filt[name]), sf[name], np.nan) for name in BANDS}
+        fleet = {name: np.where(np.isfinite(sf[name]), filt[name], np.nan) for name in BANDS}
+        s_stats = section_statistics(x, both, section_m, min_coverage=MIN_SECTION_COVERAGE)
+        f_stats = section_statistics(x, fleet, section_m, min_coverage=MIN_SECTION_COVERAGE)
+        rows = []
+        for ss, fs in zip(s_stats, f_stats, strict=True):
+            if not math.isfinite(ss.sd_mm["D1"]):
+                continue
+            m = (x >= ss.start_m) & (x < ss.end_m)
+            err = np.abs(fleet["D1"][m] - both["D1"][m])
+            rows.append({
+                "start_m": ss.start_m, "end_m": ss.end_m,
+                "survey_d1_sd_mm": _f(ss.sd_mm["D1"]), "fleet_d1_sd_mm": _f(fs.sd_mm["D1"]),
+                "d1_sd_diff_mm": _f(fs.sd_mm["D1"] - ss.sd_mm["D1"]),
+                "d2_sd_diff_mm": _f(fs.sd_mm["D2"] - ss.sd_mm["D2"]),
+                "d1_peak_error_mm": _f(_nanmax(err)),
+            })  # fmt: skip
+        out.append({
+            "survey_id": survey.id, "name": survey.name, "recorded_at": _iso(survey.recorded_at),
+            "wheel_load_n": survey.wheel_load_n, "sections": rows,
+        })  # fmt: skip
+    return out
+
+
+def _days(span: Any) -> float:
+    return float(span.total_seconds()) / 86400.0
+
+
+def _nanmax(a: NDArray[np.float64]) -> float:
+    return float(np.nanmax(a)) if np.isfinite(a).any() else math.nan
+
+
+# ---------------------------------------------------------------------------------- exports
+
+QUALITY_CSV_COLUMNS = (
+    "start_m", "end_m", "d1_sd_mm", "d2_sd_mm", "n_passes", "days_since_last_pass",
+    "repeatability_d1_mm", "speed_kmh", "quality_class", "basis",
+)  # fmt: skip
+
+
+def quality_csv(answer: dict[str, Any]) -> str:
+    """The sections as CSV (one row each), then a blank line and the defects."""
+    lines = [",".join(QUALITY_CSV_COLUMNS)]
+    for s in answer["sections"]:
+        lines.append(",".join("" if s[c] is None else str(s[c]) for c in QUALITY_CSV_COLUMNS))
+    lines.append("")
+    cols = ("peak_m", "start_m", "end_m", "band", "value_mm", "level", "speed_kmh", "basis")
+    lines.append(",".join(cols))
+    for d in answer["defects"]:
+        lines.append(",".join("" if d[c] is None else str(d[c]) for c in cols))
+    return "\n".join(lines) + "\n"
+
+
+def _lonlat(line: Any, chainage: NDArray[np.float64]) -> list[list[float]]:
+    # vertices are dense (tens of metres): linear interpolation of degrees between them is
+    # within millimetres of the geodesic
+    lon = np.interp(chainage, line.chainage_m, line.lon_deg)
+    lat = np.interp(chainage, line.chainage_m, line.lat_deg)
+    return [[round(float(a), 8), round(float(b), 8)] for a, b in zip(lon, lat, strict=True)]
+
+
+def quality_geojson(session: Session, track: Track, section_m: float = 200.0) -> dict[str, Any]:
+    """Sections (LineString) and isolated defects (Point) on the track's centerline, WGS84
+    ``[lon, lat]``; NotFound when the track has no centerline."""
+    line = load_centerline(session, track.id)
+    if line is None:
+        raise NotFound(
+            f"track {track.name!r} has no centerline: upload one (PUT /tracks/{{track}}/"
+            "centerline) to place its quality on a map",
+            field="track",
+        )
+    answer = track_quality(session, track, section_m)
+    lo, hi = line.start_chainage_m, line.end_chainage_m
+    features: list[dict[str, Any]] = []
+    for s in answer["sections"]:
+        a, b = max(s["start_m"], lo), min(s["end_m"], hi)
+        if b <= a:
+            continue
+        n = max(2, int(math.ceil((b - a) / 10.0)) + 1)
+        features.append({
+            "type": "Feature",
+            "geometry": {"type": "LineString", "coordinates": _lonlat(line, np.linspace(a, b, n))},
+            "properties": {"kind": "section"} | {k: v for k, v in s.items() if k != "next_class"},
+        })  # fmt: skip
+    for d in answer["defects"]:
+        if not (lo <= d["peak_m"] <= hi):
+            continue
+        features.append({
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": _lonlat(line, np.array([d["peak_m"]]))[0]},
+            "properties": {"kind": "defect"} | {k: v for k, v in d.items()
+                                                if k not in ("limits_mm", "next_limit")},
+        })  # fmt: skip
+    return {"type": "FeatureCollection", "features": features}
+
+
+def by_level(defects: list[dict[str, Any]]) -> dict[str, int]:
+    """How many defects reach each level (for summaries)."""
+    out: dict[str, int] = defaultdict(int)
+    for d in defects:
+        out[d["level"]] += 1
+    return dict(out)
