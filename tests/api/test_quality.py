@@ -102,12 +102,14 @@ def test_limits_and_line_speeds_drive_defects_and_classes(world: dict[str, Any])
     base = f"/api/v1/tracks/{TRACK}"
     assert c.get(f"{base}/quality-limits").json()["is_default"] is True
     r = c.put(f"{base}/line-speeds", json={"ranges": [
-        {"from_m": 300, "to_m": 700, "speed_kmh": 150}, {"from_m": 0, "to_m": 300, "speed_kmh": 100},
+        {"from_m": 300, "to_m": 700, "speed_kmh": 150},
+        {"from_m": 0, "to_m": 300, "speed_kmh": 100},
     ]})  # fmt: skip
     assert r.status_code == 200, r.text
     assert [x["from_m"] for x in r.json()["ranges"]] == [0, 300]
     bad = c.put(f"{base}/line-speeds", json={"ranges": [
-        {"from_m": 0, "to_m": 300, "speed_kmh": 100}, {"from_m": 200, "to_m": 400, "speed_kmh": 120},
+        {"from_m": 0, "to_m": 300, "speed_kmh": 100},
+        {"from_m": 200, "to_m": 400, "speed_kmh": 120},
     ]})  # fmt: skip
     assert bad.status_code == 422 and bad.json()["detail"]["field"] == "ranges"
     assert len(c.get(f"{base}/line-speeds").json()["ranges"]) == 2
@@ -139,7 +141,9 @@ def _centerline_csv() -> tuple[str, Centerline]:
     east, north = 2000.0 * np.sin(theta), 2000.0 * (1 - np.cos(theta))
     lat = LAT0 + north / 111_320.0
     lon = LON0 + east / (111_320.0 * math.cos(math.radians(LAT0)))
-    rows = ["chainage_m,lat,lon"] + [f"{a:.3f},{b:.9f},{c:.9f}" for a, b, c in zip(ch, lat, lon)]
+    rows = ["chainage_m,lat,lon"] + [
+        f"{a:.3f},{b:.9f},{c:.9f}" for a, b, c in zip(ch, lat, lon, strict=True)
+    ]
     # chainage of the stored line is the arc length measured on the ellipsoid, so take the
     # engine's own object for the check below
     return "\n".join(rows) + "\n", Centerline(lon, lat, ch)
