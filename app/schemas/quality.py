@@ -77,6 +77,10 @@ class QualityPublic(BaseModel):
     sections: list[QualitySectionPublic]
     defects: list[QualityDefectPublic]
     repeatability: dict[str, Any] | None
+    observability: list[dict[str, Any]] = Field(
+        description="Per vehicle of the passes, at its median speed: wavelengths its axle "
+        "spacing hides from bounce or pitch, and ranges neither signal carries (3-70 m)"
+    )
     survey_comparison: list[dict[str, Any]]
     traces: dict[str, list[float | None]] | None = None
 

@@ -32,6 +32,7 @@ from app.db.models import (
     TrackLineSpeed,
     TrackQualityLimits,
     TrackRunLevels,
+    Vehicle,
 )
 from engine.errors import ParameterError
 from engine.pipeline import ProcessConfig
@@ -43,12 +44,14 @@ from engine.track_quality import (
     check_line_speeds,
     isolated_defects,
     next_limit,
+    observability,
     predict_crossing,
     repeatability,
     section_statistics,
     speed_at,
     speed_class,
 )
+from engine.vehicle import VehicleParams
 
 from .aggregate import CHUNK_POINTS, aggregate_chunk_range, newest_runs, read_aggregate
 from .alignment import GRID_STEP_M
@@ -144,6 +147,7 @@ class _Levels:
     unloaded: NDArray[np.bool_]
     passes: dict[int, NDArray[np.float64]]
     recorded: dict[int, datetime | None]
+    vehicle_speeds: dict[int, list[float]]
 
     @property
     def chainage_m(self) -> NDArray[np.float64]:
@@ -179,12 +183,31 @@ def _read_levels(session: Session, track_id: int) -> _Levels | None:
         at = (chunk - c_lo) * CHUNK_POINTS
         arr[at : at + CHUNK_POINTS] = unpack_f4(blob)
     recorded: dict[int, datetime | None] = {}
+    speeds: dict[int, list[float]] = defaultdict(list)
     if passes:
-        for rid, when, created in session.execute(
-            select(Run.id, Run.recorded_at, Run.created_at).where(Run.id.in_(list(passes)))
-        ):
+        for rid, when, created, vid, v_lo, v_hi in session.execute(
+            select(
+                Run.id, Run.recorded_at, Run.created_at, Run.vehicle_id, Run.speed_min_mps,
+                Run.speed_max_mps,
+            ).where(Run.id.in_(list(passes)))
+        ):  # fmt: skip
             recorded[int(rid)] = when or created
-    return _Levels(i0, level, unloaded, passes, recorded)
+            speeds[int(vid)].append(0.5 * (float(v_lo) + float(v_hi)))
+    return _Levels(i0, level, unloaded, passes, recorded, dict(speeds))
+
+
+def _observability(
+    session: Session, vehicle_speeds: dict[int, list[float]]
+) -> list[dict[str, Any]]:
+    out = []
+    for vid, vs in sorted(vehicle_speeds.items()):
+        veh = session.get(Vehicle, vid)
+        speed = float(np.median(vs))
+        if veh is None or not speed > 0:
+            continue
+        o = observability(VehicleParams(**veh.params_dict()), speed)
+        out.append({"vehicle_id": vid, "vehicle": veh.name} | o.to_dict())
+    return out
 
 
 def _read_surveys(
@@ -265,6 +288,7 @@ def track_quality(
         "sections": [],
         "defects": [],
         "repeatability": None,
+        "observability": [],
         "survey_comparison": [],
     }
     if d2_band[1] < BANDS["D2"].lambda_max_m:
@@ -340,6 +364,7 @@ def track_quality(
         "r95_mm": _f(rep.r95_mm), "n_pairs": rep.n_pairs, "n_points": rep.n_points,
         "note": "loaded levels of the passes (each run's own, before the separation)",
     }  # fmt: skip
+    answer["observability"] = _observability(session, lv.vehicle_speeds)
     answer["survey_comparison"] = _survey_comparison(session, track.id, lv, filt, section_m)
     if traces:
         step = int(round(1.0 / GRID_STEP_M))
