@@ -365,7 +365,7 @@ def track_quality(
         "note": "loaded levels of the passes (each run's own, before the separation)",
     }  # fmt: skip
     answer["observability"] = _observability(session, lv.vehicle_speeds)
-    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, filt, section_m)
+    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, section_m)
     if traces:
         step = int(round(1.0 / GRID_STEP_M))
         keep = np.flatnonzero(np.isfinite(lv.level_mm))[::step]
@@ -408,15 +408,18 @@ def _survey_comparison(
     session: Session,
     track_id: int,
     lv: _Levels,
-    filt: dict[str, NDArray[np.float64]],
     section_m: float,
 ) -> list[dict[str, Any]]:
     out = []
     x = lv.chainage_m
     for survey, level in _read_surveys(session, track_id, lv.i0, lv.level_mm.size):
-        sf = {name: b.apply(level, GRID_STEP_M) for name, b in BANDS.items()}
-        both = {name: np.where(np.isfinite(filt[name]), sf[name], np.nan) for name in BANDS}
-        fleet = {name: np.where(np.isfinite(sf[name]), filt[name], np.nan) for name in BANDS}
+        # both filtered over the same stretch: the filters' transients at the ends of a
+        # coverage are then alike and cancel in the differences
+        common = np.isfinite(level) & np.isfinite(lv.level_mm)
+        both = {n: b.apply(np.where(common, level, np.nan), GRID_STEP_M) for n, b in BANDS.items()}
+        fleet = {
+            n: b.apply(np.where(common, lv.level_mm, np.nan), GRID_STEP_M) for n, b in BANDS.items()
+        }
         s_stats = section_statistics(x, both, section_m, min_coverage=MIN_SECTION_COVERAGE)
         f_stats = section_statistics(x, fleet, section_m, min_coverage=MIN_SECTION_COVERAGE)
         rows = []

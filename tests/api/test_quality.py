@@ -92,6 +92,8 @@ def test_quality_sections_follow_the_truth(world: dict[str, Any]) -> None:
         assert s["repeatability_d1_mm"] is not None and s["repeatability_d1_mm"] < 0.5
     assert q["d2_band_m"] == [25.0, 40.0] and q["notes"]  # the stored band is said, not hidden
     assert q["repeatability"]["r95_mm"] < 0.5
+    (obs,) = q["observability"]  # one vehicle: the coach, its axles 8.26 m apart
+    assert obs["vehicle"] == "table1" and obs["bounce_nulls_m"] == [16.52, 5.51, 3.3]
 
 
 def test_limits_and_line_speeds_drive_defects_and_classes(world: dict[str, Any]) -> None:
@@ -189,3 +191,40 @@ def test_unknown_track_and_bad_section_length(world: dict[str, Any]) -> None:
     r = c.get("/api/v1/tracks/no such line/quality")
     assert r.status_code == 404 and r.json()["detail"]["field"] == "track"
     assert c.get(f"/api/v1/tracks/{TRACK}/quality", params={"section_m": 5}).status_code == 422
+
+
+def test_report_has_the_quality_section(world: dict[str, Any]) -> None:
+    """The HTML report carries the quality section: its heading, one row per section with its
+    class, and the note about the stored D2 band."""
+    c = world["client"]
+    q = c.get(f"/api/v1/tracks/{TRACK}/quality").json()
+    html = c.get(f"/api/v1/tracks/{TRACK}/report").text
+    assert "<h2>Track quality (EN 13848)</h2>" in html
+    part = html.split("<h2>Track quality (EN 13848)</h2>")[1]
+    for s in q["sections"]:
+        assert f"{s['start_m']:.0f}–{s['end_m']:.0f}</td>" in part
+    assert "D2 covers 25-40 m" in part
+
+
+def test_survey_comparison_per_section(world: dict[str, Any]) -> None:
+    """A recording car's survey (here the true geometry in 2-70 m, at 60 kN per wheel): per
+    section the fleet's D1 SD is within 0.1 mm of the survey's and the D1 peak error stays
+    under 0.5 mm. Runs last in the module: the survey changes the track's separation."""
+    c = world["client"]
+    x = np.arange(0.0, 640.0, 0.25)
+    level = np.asarray(world["profile"](x), dtype=np.float64) * 1e3
+    rows = ["chainage_m,level_mm"] + [
+        f"{a + world['frame_error_m']:.3f},{b:.4f}" for a, b in zip(x, level, strict=True)
+    ]
+    r = c.post(
+        f"/api/v1/tracks/{TRACK}/surveys",
+        files={"file": ("survey.csv", ("\n".join(rows) + "\n").encode(), "text/csv")},
+        data={"wheel_load_n": "60000", "band_min_m": "2", "band_max_m": "70", "name": "car"},
+    )
+    assert r.status_code == 201, r.text
+    q = c.get(f"/api/v1/tracks/{TRACK}/quality").json()
+    (sv,) = q["survey_comparison"]
+    assert sv["name"] == "car" and sv["sections"]
+    for s in sv["sections"]:
+        assert abs(s["d1_sd_diff_mm"]) < 0.1, s
+        assert s["d1_peak_error_mm"] < 0.5, s
