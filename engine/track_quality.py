@@ -567,22 +567,49 @@ def isolated_defects(
     largest ``|value|`` (mean-to-peak: the filtered level is zero-mean), ordered by chainage."""
     x = np.asarray(chainage_m, dtype=np.float64)
     v = np.asarray(filtered_mm, dtype=np.float64)
-    speed = [speed_at(speeds, float(c)) for c in x] if speeds else [None] * x.size
-    lvl = np.array(
-        [
-            limits.level(band, s, float(a)) if np.isfinite(a) else None
-            for s, a in zip(speed, v, strict=True)
-        ],
-        dtype=object,
-    )
-    hit = np.array([lv is not None for lv in lvl])
+    rows = limits.isolated_mm.get(band)
+    if rows is None or x.size == 0:
+        return []
+    speed = speeds_along(speeds, x)
+    cls = np.array([speed_class(None)] * x.size) if not speeds else _classes(speed)
+    # per point, the limits of its speed class (inf where a level is switched off)
+    table = np.array([[np.inf if lim is None else lim for lim in t] for t in rows])
+    lim = table[cls]
+    mag = np.where(np.isfinite(v), np.abs(v), -np.inf)
+    reached = (mag[:, None] >= lim).sum(axis=1)  # 0 none, 1 alert, 2 intervention, 3 immediate
+    names = ("alert", "intervention", "immediate")
+    hit = reached > 0
     edges = np.flatnonzero(np.diff(np.concatenate([[0], hit.astype(np.int8), [0]])))
     out = []
     for a, b in zip(edges[::2], edges[1::2], strict=True):
-        i = a + int(np.argmax(np.abs(v[a:b])))
+        i = a + int(np.argmax(mag[a:b]))
+        sp = None if np.isnan(speed[i]) else float(speed[i])
         out.append(IsolatedDefect(band, float(x[i]), float(x[a]), float(x[b - 1]), float(v[i]),
-                                  str(lvl[i]), speed[i]))  # fmt: skip
+                                  names[int(reached[i]) - 1], sp))  # fmt: skip
     return out
+
+
+def speeds_along(speeds: Sequence[LineSpeed], chainage_m: ArrayLike) -> NDArray[np.float64]:
+    """Line speed at each chainage (km/h, NaN where no range holds it); ``speeds`` ordered and
+    not overlapping (:func:`check_line_speeds`)."""
+    x = np.asarray(chainage_m, dtype=np.float64)
+    out = np.full(x.shape, np.nan)
+    if not speeds:
+        return out
+    starts = np.array([s.from_m for s in speeds])
+    ends = np.array([s.to_m for s in speeds])
+    vals = np.array([s.speed_kmh for s in speeds])
+    k = np.searchsorted(starts, x, side="right") - 1
+    ok = (k >= 0) & (x < ends[np.clip(k, 0, None)])
+    out[ok] = vals[k[ok]]
+    return out
+
+
+def _classes(speed_kmh: NDArray[np.float64]) -> NDArray[np.int64]:
+    top = np.array(SPEED_CLASSES_KMH)
+    idx = np.searchsorted(top, speed_kmh, side="left")
+    idx = np.clip(idx, 0, top.size - 1)
+    return np.where(np.isnan(speed_kmh), top.size - 1, idx).astype(np.int64)
 
 
 # ------------------------------------------------------------------------------ repeatability
@@ -598,21 +625,32 @@ class Repeatability:
     n_points: int
 
 
-def repeatability(passes: Sequence[NDArray[np.float64]]) -> Repeatability:
-    """Repeatability of filtered levels on one grid (NaN where a pass has no value)."""
+def repeatability(passes: Sequence[NDArray[np.float64]], *, pairs: str = "all") -> Repeatability:
+    """Repeatability of filtered levels on one grid (NaN where a pass has no value).
+
+    ``pairs``: ``"all"`` pairs of passes, or ``"successive"`` (each pass with the next, the
+    passes in recording order: linear in their number, for many passes).
+    """
+    if pairs not in ("all", "successive"):
+        raise ParameterError(f"pairs must be 'all' or 'successive', got {pairs!r}", field="pairs")
+    n = len(passes)
+    chosen = (
+        [(i, j) for i in range(n) for j in range(i + 1, n)]
+        if pairs == "all"
+        else [(i, i + 1) for i in range(n - 1)]
+    )
     diffs = []
-    pairs = 0
-    for i in range(len(passes)):
-        for j in range(i + 1, len(passes)):
-            d = np.asarray(passes[i]) - np.asarray(passes[j])
-            d = d[np.isfinite(d)]
-            if d.size:
-                diffs.append(np.abs(d))
-                pairs += 1
+    used = 0
+    for i, j in chosen:
+        d = np.asarray(passes[i]) - np.asarray(passes[j])
+        d = d[np.isfinite(d)]
+        if d.size:
+            diffs.append(np.abs(d))
+            used += 1
     if not diffs:
         return Repeatability(math.nan, 0, 0)
     all_d = np.concatenate(diffs)
-    return Repeatability(float(np.percentile(all_d, 95)), pairs, int(all_d.size))
+    return Repeatability(float(np.percentile(all_d, 95)), used, int(all_d.size))
 
 
 # ---------------------------------------------------------------------------------- trends

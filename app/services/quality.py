@@ -5,7 +5,8 @@ The level analysed is the track's unloaded geometry where the two-load separatio
 (``app.services.stiffness``), else the aggregated loaded level (``app.services.aggregate``),
 point by point; each section says which (``basis``: ``unloaded``, ``loaded`` or ``mixed``).
 Passes are each chunk's newest aligned runs (``aggregate.newest_runs``). Everything is
-computed on read from stored arrays: a 10 km track reads and filters in well under a second.
+computed on read from stored arrays, over the window asked for plus a chunk of context either
+side: the numerics take 0.45 s for 10 km and 20 passes (docs/benchmarks.md).
 
 Units: chainage m (aligned), levels mm, speeds km/h, time UTC.
 """
@@ -59,6 +60,7 @@ from .centerlines import load_centerline
 from .errors import Invalid, NotFound
 from .packing import unpack_f4
 from .stiffness import read_stiffness
+from .window import Window
 
 PRODUCT_BAND_MAX_M = ProcessConfig().lambda_max_m
 """Longest wavelength the stored levels hold (m): D2 beyond it is missing from the answer."""
@@ -150,20 +152,32 @@ class _Levels:
     vehicle_speeds: dict[int, list[float]]
 
     @property
+    def ordered_runs(self) -> list[int]:
+        """The passes' run ids in recording order (then id)."""
+        return sorted(self.passes, key=lambda r: (self.recorded.get(r) or utcnow(), r))
+
+    @property
     def chainage_m(self) -> NDArray[np.float64]:
         return (self.i0 + np.arange(self.level_mm.size, dtype=np.float64)) * GRID_STEP_M
 
 
-def _read_levels(session: Session, track_id: int) -> _Levels | None:
+def _read_levels(session: Session, track_id: int, window: Window) -> _Levels | None:
     stored = aggregate_chunk_range(session, track_id)
     if stored is None:
         return None
     c_lo, c_hi = stored
+    # the window plus a chunk of context either side: the filters' reach (1.5 x 70 m)
+    if window.from_m is not None:
+        c_lo = max(c_lo, math.floor(window.from_m / GRID_STEP_M) // CHUNK_POINTS - 1)
+    if window.to_m is not None:
+        c_hi = min(c_hi, math.floor(window.to_m / GRID_STEP_M) // CHUNK_POINTS + 1)
+    if c_hi < c_lo:
+        return None
     i0, i1 = c_lo * CHUNK_POINTS, (c_hi + 1) * CHUNK_POINTS - 1
     n = i1 - i0 + 1
     span = read_aggregate(session, track_id, i0, i1)
     level = np.where(span.n_runs > 0, span.level_mm, np.nan)
-    sep = read_stiffness(session, track_id)
+    sep = read_stiffness(session, track_id, i0 * GRID_STEP_M, i1 * GRID_STEP_M)
     unloaded = np.zeros(n, dtype=bool)
     if sep.n:
         idx = np.rint(np.asarray(sep.columns["chainage_m"]) / GRID_STEP_M).astype(np.int64) - i0
@@ -217,7 +231,11 @@ def _read_surveys(
     s = SurveyLevels.__table__
     c_lo = i0 // CHUNK_POINTS
     for sid, chunk, blob in session.execute(
-        select(s.c.survey_id, s.c.chunk, s.c.levels).where(s.c.track_id == track_id)
+        select(s.c.survey_id, s.c.chunk, s.c.levels).where(
+            s.c.track_id == track_id,
+            s.c.chunk >= c_lo,
+            s.c.chunk <= c_lo + n // CHUNK_POINTS,
+        )
     ):
         at = (chunk - c_lo) * CHUNK_POINTS
         if at < 0 or at >= n:
@@ -255,18 +273,25 @@ def _crossing_dict(c: Any) -> dict[str, Any] | None:
 
 
 def track_quality(
-    session: Session, track: Track, section_m: float = 200.0, *, traces: bool = False
+    session: Session,
+    track: Track,
+    section_m: float = 200.0,
+    *,
+    window: Window | None = None,
+    traces: bool = False,
 ) -> dict[str, Any]:
     """The quality answer of ``track`` (see ``app.schemas.quality.QualityPublic``).
 
-    ``section_m``: section length (m, from chainage 0); ``traces``: add the D1/D2 levels
-    (every 1 m) for plotting.
+    ``section_m``: section length (m, from chainage 0); ``window``: the sections overlapping
+    it and the defects peaking in it (filtered with a chunk of context either side, so a
+    window's figures are the whole track's); ``traces``: add the D1/D2 levels (every 1 m).
     """
+    window = window or Window()
     if not (10.0 <= section_m <= 10_000.0):
         raise Invalid(f"section_m {section_m:g} m not in 10..10000 m", field="section_m")
     limits, limits_set = load_quality_limits(session, track.id)
     speeds = load_line_speeds(session, track.id)
-    lv = _read_levels(session, track.id)
+    lv = _read_levels(session, track.id, window)
     d2_band = [BANDS["D2"].lambda_min_m, min(BANDS["D2"].lambda_max_m, PRODUCT_BAND_MAX_M)]
     answer: dict[str, Any] = {
         "track_id": track.id,
@@ -302,9 +327,22 @@ def track_quality(
     x = lv.chainage_m
     filt = {name: b.apply(lv.level_mm, GRID_STEP_M) for name, b in BANDS.items()}
     stats = section_statistics(x, filt, section_m, min_coverage=MIN_SECTION_COVERAGE)
-    pass_filt = {rid: BANDS["D1"].apply(p, GRID_STEP_M) for rid, p in lv.passes.items()}
+    by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
+
+    def pass_levels(band: str) -> dict[int, NDArray[np.float64]]:
+        # each pass filtered once per band, in recording order
+        if band not in by_band:
+            b = BANDS[band]
+            by_band[band] = {r: b.apply(lv.passes[r], GRID_STEP_M) for r in lv.ordered_runs}
+        return by_band[band]
+
+    pass_filt = pass_levels("D1")
     now = utcnow()
+    lo = -math.inf if window.from_m is None else window.from_m
+    hi = math.inf if window.to_m is None else window.to_m
     for st in stats:
+        if st.end_m <= lo or st.start_m > hi:
+            continue
         m = (x >= st.start_m) & (x < st.end_m)
         covered = m & np.isfinite(lv.level_mm)
         if not covered.any():
@@ -318,15 +356,19 @@ def track_quality(
             else "mixed"
         )
         over = [
-            rid for rid, p in lv.passes.items()
-            if np.isfinite(p[m]).mean() >= MIN_SECTION_COVERAGE
+            rid for rid in lv.ordered_runs
+            if np.isfinite(lv.passes[rid][m]).mean() >= MIN_SECTION_COVERAGE
         ]  # fmt: skip
         times = [t for r in over if (t := lv.recorded.get(r)) is not None]
         last = max(times) if times else None
         mid = 0.5 * (st.start_m + st.end_m)
         speed = speed_at(speeds, mid)
         d1 = st.sd_mm["D1"]
-        rep = repeatability([pass_filt[r][m] for r in over]) if len(over) >= 2 else None
+        rep = (
+            repeatability([pass_filt[r][m] for r in over], pairs="successive")
+            if len(over) >= 2
+            else None
+        )
         cls = limits.quality_class(d1, speed)
         trend = None
         if cls is not None and cls != "E" and len(over) >= 3:
@@ -352,23 +394,25 @@ def track_quality(
         })  # fmt: skip
     for name in BANDS:
         for d in isolated_defects(x, filt[name], name, limits, speeds):
+            if not (lo <= d.peak_m <= hi):
+                continue
             i = int(round(d.peak_m / GRID_STEP_M)) - lv.i0
             basis = "unloaded" if lv.unloaded[i] else "loaded"
-            answer["defects"].append(_defect_dict(d, basis, limits, lv, x, name))
+            answer["defects"].append(_defect_dict(d, basis, limits, lv, x, pass_levels(name)))
     answer["defects"].sort(key=lambda d: (("immediate", "intervention", "alert").index(d["level"]),
                                           -abs(d["value_mm"])))  # fmt: skip
-    rep_passes = [REPEATABILITY_BAND.apply(p, GRID_STEP_M) for p in lv.passes.values()]
-    rep = repeatability(rep_passes)
+    rep_passes = [REPEATABILITY_BAND.apply(lv.passes[r], GRID_STEP_M) for r in lv.ordered_runs]
+    rep = repeatability(rep_passes, pairs="successive")
     answer["repeatability"] = {
         "band_m": [REPEATABILITY_BAND.lambda_min_m, REPEATABILITY_BAND.lambda_max_m],
         "r95_mm": _f(rep.r95_mm), "n_pairs": rep.n_pairs, "n_points": rep.n_points,
-        "note": "loaded levels of the passes (each run's own, before the separation)",
+        "note": "loaded levels of successive passes (each run's own, before the separation)",
     }  # fmt: skip
     answer["observability"] = _observability(session, lv.vehicle_speeds)
-    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, section_m)
+    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, section_m, (lo, hi))
     if traces:
         step = int(round(1.0 / GRID_STEP_M))
-        keep = np.flatnonzero(np.isfinite(lv.level_mm))[::step]
+        keep = np.flatnonzero(np.isfinite(lv.level_mm) & (x >= lo) & (x <= hi))[::step]
         answer["traces"] = {
             "chainage_m": [round(float(v), 2) for v in x[keep]],
             "d1_mm": [_f(float(v)) for v in filt["D1"][keep]],
@@ -378,8 +422,14 @@ def track_quality(
 
 
 def _defect_dict(
-    d: Any, basis: str, limits: QualityLimits, lv: _Levels, x: NDArray[np.float64], band: str
+    d: Any,
+    basis: str,
+    limits: QualityLimits,
+    lv: _Levels,
+    x: NDArray[np.float64],
+    filtered: dict[int, NDArray[np.float64]],
 ) -> dict[str, Any]:
+    band = d.band
     triple = limits.limits_at(band, d.speed_kmh)
     out: dict[str, Any] = {
         "peak_m": round(d.peak_m, 2), "start_m": round(d.start_m, 2), "end_m": round(d.end_m, 2),
@@ -390,12 +440,13 @@ def _defect_dict(
     nxt = next_limit(d.value_mm, triple)
     if nxt is None:
         return out
-    near = np.abs(x - d.peak_m) <= PEAK_MATCH_M
-    filt = BANDS[band]
+    i = int(round(d.peak_m / GRID_STEP_M)) - lv.i0
+    k = int(round(PEAK_MATCH_M / GRID_STEP_M))
+    near = slice(max(0, i - k), i + k + 1)
     series = []
-    for rid, p in lv.passes.items():
+    for rid, p in filtered.items():
         when = lv.recorded.get(rid)
-        v = filt.apply(p, GRID_STEP_M)[near]
+        v = p[near]
         if when is not None and np.isfinite(v).any():
             series.append((when, float(np.nanmax(np.abs(v)))))
     if len(series) >= 3:
@@ -409,6 +460,7 @@ def _survey_comparison(
     track_id: int,
     lv: _Levels,
     section_m: float,
+    bounds: tuple[float, float],
 ) -> list[dict[str, Any]]:
     out = []
     x = lv.chainage_m
@@ -424,7 +476,7 @@ def _survey_comparison(
         f_stats = section_statistics(x, fleet, section_m, min_coverage=MIN_SECTION_COVERAGE)
         rows = []
         for ss, fs in zip(s_stats, f_stats, strict=True):
-            if not math.isfinite(ss.sd_mm["D1"]):
+            if not math.isfinite(ss.sd_mm["D1"]) or ss.end_m <= bounds[0] or ss.start_m > bounds[1]:
                 continue
             m = (x >= ss.start_m) & (x < ss.end_m)
             err = np.abs(fleet["D1"][m] - both["D1"][m])
@@ -479,7 +531,9 @@ def _lonlat(line: Any, chainage: NDArray[np.float64]) -> list[list[float]]:
     return [[round(float(a), 8), round(float(b), 8)] for a, b in zip(lon, lat, strict=True)]
 
 
-def quality_geojson(session: Session, track: Track, section_m: float = 200.0) -> dict[str, Any]:
+def quality_geojson(
+    session: Session, track: Track, section_m: float = 200.0, window: Window | None = None
+) -> dict[str, Any]:
     """Sections (LineString) and isolated defects (Point) on the track's centerline, WGS84
     ``[lon, lat]``; NotFound when the track has no centerline."""
     line = load_centerline(session, track.id)
@@ -489,7 +543,7 @@ def quality_geojson(session: Session, track: Track, section_m: float = 200.0) ->
             "centerline) to place its quality on a map",
             field="track",
         )
-    answer = track_quality(session, track, section_m)
+    answer = track_quality(session, track, section_m, window=window)
     lo, hi = line.start_chainage_m, line.end_chainage_m
     features: list[dict[str, Any]] = []
     for s in answer["sections"]:

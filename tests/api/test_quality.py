@@ -185,6 +185,19 @@ def test_geojson_places_sections_and_defects_on_the_centerline(world: dict[str, 
         assert at == pytest.approx(f["properties"]["peak_m"], abs=0.5)
 
 
+def test_a_window_gives_the_whole_tracks_figures_for_its_part(world: dict[str, Any]) -> None:
+    """?from_m=&to_m= answers the sections overlapping the window and the defects peaking in
+    it, with the same figures as the whole track's answer."""
+    c = world["client"]
+    whole = c.get(f"/api/v1/tracks/{TRACK}/quality").json()
+    part = c.get(f"/api/v1/tracks/{TRACK}/quality", params={"from_m": 250, "to_m": 390}).json()
+    assert [s["start_m"] for s in part["sections"]] == [200.0]
+    (ref,) = [s for s in whole["sections"] if s["start_m"] == 200.0]
+    assert part["sections"][0]["d1_sd_mm"] == pytest.approx(ref["d1_sd_mm"], abs=0.002)
+    want = [d["peak_m"] for d in whole["defects"] if 250 <= d["peak_m"] <= 390]
+    assert sorted(d["peak_m"] for d in part["defects"]) == sorted(want)
+
+
 def test_unknown_track_and_bad_section_length(world: dict[str, Any]) -> None:
     """An unknown track is 404 naming the field; a section length out of 10-10000 m is 422."""
     c = world["client"]

@@ -176,3 +176,23 @@ def test_observability_names_the_axle_spacing_nulls() -> None:
     assert o.unobservable_m == ()
     stiff = observability(TABLE1, 24.0, threshold=0.99)
     assert stiff.unobservable_m  # a demanding threshold does flag ranges
+
+
+def test_isolated_defects_agree_with_the_scalar_rule_at_boundaries() -> None:
+    """Along a line whose speed steps at 80 km/h, values exactly at and just below each limit
+    get the level ``QualityLimits.level`` gives them, and a place without a line speed takes
+    the strictest class."""
+    lim = QualityLimits()
+    speeds = check_line_speeds([LineSpeed(0.0, 100.0, 80.0), LineSpeed(100.0, 200.0, 80.1)])
+    values = [12.0, 11.99, 17.0, 28.0, 8.0, 12.0, 26.0, 4.0]
+    where = [10.0, 20.0, 30.0, 40.0, 110.0, 120.0, 130.0, 250.0]
+    x = np.arange(0.0, 300.0, 1.0)
+    v = np.zeros_like(x)
+    for c, a in zip(where, values, strict=True):
+        v[int(c)] = a
+    found = {d.peak_m: d for d in isolated_defects(x, v, "D1", lim, speeds)}
+    for c, a in zip(where, values, strict=True):
+        s = None if c >= 200 else (80.0 if c < 100 else 80.1)
+        want = lim.level("D1", s, a)
+        assert (found[c].level if c in found else None) == want, (c, a)
+    assert found[250.0].speed_kmh is None and found[250.0].level == "alert"

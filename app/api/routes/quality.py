@@ -10,7 +10,7 @@ import orjson
 from fastapi import APIRouter, Query, Response
 
 from app.api.answers import Format, add_csv_twin, csv_answer
-from app.api.deps import SessionDep
+from app.api.deps import SessionDep, WindowDep
 from app.schemas.quality import (
     LineSpeedRange,
     LineSpeedsBody,
@@ -36,6 +36,7 @@ Traces = Annotated[bool, Query(description="Add the D1/D2 levels every 1 m (JSON
 def read_quality(
     session: SessionDep,
     track: str,
+    window: WindowDep,
     section_m: SectionM = 200.0,
     traces: Traces = False,
     format: Format = "json",
@@ -43,10 +44,13 @@ def read_quality(
     """Longitudinal level per EN 13848: SD of D1 (3-25 m) and D2 per section with the number
     of passes, days since the last, repeatability, line speed and quality class; isolated
     defects (mean to peak) against the speed-class limits with the predicted date of the next
-    limit; the comparison with the track's surveys. The ``.csv`` twin answers the sections,
-    then the defects."""
+    limit; the comparison with the track's surveys. ``?from_m=&to_m=`` keeps the sections
+    overlapping the window and the defects peaking in it (filtered with context, so their
+    figures are the whole track's). The ``.csv`` twin answers the sections, then the defects."""
     trk = get_track(session, track)
-    answer = svc.track_quality(session, trk, section_m, traces=traces and format == "json")
+    answer = svc.track_quality(
+        session, trk, section_m, window=window, traces=traces and format == "json"
+    )
     if format == "csv":
         return csv_answer(svc.quality_csv(answer), f"track-{trk.id}-quality.csv")
     return Response(orjson.dumps(answer), media_type="application/json")
@@ -56,11 +60,13 @@ def read_quality(
     "/{track}/quality.geojson",
     responses={200: {"content": {"application/geo+json": {"schema": {"type": "object"}}}}},
 )
-def read_quality_geojson(session: SessionDep, track: str, section_m: SectionM = 200.0) -> Response:
+def read_quality_geojson(
+    session: SessionDep, track: str, window: WindowDep, section_m: SectionM = 200.0
+) -> Response:
     """The sections (LineString) and isolated defects (Point) placed on the track's
     centerline: a GeoJSON FeatureCollection in WGS84 (``[lon, lat]``) that QGIS opens."""
     trk = get_track(session, track)
-    body = svc.quality_geojson(session, trk, section_m)
+    body = svc.quality_geojson(session, trk, section_m, window)
     return Response(
         orjson.dumps(body),
         media_type="application/geo+json",
