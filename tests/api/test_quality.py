@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import shapely.geometry
 from starlette.testclient import TestClient
 
 from app.main import create_app
@@ -169,6 +170,9 @@ def test_geojson_places_sections_and_defects_on_the_centerline(world: dict[str, 
     secs = [f for f in fc["features"] if f["properties"]["kind"] == "section"]
     pts = [f for f in fc["features"] if f["properties"]["kind"] == "defect"]
     assert len(secs) == len(q["sections"]) and len(pts) == len(q["defects"])
+    for f in fc["features"]:  # valid GeoJSON geometries (shapely reads them as such)
+        geom = shapely.geometry.shape(f["geometry"])
+        assert geom.is_valid and not geom.is_empty and set(f) == {"type", "geometry", "properties"}
     for f in secs:
         assert f["type"] == "Feature" and f["geometry"]["type"] == "LineString"
         coords = np.array(f["geometry"]["coordinates"])
