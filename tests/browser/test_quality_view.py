@@ -51,7 +51,8 @@ def test_quality_view_shows_classes_levels_and_exceedances(
 ) -> None:
     """From the track page's link: one bar per classed section in its class's trace, the D1
     and D2 traces and a marker per defect, the defect table row for row as the API lists them,
-    the section table with passes, exports for CSV and GeoJSON; axe clean."""
+    the section table with passes, exports for CSV and GeoJSON, the repeatability and what the
+    coach's body cannot see; axe clean."""
     q = quality["q"]
     assert q["defects"], "the low limits should make some D1 peak a defect"
     page.goto(f"{live_server.url}/#/tracks/{quality['id']}")
@@ -83,4 +84,7 @@ def test_quality_view_shows_classes_levels_and_exceedances(
     assert sec_rows.nth(0).locator("td").nth(4).inner_text() == str(q["sections"][0]["n_passes"])
     assert page.locator("a[href$='.geojson?section_m=200']").count() == 1
     assert page.locator("a[href*='quality.csv']").count() == 1
+    facts = page.locator("#quality-facts li").all_inner_texts()
+    assert any("Repeatability" in t for t in facts)
+    assert any(t.startswith("table1 at") and "16.52" in t for t in facts)
     assert axe_violations(page, axe_source()) == []

@@ -102,6 +102,19 @@ export async function render(main, [ref], query) {
   ]);
   if (q.notes.length) main.append(h("ul", { class: "message info", id: "quality-notes" }, ...q.notes.map((n) => h("li", {}, n))));
   if (q.limits_default) main.append(h("p", { class: "muted" }, "Limits and class bounds are the product's defaults (docs/method.md): set the track's own with PUT /tracks/{track}/quality-limits."));
+  const facts = [];
+  if (q.repeatability && q.repeatability.r95_mm !== null) {
+    facts.push(h("li", {}, `Repeatability between successive passes (${q.repeatability.band_m[0]}–${q.repeatability.band_m[1]} m): 95 % of differences within ${fmt(q.repeatability.r95_mm, 2)} mm.`));
+  }
+  for (const o of q.observability || []) {
+    const blind = o.unobservable_m.length ? `; neither signal carries ${o.unobservable_m.map((r) => `${fmt(r[0], 1)}–${fmt(r[1], 1)} m`).join(", ")}` : "; the two signals together see all of 3–70 m";
+    facts.push(h("li", {}, `${o.vehicle} at ${fmt(o.speed_mps, 0)} m/s: bounce blind at ${o.bounce_nulls_m.join(", ")} m, pitch blind at ${o.pitch_nulls_m.join(", ")} m${blind}.`));
+  }
+  for (const sv of q.survey_comparison || []) {
+    const worst = sv.sections.reduce((m, r) => Math.max(m, Math.abs(r.d1_sd_diff_mm ?? 0)), 0);
+    facts.push(h("li", {}, `Against the recording car “${sv.name || `survey ${sv.survey_id}`}”: D1 SD differs by at most ${fmt(worst, 2)} mm over ${plural(sv.sections.length, "section")} (table in the report).`));
+  }
+  if (facts.length) main.append(h("ul", { id: "quality-facts" }, ...facts));
   const classChart = h("div", { id: "quality-classes", class: "plot", role: "figure", "aria-label": "D1 standard deviation per section, coloured by quality class" });
   const levelChart = h("div", { id: "quality-levels", class: "plot", role: "figure", "aria-label": "D1 and D2 longitudinal level along chainage with the isolated defects" });
   main.append(
