@@ -18,7 +18,8 @@ Scores per 200 m section against the true unloaded geometry through the same fil
 at least 1.5 mm (local extrema of |D1|) against the estimate's largest |D1| within 1 m;
 exceedances of fixed limits (alert 1.5, intervention 2.0, immediate 2.5 mm on D1) matched by
 peak within 2 m and level. Repeatability: 95 % of |difference| between two passes of the
-same vehicle over the same track, in 6-70 m (6-40 m for the product band).
+same vehicle over the same track, in 6-70 m (6-40 m for the product band), without the 25 m
+at each end of a pass (``END_TRIM_M``, as the service).
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ from engine.track_quality import (  # noqa: E402
     isolated_defects,
     repeatability,
     section_statistics,
+    trim_ends,
 )
 from engine.vehicle import HEAVY, TABLE1, VehicleParams  # noqa: E402
 
@@ -142,7 +144,8 @@ def compare(grid, level, truth, levels, lam_max: float) -> dict[str, list[float]
     ]
     rep_band = BandFilter("rep", 6.0, min(70.0, lam_max))
     for pair in ((0, 1), (2, 3)):
-        r["rep"].append(repeatability([rep_band.apply(levels[k], STEP) for k in pair]).r95_mm)
+        lv = [trim_ends(rep_band.apply(levels[k], STEP), STEP) for k in pair]
+        r["rep"].append(repeatability(lv).r95_mm)
     return r
 
 
@@ -160,7 +163,7 @@ def public_repeatability(directory: Path) -> list[str]:
         aligned, _ = align_passes(passes)
         _, levels, _ = on_grid(aligned, STEP)
         band = BandFilter("rep", 6.0, 40.0)
-        rep = repeatability([band.apply(levels[k], STEP) for k in range(2)])
+        rep = repeatability([trim_ends(band.apply(levels[k], STEP), STEP) for k in range(2)])
         rows.append(f"| {pair[0]} vs {pair[1]} | 6-40 m | {rep.r95_mm:.3f} mm | {rep.n_points} |")
     return rows
 

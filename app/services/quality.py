@@ -51,6 +51,7 @@ from engine.track_quality import (
     section_statistics,
     speed_at,
     speed_class,
+    trim_ends,
 )
 from engine.vehicle import VehicleParams
 
@@ -325,7 +326,7 @@ def track_quality(
         answer["notes"].append("no aligned run over this track yet")
         return answer
     x = lv.chainage_m
-    filt = {name: b.apply(lv.level_mm, GRID_STEP_M) for name, b in BANDS.items()}
+    filt = {name: _band(b, lv.level_mm) for name, b in BANDS.items()}
     stats = section_statistics(x, filt, section_m, min_coverage=MIN_SECTION_COVERAGE)
     by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
 
@@ -333,7 +334,7 @@ def track_quality(
         # each pass filtered once per band, in recording order
         if band not in by_band:
             b = BANDS[band]
-            by_band[band] = {r: b.apply(lv.passes[r], GRID_STEP_M) for r in lv.ordered_runs}
+            by_band[band] = {r: _band(b, lv.passes[r]) for r in lv.ordered_runs}
         return by_band[band]
 
     pass_filt = pass_levels("D1")
@@ -401,7 +402,7 @@ def track_quality(
             answer["defects"].append(_defect_dict(d, basis, limits, lv, x, pass_levels(name)))
     answer["defects"].sort(key=lambda d: (("immediate", "intervention", "alert").index(d["level"]),
                                           -abs(d["value_mm"])))  # fmt: skip
-    rep_passes = [REPEATABILITY_BAND.apply(lv.passes[r], GRID_STEP_M) for r in lv.ordered_runs]
+    rep_passes = [_band(REPEATABILITY_BAND, lv.passes[r]) for r in lv.ordered_runs]
     rep = repeatability(rep_passes, pairs="successive")
     answer["repeatability"] = {
         "band_m": [REPEATABILITY_BAND.lambda_min_m, REPEATABILITY_BAND.lambda_max_m],
@@ -468,10 +469,8 @@ def _survey_comparison(
         # both filtered over the same stretch: the filters' transients at the ends of a
         # coverage are then alike and cancel in the differences
         common = np.isfinite(level) & np.isfinite(lv.level_mm)
-        both = {n: b.apply(np.where(common, level, np.nan), GRID_STEP_M) for n, b in BANDS.items()}
-        fleet = {
-            n: b.apply(np.where(common, lv.level_mm, np.nan), GRID_STEP_M) for n, b in BANDS.items()
-        }
+        both = {n: _band(b, np.where(common, level, np.nan)) for n, b in BANDS.items()}
+        fleet = {n: _band(b, np.where(common, lv.level_mm, np.nan)) for n, b in BANDS.items()}
         s_stats = section_statistics(x, both, section_m, min_coverage=MIN_SECTION_COVERAGE)
         f_stats = section_statistics(x, fleet, section_m, min_coverage=MIN_SECTION_COVERAGE)
         rows = []
@@ -492,6 +491,11 @@ def _survey_comparison(
             "wheel_load_n": survey.wheel_load_n, "sections": rows,
         })  # fmt: skip
     return out
+
+
+def _band(band: BandFilter, level: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A level filtered to ``band``, without the ringing stretches at its coverage's ends."""
+    return trim_ends(band.apply(level, GRID_STEP_M), GRID_STEP_M)
 
 
 def _days(span: Any) -> float:

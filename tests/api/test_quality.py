@@ -130,6 +130,9 @@ def test_limits_and_line_speeds_drive_defects_and_classes(world: dict[str, Any])
         assert d["level"] == want and v >= 1.5
         assert d["speed_kmh"] == (100 if d["peak_m"] < 300 else 150)
     assert all(s["speed_kmh"] in (100, 150) for s in q["sections"] if s["start_m"] < 600)
+    prof = c.get(f"{base}/profile").json()["chainage_m"]
+    for d in q["defects"]:  # the ringing ends of the coverage give no defect
+        assert prof[0] + 25.0 <= d["peak_m"] <= prof[-1] - 25.0, d
     csv = c.get(f"{base}/quality.csv")
     assert csv.status_code == 200 and csv.headers["content-type"].startswith("text/csv")
     lines = csv.text.splitlines()

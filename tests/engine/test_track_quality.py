@@ -19,6 +19,7 @@ from engine.track_quality import (
     predict_crossing,
     repeatability,
     section_statistics,
+    trim_ends,
 )
 from engine.vehicle import TABLE1
 
@@ -196,3 +197,15 @@ def test_isolated_defects_agree_with_the_scalar_rule_at_boundaries() -> None:
         want = lim.level("D1", s, a)
         assert (found[c].level if c in found else None) == want, (c, a)
     assert found[250.0].speed_kmh is None and found[250.0].level == "alert"
+
+
+def test_trim_ends_blanks_each_stretch_ends() -> None:
+    """25 m (100 points at 0.25 m) at both ends of every finite stretch become NaN; the rest
+    is untouched; a stretch shorter than twice the margin vanishes."""
+    v = np.ones(1000)
+    v[400:410] = np.nan
+    v[900:] = np.nan
+    v[850] = np.nan
+    t = trim_ends(v, 0.25, 25.0)
+    assert np.isnan(t[:100]).all() and np.isfinite(t[100:300]).all() and np.isnan(t[300:510]).all()
+    assert np.isfinite(t[510:750]).all() and np.isnan(t[750:]).all()
