@@ -42,14 +42,13 @@ from common import machine  # noqa: E402
 from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import on_grid  # noqa: E402
 from engine.pipeline import ProcessConfig, process_run  # noqa: E402
+from engine.quality_limits import QualityLimits, isolated_defects  # noqa: E402
 from engine.separation import SeparationConfig, align_passes, pass_from_result, separate  # noqa: E402
 from engine.synthetic import REALISTIC_SENSOR, make_run, make_track  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 from engine.track_quality import (  # noqa: E402
     BANDS,
     BandFilter,
-    QualityLimits,
-    isolated_defects,
     repeatability,
     section_statistics,
     trim_ends,

@@ -20,11 +20,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np  # noqa: E402
 from common import best_of, machine  # noqa: E402
 
+from engine.quality_limits import QualityLimits, isolated_defects  # noqa: E402
 from engine.track_quality import (  # noqa: E402
     BANDS,
     BandFilter,
-    QualityLimits,
-    isolated_defects,
     repeatability,
     section_statistics,
 )

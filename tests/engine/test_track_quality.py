@@ -9,12 +9,9 @@ import numpy as np
 import pytest
 
 from engine.errors import ParameterError
+from engine.quality_limits import LineSpeed, QualityLimits, check_line_speeds, isolated_defects
 from engine.track_quality import (
     BANDS,
-    LineSpeed,
-    QualityLimits,
-    check_line_speeds,
-    isolated_defects,
     observability,
     predict_crossing,
     repeatability,

@@ -20,7 +20,8 @@ from app.schemas.quality import (
     QualityPublic,
 )
 from app.services import quality as svc
-from engine.track_quality import SPEED_CLASSES_KMH, QualityLimits
+from app.services import quality_exports
+from engine.quality_limits import SPEED_CLASSES_KMH, QualityLimits
 
 from .lookup import get_track
 
@@ -52,7 +53,7 @@ def read_quality(
         session, trk, section_m, window=window, traces=traces and format == "json"
     )
     if format == "csv":
-        return csv_answer(svc.quality_csv(answer), f"track-{trk.id}-quality.csv")
+        return csv_answer(quality_exports.quality_csv(answer), f"track-{trk.id}-quality.csv")
     return Response(orjson.dumps(answer), media_type="application/json")
 
 
@@ -66,7 +67,7 @@ def read_quality_geojson(
     """The sections (LineString) and isolated defects (Point) placed on the track's
     centerline: a GeoJSON FeatureCollection in WGS84 (``[lon, lat]``) that QGIS opens."""
     trk = get_track(session, track)
-    body = svc.quality_geojson(session, trk, section_m, window)
+    body = quality_exports.quality_geojson(session, trk, section_m, window)
     return Response(
         orjson.dumps(body),
         media_type="application/geo+json",
