@@ -7,6 +7,7 @@ from fastapi import APIRouter, Depends
 from app.api.deps import check_access
 from app.api.routes import (
     centerlines,
+    quality,
     runs,
     simulate,
     stiffness,
@@ -31,6 +32,8 @@ api_router.include_router(track_intel.router)
 api_router.include_router(stiffness.router)
 # Positions from GNSS: a track's centerline (issue 11).
 api_router.include_router(centerlines.router)
+# Track quality in EN 13848 terms: D1/D2 sections, isolated defects, line speeds, GeoJSON.
+api_router.include_router(quality.router)
 api_router.include_router(vehicles.router)
 api_router.include_router(simulate.router)
 # Server-side chart data for the dashboard (decimated profiles, chainage maps, CSV preview).

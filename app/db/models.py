@@ -503,3 +503,30 @@ class TrackCenterline(Base):
     source: Mapped[str] = mapped_column(String(20))  # geojson | csv
     data: Mapped[dict[str, Any]] = mapped_column(JSON, deferred=True)  # Centerline.to_dict()
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)
+
+
+class TrackLineSpeed(Base):
+    """A track's line speed over a chainage range (aligned chainage, m; speed km/h): picks the
+    speed class of EN 13848-5's isolated-defect limits and of the quality classes."""
+
+    __tablename__ = "track_line_speeds"
+    __table_args__ = (Index("ix_track_line_speeds_track_id", "track_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="CASCADE"))
+    from_m: Mapped[float] = mapped_column(Float)
+    to_m: Mapped[float] = mapped_column(Float)
+    speed_kmh: Mapped[float] = mapped_column(Float)
+
+
+class TrackQualityLimits(Base):
+    """A track's own isolated-defect limits and quality-class bounds
+    (``engine.track_quality.QualityLimits.to_dict``); no row: the defaults."""
+
+    __tablename__ = "track_quality_limits"
+
+    track_id: Mapped[int] = mapped_column(
+        ForeignKey("tracks.id", ondelete="CASCADE"), primary_key=True
+    )
+    data: Mapped[dict[str, Any]] = mapped_column(JSON)
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)

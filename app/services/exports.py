@@ -23,8 +23,10 @@ from engine.register import Defect
 from .aggregate import read_track_profile
 from .context import AppContext
 from .profiles import iter_profile_rows, profile_blocks
+from .quality import track_quality
 from .register import load_limits, track_register
 from .report import ReportInput, ReportRun, render_report
+from .report_quality import quality_section
 from .report_stiffness import stiffness_section
 from .retention import require_detail
 from .runs import SpotOnTrack
@@ -191,6 +193,7 @@ def track_report(session: Session, trk: Track, top: int) -> str:
             level_mm=np.asarray(cols["level_mm"], dtype=np.float64),
             spread_mm=np.asarray(cols["spread_mm"], dtype=np.float64),
             stiffness_html=stiffness_section(stiffness_with_vehicles(session, trk.id), limits),
+            quality_html=quality_section(track_quality(session, trk)),
             top=top,
         )
     )

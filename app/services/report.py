@@ -80,6 +80,8 @@ class ReportInput:
     top: int = 25
     stiffness_html: str = ""
     """The stiffness section (``app.services.report_stiffness``), placed after the map."""
+    quality_html: str = ""
+    """The track quality section (``app.services.report_quality``), after the stiffness."""
 
 
 def _num(v: float | None, digits: int = 2) -> str:
@@ -325,6 +327,7 @@ def render_report(data: ReportInput) -> str:
         '<p class="note">Levels are the loaded profile (mm, positive up): a soft spot is a dip. '
         "Bars under the profile are the defects' extents, numbered as in the table.</p>",
         data.stiffness_html,
+        data.quality_html,
     ]
     parts.append(f"<h2>Top defects ({min(len(defects), data.top)} of {len(defects)})</h2>")
     if defects:

@@ -1,4 +1,5 @@
 // Hash router of the dashboard: #/ (runs & tracks), #/upload, #/runs/{id}, #/tracks/{name},
+// #/tracks/{name}/quality,
 // #/simulate, #/vehicles, #/vehicles/{name}. Each page module exports render(main, params) and
 // may return a cleanup function.
 //
@@ -18,6 +19,7 @@ const routes = [
   { pattern: /^\/upload\/?$/, page: () => import("./pages/upload/index.js"), nav: "upload", title: "Upload a run" },
   { pattern: /^\/runs\/([^/]+)\/?$/, page: () => import("./pages/run.js"), charts: true, nav: "home", title: "Run" },
   { pattern: /^\/tracks\/([^/]+)\/?$/, page: () => import("./pages/track/index.js"), charts: true, nav: "home", title: "Track" },
+  { pattern: /^\/tracks\/([^/]+)\/quality\/?$/, page: () => import("./pages/quality.js"), charts: true, nav: "home", title: "Track quality" },
   { pattern: /^\/simulate\/?$/, page: () => import("./pages/simulate.js"), charts: true, nav: "simulate", title: "Simulate" },
   { pattern: /^\/vehicles\/?$/, page: vehicle, nav: "vehicles", title: "Vehicles" },
   { pattern: /^\/vehicles\/([^/]+)\/?$/, page: vehicle, nav: "vehicles", title: "Vehicle" },

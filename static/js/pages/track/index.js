@@ -59,6 +59,8 @@ export async function render(main, [ref]) {
     trackInfo.description ? ` · ${trackInfo.description}` : "",
     " · ",
     h("a", { href: "#/upload" }, "Upload another run"),
+    " · ",
+    h("a", { href: `#/tracks/${encodeURIComponent(track.id)}/quality`, id: "track-quality-link" }, "Track quality (EN 13848)"),
   ]);
   // The centerline's plan view and upload (issue 11), also before the first run.
   const plan = planCard(enc);
