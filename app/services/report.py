@@ -299,6 +299,16 @@ th{background:#f1f5f9}td.num,th.num{text-align:right;font-variant-numeric:tabula
 """
 
 
+def _loss_band(d: Defect) -> str:
+    """The loss with its band where the evidence gives one: ``46 (38–55)``."""
+    if d.stiffness_loss_lo_pct is None or d.stiffness_loss_hi_pct is None:
+        return _num(d.stiffness_loss_pct, 0)
+    return (
+        f"{_num(d.stiffness_loss_pct, 0)} ({_num(d.stiffness_loss_lo_pct, 0)}–"
+        f"{_num(d.stiffness_loss_hi_pct, 0)})"
+    )
+
+
 def render_report(data: ReportInput) -> str:
     """The HTML report of a track (a complete document, UTF-8)."""
     defects = list(data.defects)
@@ -343,10 +353,10 @@ def render_report(data: ReportInput) -> str:
                 f'<td class="num">{_num(d.start_m, 1)}–{_num(d.end_m, 1)}</td>'
                 f'<td class="num">{_num(d.peak_m, 1)}</td>'
                 f'<td class="num">{_num(d.depth_mm, 3)}</td>'
-                f'<td class="num">{_num(d.stiffness_loss_pct, 0)}</td>'
+                f'<td class="num">{_loss_band(d)}</td>'
                 f'<td class="num">{_signed(d.trend_mm_per_month, 3)}</td>'
                 f'<td class="num">{_signed(d.trend_loss_pct_per_month, 1)}</td>'
-                f'<td class="num">{d.runs_seen} / {d.runs_covering}</td>'
+                f"<td>{escape(d.evidence_text)} ({d.runs_seen} of {d.runs_covering} covering)</td>"
                 f"<td>{_day(d.first_seen)}</td><td>{_day(d.last_seen)}</td>"
                 f"<td>{_day(d.level_since)}</td><td>{escape(d.id)}</td></tr>"
             )
@@ -356,7 +366,7 @@ def render_report(data: ReportInput) -> str:
             '<th class="num">Extent (m)</th><th class="num">Peak (m)</th>'
             '<th class="num">Depth (mm)</th><th class="num">Loss (%)</th>'
             '<th class="num">Trend (mm/month)</th><th class="num">Trend (%/month)</th>'
-            '<th class="num">Seen / covering</th><th>First seen</th><th>Last seen</th>'
+            "<th>Evidence</th><th>First seen</th><th>Last seen</th>"
             "<th>Level since</th><th>Id</th></tr></thead><tbody>"
             + "".join(rows)
             + "</tbody></table>"

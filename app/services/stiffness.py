@@ -271,6 +271,8 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
                 "loss_lo_pct": _finite(sp.loss_lo_pct),
                 "loss_hi_pct": _finite(sp.loss_hi_pct),
                 "confidence": _finite(sp.confidence),
+                "depth_mm": _finite(sp.depth_mm),
+                "support": _support(passes, grid, sp.start_m, sp.end_m),
             }  # fmt: skip
             for sp in res.soft_spots
             if x_lo <= float(sp.peak_m) < x_hi and math.isfinite(float(sp.loss_pct))
@@ -278,6 +280,20 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
         if spots:
             session.execute(insert(TrackStiffnessSpot), spots)
     return written
+
+
+def _support(
+    passes: list[PassLevels], grid: NDArray[np.float64], start_m: float, end_m: float
+) -> list[dict[str, Any]]:
+    """The passes with a level over ``[start_m, end_m]`` and their mean wheel force there (N)."""
+    lo, hi = (int(i) for i in np.searchsorted(grid, [start_m, end_m + 1e-9]))
+    out = []
+    for p in passes:
+        f = p.force_n[lo:hi]
+        ok = np.isfinite(f)
+        if ok.any():
+            out.append({"kind": p.kind, "id": p.id, "force_n": round(float(f[ok].mean()), 1)})
+    return out
 
 
 def _finite(v: Any) -> float | None:
