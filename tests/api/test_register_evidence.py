@@ -91,3 +91,24 @@ def test_csv_report_and_chainage_map_read_the_same_record(geo: dict[str, Any]) -
     assert csv.count("separated: 4 passes, 2 loads") == 3, csv
     html = c.get(f"/api/v1/tracks/{TRACK}/report").text
     assert html.count("separated: 4 passes, 2 loads") >= 3
+
+
+def test_not_separable_names_its_stretches_and_none_where_the_zones_lie(
+    geo: dict[str, Any],
+) -> None:
+    """The stiffness answer says where it is not separable (km+m stretches, with the reason
+    and what would help) and names no stretch over a true zone: there the separation holds."""
+    c = geo["client"]
+    truth = geo["truth"]
+    frame = truth["start_chainage_m"] - truth["true_start_chainage_m"]
+    st = c.get(f"/api/v1/tracks/{TRACK}/stiffness").json()
+    for s in st["not_separable"]:
+        assert s["reason"] in ("load", "precision")
+        for zone in truth["zones"]:
+            assert s["to_m"] < zone["start_m"] + frame or s["from_m"] > zone["end_m"] + frame, s
+    if st["not_separable"]:
+        first = st["not_separable"][0]
+        assert st["message"].startswith("Geometry and stiffness are not separable at ")
+        assert f"{int(first['from_m'] // 1000)}+" in st["message"]
+    else:
+        assert st["message"] is None

@@ -74,6 +74,7 @@ def test_centerline_upload_gnss_run_and_plan_view(
     # is known (debounced request), that the run is placed by them
     expect(page.locator("#gnss-note")).to_contain_text("placed by its fixes", timeout=30_000)
     assert page.input_value("#start-chainage") == ""
+    page.select_option("#vehicle-select", "table1")  # the form asks among several
     page.click("#upload-button")
     page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
     run_id = int(page.url.rsplit("/", 1)[1])

@@ -114,17 +114,28 @@ export async function render(main, [id]) {
   const spots = (spotsAnswer || []).slice().sort((a, b) => a.start_m - b.start_m);
 
   // ---- summary -------------------------------------------------------------------------------
-  const summary = h("p", { class: "summary", id: "run-summary" },
-    spots.length === 0
+  // Over rough rail one pass cannot tell a soft support from the rail's own geometry: "no soft
+  // spot" would claim what it cannot know, so the summary says what it can and cannot tell.
+  const rough = run.stiffness_basis === "not separable";
+  const deepest = spots.length ? fmt(Math.max(...spots.map((s) => s.depth_mm)), 2) : null;
+  let said;
+  if (rough) {
+    said = spots.length === 0
+      ? "No dip beyond this pass's detection limit. On its own, this pass cannot tell whether the supports here are sound: the rail's own geometry is larger than what a soft support adds."
+      : `${plural(spots.length, "dip")} deeper than this pass's detection limit (deepest ${deepest} mm), listed by depth only: this pass alone cannot tell a soft support from the rail's own geometry.`;
+  } else {
+    said = spots.length === 0
       ? "No soft spot detected on this run."
-      : `${plural(spots.length, "soft spot")} detected — shaded in orange on the profile below, deepest ${fmt(Math.max(...spots.map((s) => s.depth_mm)), 2)} mm.`);
+      : `${plural(spots.length, "soft spot")} detected — shaded in orange on the profile below, deepest ${deepest} mm.`;
+  }
+  const summary = h("p", { class: "summary", id: "run-summary" }, said);
   main.appendChild(summary);
-  // Honesty (issue 10): where one pass cannot tell rail geometry from stiffness its dips are
-  // listed by depth only; over smooth rail the single-pass losses stay, labelled as such.
+  // Honesty: where one pass cannot tell rail geometry from stiffness its dips are listed by
+  // depth only; over smooth rail the single-pass losses stay, labelled as such.
   if (run.stiffness_message) {
     main.appendChild(h("div", { class: "message warning", role: "status", id: "run-stiffness-message" },
-      run.stiffness_message, " ",
-      h("a", { href: `#/tracks/${encodeURIComponent(run.track_id)}` }, "See the track's stiffness map.")));
+      "The track's stiffness map separates geometry from stiffness where passes of different wheel loads (or a survey) cover the rail, and lists the soft spots found there. ",
+      h("a", { href: `#/tracks/${encodeURIComponent(run.track_id)}?view=stiffness`, id: "run-stiffness-link" }, "Open the track's stiffness map"), "."));
   } else if (run.stiffness_basis === "single pass") {
     main.appendChild(h("p", { class: "hint", id: "run-stiffness-basis" },
       "Stiffness losses from this pass alone (single pass): the rail is smooth at the noise level here."));
