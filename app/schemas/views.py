@@ -154,6 +154,12 @@ class WindowRunPublic(BaseModel):
     id: int
     label: str
     recorded_at: datetime | None
+    wheel_load_n: float | None = Field(
+        default=None,
+        description="Mean wheel force of the run (else its declared static wheel load), N: "
+        "passes of different loads are what tells a soft support from the rail's geometry",
+    )
+    vehicle: str | None = Field(default=None, description="Vehicle name")
     decimated: bool
     chainage_m: list[float]
     level_mm: list[float | None]

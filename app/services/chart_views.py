@@ -393,6 +393,8 @@ def track_window(
                 id=run.id,
                 label=_run_label(run),
                 recorded_at=run.recorded_at,
+                wheel_load_n=run.mean_wheel_force_n or run.static_wheel_load_n,
+                vehicle=run.vehicle.name,
                 decimated=decimated,
                 chainage_m=xd.tolist(),
                 level_mm=nullable(cd["level_mm"]),

@@ -19,6 +19,8 @@ from numpy.typing import NDArray
 from engine.decimate import minmax_indices
 from engine.register import LEVELS, Defect, Limits
 
+from .notation import km_m, km_m_range
+
 REPORT_MAX_POINTS = 1400
 """Most profile points drawn in the report's SVG (each 700 buckets' lowest and highest)."""
 
@@ -350,8 +352,8 @@ def render_report(data: ReportInput) -> str:
                 "<tr>"
                 f'<td class="num">{ranks[d.id]}</td><td class="num">{d.priority}</td>'
                 f"<td>{lvl}</td><td>{escape(d.status)}</td>"
-                f'<td class="num">{_num(d.start_m, 1)}–{_num(d.end_m, 1)}</td>'
-                f'<td class="num">{_num(d.peak_m, 1)}</td>'
+                f'<td class="num">{km_m_range(d.start_m, d.end_m)}</td>'
+                f'<td class="num">{km_m(d.peak_m)}</td>'
                 f'<td class="num">{_num(d.depth_mm, 3)}</td>'
                 f'<td class="num">{_loss_band(d)}</td>'
                 f'<td class="num">{_signed(d.trend_mm_per_month, 3)}</td>'
@@ -363,7 +365,7 @@ def render_report(data: ReportInput) -> str:
         parts.append(
             "<table><thead><tr>"
             '<th class="num">#</th><th class="num">Priority</th><th>Level</th><th>Status</th>'
-            '<th class="num">Extent (m)</th><th class="num">Peak (m)</th>'
+            '<th class="num">Extent (km+m)</th><th class="num">Peak (km+m)</th>'
             '<th class="num">Depth (mm)</th><th class="num">Loss (%)</th>'
             '<th class="num">Trend (mm/month)</th><th class="num">Trend (%/month)</th>'
             "<th>Evidence</th><th>First seen</th><th>Last seen</th>"
@@ -409,7 +411,7 @@ def render_report(data: ReportInput) -> str:
                 f"<td>{escape(r.status)}</td><td>{escape(r.alignment_status or '—')}</td>"
                 f'<td class="num">{_signed(r.offset_m, 2)}</td>'
                 f'<td class="num">{_num(r.correlation, 2)}</td>'
-                f'<td class="num">{_num(r.chainage_min_m, 1)}–{_num(r.chainage_max_m, 1)}</td>'
+                f'<td class="num">{km_m_range(r.chainage_min_m, r.chainage_max_m)}</td>'
                 f'<td class="num">{"—" if r.n_soft_spots is None else r.n_soft_spots}</td></tr>'
             )
         parts.append(
@@ -417,7 +419,7 @@ def render_report(data: ReportInput) -> str:
             '<th class="num">Run</th><th>Name</th><th>Recorded (UTC)</th><th>Vehicle</th>'
             "<th>File</th><th>Status</th><th>Alignment</th>"
             '<th class="num">Offset (m)</th><th class="num">Correlation</th>'
-            '<th class="num">Extent (m, aligned)</th><th class="num">Soft spots</th>'
+            '<th class="num">Extent (km+m, aligned)</th><th class="num">Soft spots</th>'
             "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>"
         )
     else:

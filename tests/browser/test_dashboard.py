@@ -212,13 +212,13 @@ def test_track_view_draws_chainage_map_and_zone_table(
     assert drawn["rows"] == len(demo_track)
     rows = page.locator("#zone-table tbody tr")
     assert rows.count() == len(defects)
-    seen = f"{len(demo_track)} of {len(demo_track)}"
-    assert any(seen in t for t in rows.all_inner_texts())
+    seen = f"single pass: {len(demo_track)} passes"  # the evidence column
+    assert any(seen in t for t in rows.all_inner_texts()), rows.all_inner_texts()
     wait_for_plot(page, "#zone-plot")  # the top-ranked zone is shown at once
-    deep_row = page.locator("#zone-table tbody tr", has_text="140.")
+    deep_row = page.locator("#zone-table tbody tr", has_text="0+140.")  # km+m
     deep_row.first.get_by_role("button").click()
     page.wait_for_function(
-        "() => document.getElementById('zone-info').textContent.startsWith('Zone 14')"
+        "() => document.getElementById('zone-info').textContent.startsWith('Zone 0+14')"
     )
     zone_traces = page.evaluate(
         "() => document.getElementById('zone-plot').data"

@@ -1,7 +1,7 @@
 // Run view: fused loaded profile with shaded, labelled soft spots; front/rear axle profiles on
 // demand; raw signals against time; metadata and quality; downloads.
 
-import { h, clear, append, announce, fmt, fmtDate, downloadBlob, messageBox, plural } from "../dom.js";
+import { h, clear, append, announce, fmt, fmtDate, fmtKm, downloadBlob, messageBox, plural } from "../dom.js";
 import { ApiError, apiFetch, apiGetOptional, runErrorMessage } from "../api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, TERMS, zoomControls, zoomTo } from "../plots.js";
 
@@ -351,6 +351,31 @@ async function loadSignals(encId, div, note) {
   await (await loadPlotly()).newPlot(div, traces, layout, CONFIG);
 }
 
+/** How the run was placed on the track: from its start chainage, or fitted to its GNSS fixes
+ * along the track's centerline (method, fixes used/rejected, residual, scale, lateral offset). */
+function placementBox(run) {
+  const p = run.positioning;
+  const box = h("div", { id: "run-placement" }, h("h3", {}, "Placement on the track"));
+  if (!p) {
+    box.append(h("p", {}, run.start_chainage_m === null || run.start_chainage_m === undefined
+      ? "From the log's chainage column."
+      : `From the start chainage given with the upload: ${fmtKm(run.start_chainage_m, 2)}, ${run.direction}.`));
+    return box;
+  }
+  const dl = h("dl", { class: "meta", id: "run-placement-facts" });
+  const rows = [
+    ["Method", `GNSS fixes fitted to the track's centerline${p.pieces > 1 ? ` (odometer in ${p.pieces} pieces)` : ""}`],
+    ["Start", `${fmtKm(p.start_chainage_m, 2)}, ${p.direction}`],
+    ["Fixes used", `${p.n_used} of ${p.n_fixes} (${p.n_rejected} rejected: off the line or outliers)`],
+    ["Residual (RMS)", `${fmt(p.residual_rms_m, 2)} m`],
+    ["Odometer scale", `${fmt(p.scale, 4)} (true / logged distance)`],
+    ["Lateral offset", `median ${fmt(p.offset_median_m, 2)} m, 95 % ${fmt(p.offset_p95_m, 2)} m`],
+  ];
+  for (const [k, v] of rows) dl.append(h("dt", {}, k), h("dd", {}, v));
+  box.append(dl);
+  return box;
+}
+
 function metadataSection(run) {
   const meta = run;
   const dl = h("dl", { class: "meta", id: "run-metadata" });
@@ -370,7 +395,7 @@ function metadataSection(run) {
     }
   }
   return h("section", { class: "card two-col", "aria-labelledby": "meta-h" },
-    h("div", {}, h("h2", { id: "meta-h" }, "Run metadata"), dl),
+    h("div", {}, h("h2", { id: "meta-h" }, "Run metadata"), dl, placementBox(run)),
     h("div", {}, h("h2", {}, "Quality indicators"),
       quality ? qBox : h("p", { class: "muted" }, "No quality indicators for this run.")),
   );

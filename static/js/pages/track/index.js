@@ -102,6 +102,7 @@ export async function render(main, [ref], query) {
   // ---- register (ranked by priority) ---------------------------------------------------------
   const registerView = registerCards(main, { enc, getZones: () => zones, isStopped });
   main.appendChild(plan.section);
+  plan.showRuns(runs);
   plan.showDefects(() => zones, (zone) => registerView.showZone(zone));
 
   // ---- alerts and limits ---------------------------------------------------------------------
