@@ -25,9 +25,11 @@ function signed(v, digits) {
   return `${v > 0 ? "+" : "−"}${text}`;
 }
 
-/** A trend needs two runs: a defect seen once has none (shown "—", not "0.000"). */
+/** A trend needs two successive sightings of the kind the figures come from: a defect seen
+ * once, or one separation, has none (shown "—", not "0.000"). */
 function trendOf(d, key) {
-  return d.runs_seen >= 2 ? d[key] : null;
+  const main = Array.isArray(d.evidence) && d.evidence.length ? d.evidence[0].sightings : d.runs_seen;
+  return main >= 2 ? d[key] : null;
 }
 
 /** "separated: 4 passes, 2 loads" (of the runs covering it); older answers: "3 of 4". */
@@ -46,10 +48,11 @@ export function lossOf(d) {
 /** Columns of the register table (the first is the rank, drawn as the row header). */
 export const REGISTER_COLUMNS = [
   { key: "rank", label: "Rank", num: true, get: (d) => d.rank },
-  { key: "start_m", label: "Zone", title: "Extent, chainage in km+m", num: true, get: (d) => d.start_m, show: (d) => fmtKmRange(d.start_m, d.end_m) },
-  { key: "peak_m", label: "Peak", title: "Deepest point, chainage in km+m", num: true, get: (d) => d.peak_m, show: (d) => fmtKm(d.peak_m) },
+  // Priority and level first after the rank: on a phone (390 px) the first columns show.
   { key: "priority", label: "Priority", num: true, get: (d) => d.priority, show: (d) => String(d.priority) },
   { key: "level", label: "Level", title: "Limit level reached by the latest run (none: below the alert limits)", get: (d) => (d.level ? 3 - ["alert", "intervention", "immediate"].indexOf(d.level) : 9), show: (d) => (d.level ? SHORT_LEVEL[d.level] : "none"), cls: (d) => `level level-${d.level || "none"}` },
+  { key: "start_m", label: "Zone", title: "Extent, chainage in km+m", num: true, get: (d) => d.start_m, show: (d) => fmtKmRange(d.start_m, d.end_m) },
+  { key: "peak_m", label: "Peak", title: "Deepest point, chainage in km+m", num: true, get: (d) => d.peak_m, show: (d) => fmtKm(d.peak_m) },
   { key: "status", label: "Status", get: (d) => d.status, show: (d) => d.status, cls: (d) => `defect-status defect-${d.status}` },
   { key: "runs_seen", label: "Evidence", title: "What supports the defect: single passes, or the separation of geometry from stiffness across passes of different wheel loads (passes that support it of the runs covering it)", get: (d) => d.runs_seen, show: evidenceOf },
   { key: "depth_mm", label: "Depth (mm)", title: TERMS.depth, num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
@@ -190,7 +193,7 @@ export function alertsCard(enc, getDefects = null) {
       h("td", {}, evidenceOf(d))));
     out.append(
       h("p", { class: "small", id: "alerts-count" }, `${alerts.length} defect${alerts.length === 1 ? "" : "s"} reached a limit since ${since}.`),
-      h("div", { class: "table-scroll" }, h("table", { class: "data", id: "alerts-table" },
+      h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": `Alerts since ${since}` }, h("table", { class: "data", id: "alerts-table" },
         h("caption", { class: "visually-hidden" }, `Defects that reached a limit since ${since}`),
         h("thead", {}, h("tr", {}, [["Priority", 1], ["Level"], ["Since"], ["Zone", 1], ["Depth (mm)", 1], ["Loss (%)", 1], ["Status"], ["Evidence"]].map(([t, num]) => h("th", { scope: "col", class: num ? "num" : null }, t)))),
         h("tbody", {}, rows))),

@@ -228,7 +228,7 @@ def test_track_view_draws_chainage_map_and_zone_table(
     peak_header = page.locator("#zone-table thead th", has_text="Peak")
     peak_header.get_by_role("button").click()
     assert peak_header.get_attribute("aria-sort") == "ascending"
-    cells = page.locator("#zone-table tbody tr td:nth-child(3)").all_inner_texts()
+    cells = page.locator("#zone-table tbody tr td:nth-child(5)").all_inner_texts()
     peaks = [1000 * float(c.split("+")[0]) + float(c.split("+")[1]) for c in cells]  # km+m
     assert peaks == sorted(peaks)
     page.fill("#alerts-since", "2025-01-01")  # the morning pull, as shown in the screenshot

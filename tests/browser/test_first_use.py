@@ -273,7 +273,7 @@ def test_track_page_fits_a_phone_and_explains_a_single_run(
         trend = row.locator("td.num").nth(-2).inner_text()  # the depth trend column
         assert trend == "—", trend
         assert "1 processed run " in page.inner_text("#track-lead") + " "
-        assert re.search(r"\b2 soft spots from 1 run\b", page.inner_text("#map-note"))
+        assert re.search(r"\b2 single-run soft spots from 1 run\b", page.inner_text("#map-note"))
         assert_no_cloud_links(page)
         assert axe_violations(page, axe) == []
         assert not errors, errors

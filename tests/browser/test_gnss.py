@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from browser.harness import LiveServer
+from browser.harness import LiveServer, axe_source, axe_violations
 from playwright.sync_api import expect
 
 from engine.synthetic import make_run
@@ -111,4 +111,11 @@ def test_centerline_upload_gnss_run_and_plan_view(
     page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     expect(page.locator("#plan-info")).to_contain_text("is open in the register", timeout=15_000)
     expect(page.locator("#zone-info")).not_to_have_text("", timeout=15_000)
+    # axe: no serious or critical violation on the track page with its plan view drawn
+    src = axe_source()
+    for width in (1280, 390):
+        page.set_viewport_size({"width": width, "height": 900})
+        page.goto(f"{live_server.url}/#/tracks/{TRACK}")
+        page.wait_for_selector("#plan-plot .main-svg")
+        assert not axe_violations(page, src), (width, axe_violations(page, src))
     page.watch.assert_clean()

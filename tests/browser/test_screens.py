@@ -77,7 +77,9 @@ def test_register_shows_separated_spots_with_depth_loss_and_evidence(
     said = page.locator("#stiffness-message").inner_text()
     for d in geo_track["defects"]:
         assert f"0+{d['peak_m']:05.1f}" not in said
-    page.screenshot(path=str(screenshots / "track.png"), full_page=False)
+    assert "3 soft spots separated" in page.locator("#map-separated").inner_text()
+    page.locator("#zones-h").scroll_into_view_if_needed()
+    page.screenshot(path=str(screenshots / "track-separated.png"), full_page=False)
     page.watch.assert_clean()
 
 

@@ -32,7 +32,7 @@ function contentType(file) {
  * defects on the plan; clicking a marker calls `onZone(zone)` (the register opens it).
  */
 export function planCard(enc) {
-  const plotDiv = h("div", { class: "plot plot-plan", id: "plan-plot", role: "img", "aria-label": "Plan view of the track's centerline with its defects" });
+  const plotDiv = h("div", { class: "plot plot-plan", id: "plan-plot", role: "figure", "aria-label": "Plan view of the track's centerline with chainage marks, the runs' stretches and the defects" });
   const info = h("p", { class: "hint", id: "plan-info" });
   const flag = h("p", { class: "message warning", id: "plan-flag", role: "status", hidden: true });
   const status = messageBox("info");
