@@ -1,8 +1,12 @@
-"""Soft-spot register: zones from many runs merged into tracked defects, trended and ranked.
+"""Soft-spot register: sightings from many passes merged into tracked defects, trended and ranked.
 
-Input is what each processed run found (in aligned chainage) and when the run was recorded;
-output is one defect per place that keeps showing up, with its history, its trend over time
-and a priority from limits in the style of EN 13848 (alert, intervention, immediate action).
+Input is every sighting of a soft spot in aligned chainage: what one processed run found on
+its own (``pass``), what the track's geometry/stiffness separation found across passes of
+different wheel loads (``separated``), and any other source in :data:`SOURCES`; each sighting
+names the passes that support it. Output is one defect per place, with its evidence (which
+kinds of sighting, how many passes, how many distinct wheel loads), its history, its trend
+over time and a priority from limits in the style of EN 13848 (alert, intervention,
+immediate action).
 """
 
 from __future__ import annotations
@@ -74,21 +78,63 @@ class Limits:
 
 
 @dataclass(frozen=True)
+class Source:
+    """A kind of sighting: how it is named to a person and how much its figures are trusted.
+
+    ``rank`` orders the kinds when one defect has several: the defect's depth, loss and
+    trend come from the lowest rank present (the separation knows the support from the rail's
+    own geometry; one pass over rough rail does not).
+    """
+
+    label: str
+    rank: int
+
+
+SOURCES: dict[str, Source] = {
+    "separated": Source("separated", 0),
+    "aggregate": Source("aggregate", 1),
+    "pass": Source("single pass", 2),
+}
+"""The kinds of sighting the register accepts (``Observation.source``)."""
+
+
+@dataclass(frozen=True)
+class Support:
+    """A pass behind a sighting: a run (or a survey) and when it was recorded.
+
+    ``wheel_load_n`` is the pass's mean wheel load, N (None when unknown): passes of different
+    loads are what lets the separation tell stiffness from geometry.
+    """
+
+    id: int
+    recorded_at: datetime
+    wheel_load_n: float | None = None
+    kind: str = "run"
+
+
+@dataclass(frozen=True)
 class Observation:
-    """One run's soft spot, in aligned chainage.
+    """One sighting of a soft spot, in aligned chainage.
 
     Attributes
     ----------
     run_id : int
-        The run.
+        The run that made it (for a sighting across passes: its earliest supporting run).
     recorded_at : datetime
-        When the run was recorded.
+        When the sighting could first be made: the run's recording time, or for a sighting
+        across passes the time its evidence became complete (see :func:`complete_at`).
     start_m, end_m, peak_m : float
         Extent and deepest point, m.
     depth_mm : float
-        Depth, mm.
+        Depth, mm (for a separated spot: the dip it causes under the reference wheel load).
     stiffness_loss_pct : float or None
         Estimated stiffness loss, %.
+    source : str
+        Kind of sighting, a key of :data:`SOURCES`.
+    support : tuple of Support
+        The passes behind it; empty for a single run's sighting (the run itself).
+    loss_lo_pct, loss_hi_pct : float or None
+        Band of the loss, % (None when the source gives none).
     """
 
     run_id: int
@@ -98,6 +144,81 @@ class Observation:
     peak_m: float
     depth_mm: float
     stiffness_loss_pct: float | None
+    source: str = "pass"
+    support: tuple[Support, ...] = ()
+    loss_lo_pct: float | None = None
+    loss_hi_pct: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.source not in SOURCES:
+            raise ParameterError(
+                f"sighting source {self.source!r} is not one of {sorted(SOURCES)}", field="source"
+            )
+
+    @property
+    def passes(self) -> tuple[Support, ...]:
+        """The supporting passes (the run itself for a single run's sighting)."""
+        return self.support or (Support(self.run_id, self.recorded_at),)
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict (datetimes as ISO 8601; supporting passes as ``kind id`` labels)."""
+        d: dict[str, object] = {
+            f.name: getattr(self, f.name) for f in fields(self) if f.name != "support"
+        }
+        d["recorded_at"] = self.recorded_at.isoformat()
+        d["passes"] = [f"{p.kind} {p.id}" for p in self.passes]
+        return d
+
+
+def count_loads(loads: Sequence[float | None], ratio: float) -> int:
+    """Distinct wheel loads among ``loads`` (N): sorted, a load starts a new group when it is at
+    least ``ratio`` times the smallest of the current group. Unknown loads (None) count as one
+    group together when there is no known load, else not at all."""
+    known = sorted(v for v in loads if v is not None and math.isfinite(v) and v > 0)
+    if not known:
+        return 1 if loads else 0
+    groups, base = 1, known[0]
+    for v in known[1:]:
+        if v >= ratio * base:
+            groups, base = groups + 1, v
+    return groups
+
+
+def complete_at(support: Sequence[Support], ratio: float) -> datetime:
+    """When a sighting across passes became possible: the recording time of the pass that
+    brought its passes to two distinct wheel loads (the last pass when they never span two)."""
+    ordered = sorted(support, key=lambda p: (p.recorded_at, p.id))
+    for i in range(1, len(ordered)):
+        if count_loads([p.wheel_load_n for p in ordered[: i + 1]], ratio) >= 2:
+            return ordered[i].recorded_at
+    return ordered[-1].recorded_at
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What one kind of sighting says about a defect: how many passes, how many loads."""
+
+    kind: str
+    passes: int
+    loads: int
+    sightings: int
+    first_seen: datetime
+    last_seen: datetime
+
+    @property
+    def text(self) -> str:
+        """``separated: 4 passes, 2 loads`` — how a person reads it."""
+        p = f"{self.passes} pass" + ("es" if self.passes != 1 else "")
+        lo = f"{self.loads} load" + ("s" if self.loads != 1 else "")
+        return f"{SOURCES[self.kind].label}: {p}, {lo}"
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready dict."""
+        return {
+            "kind": self.kind, "passes": self.passes, "loads": self.loads,
+            "sightings": self.sightings, "first_seen": self.first_seen.isoformat(),
+            "last_seen": self.last_seen.isoformat(), "text": self.text,
+        }  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -130,18 +251,31 @@ class Defect:
     level: str | None
     priority: int
     level_since: datetime | None
+    source: str = "pass"
+    stiffness_loss_lo_pct: float | None = None
+    stiffness_loss_hi_pct: float | None = None
+    evidence: tuple[Evidence, ...] = ()
     history: list[Observation] = field(default_factory=list)
+
+    @property
+    def evidence_text(self) -> str:
+        """Every kind of evidence, most trusted first: ``separated: 4 passes, 2 loads``."""
+        return "; ".join(e.text for e in self.evidence)
 
     def to_dict(self, with_history: bool = False) -> dict[str, object]:
         """JSON-ready dict (datetimes as ISO 8601 strings)."""
         # not asdict(self): that would deep-copy the whole history for nothing
-        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "history"}
+        d = {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if f.name not in ("history", "evidence")
+        }
         for k in ("first_seen", "last_seen", "level_since"):
             d[k] = d[k].isoformat() if d[k] is not None else None
+        d["evidence"] = [e.to_dict() for e in self.evidence]
+        d["evidence_text"] = self.evidence_text
         if with_history:
-            d["history"] = [
-                {**asdict(o), "recorded_at": o.recorded_at.isoformat()} for o in self.history
-            ]
+            d["history"] = [o.to_dict() for o in self.history]
         return d
 
 
@@ -159,12 +293,16 @@ class RegisterConfig:
         Smallest depth trend called worsening, mm/month.
     worsening_loss_pct_per_month : float
         Smallest stiffness-loss trend called worsening, percentage points/month.
+    load_ratio : float
+        Wheel loads at least this ratio apart count as distinct (the separation's own
+        ``SeparationConfig.min_load_ratio``).
     """
 
     join_gap_m: float = 1.0
     min_runs_trend: int = 3
     worsening_rate_mm_per_month: float = 0.01
     worsening_loss_pct_per_month: float = 1.0
+    load_ratio: float = 1.1
 
 
 def _slope_per_month(t: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -193,7 +331,7 @@ def build_register(
     Parameters
     ----------
     observations : sequence of Observation
-        Every soft spot of every run on the track, aligned chainage.
+        Every sighting on the track (single runs, the separation, ...), aligned chainage.
     coverage : sequence of RunCoverage
         Where each run had a profile (to count the runs that *could* have seen a defect).
     limits : Limits, optional
@@ -217,71 +355,114 @@ def build_register(
     ]
     defects = []
     for cl in clusters:
-        # one observation per run: a run that split a zone in two keeps its deeper part
-        per_run: dict[int, Observation] = {}
-        for o in cl:
-            if o.run_id not in per_run or o.depth_mm > per_run[o.run_id].depth_mm:
-                per_run[o.run_id] = o
-        hist = sorted(per_run.values(), key=lambda o: (o.recorded_at, o.run_id))
-        t = np.array([o.recorded_at.timestamp() / 86400.0 for o in hist])
-        depth = np.array([o.depth_mm for o in hist])
-        loss_vals = [o.stiffness_loss_pct for o in hist]
-        have_loss = [v is not None and math.isfinite(v) for v in loss_vals]
-        loss = np.array([v if ok else np.nan for v, ok in zip(loss_vals, have_loss, strict=True)])
-        slope, se = _slope_per_month(t, depth)
-        lm = np.isfinite(loss)
-        lslope, lse = _slope_per_month(t[lm], loss[lm]) if lm.sum() >= 2 else (0.0, math.inf)
-        # statistics.median: a cluster holds a few dozen values at most, where numpy's
-        # per-call overhead dominated the register of a long line (thousands of clusters)
-        start = float(statistics.median([o.start_m for o in hist]))
-        end = float(statistics.median([o.end_m for o in hist]))
-        peak = float(statistics.median([o.peak_m for o in hist]))
-        latest = hist[-1]
-        latest_loss = latest.stiffness_loss_pct
-        if latest_loss is not None and not math.isfinite(latest_loss):
-            latest_loss = None
-        if len(hist) == 1:
-            status = "new"
-        elif len(hist) < cfg.min_runs_trend:
-            status = "confirmed"
-        elif (slope >= cfg.worsening_rate_mm_per_month and slope > 2 * se) or (
-            lslope >= cfg.worsening_loss_pct_per_month and lslope > 2 * lse
-        ):
-            status = "worsening"
-        else:
-            status = "stable"
-        level = lim.level(latest.depth_mm, latest_loss)
-        level_since = None
-        if level is not None:
-            rank = LEVELS.index(level)
-            for o in hist:
-                lv = lim.level(o.depth_mm, o.stiffness_loss_pct)
-                if lv is not None and LEVELS.index(lv) <= rank:
-                    level_since = o.recorded_at
-                    break
-        covering = int(np.count_nonzero((cov_from <= start) & (cov_to >= end)))
-        priority = (LEVELS.index(level) + 1) if level is not None else len(LEVELS) + 1
-        first = hist[0]
-        defects.append(
-            Defect(
-                id=f"{first.run_id}-{first.peak_m:.1f}",
-                start_m=start,
-                end_m=end,
-                peak_m=peak,
-                first_seen=hist[0].recorded_at,
-                last_seen=latest.recorded_at,
-                runs_seen=len(hist),
-                runs_covering=max(covering, len(hist)),
-                depth_mm=float(latest.depth_mm),
-                stiffness_loss_pct=latest_loss,
-                trend_mm_per_month=slope,
-                trend_loss_pct_per_month=lslope,
-                status=status,
-                level=level,
-                priority=priority,
-                level_since=level_since,
-                history=hist,
-            )  # fmt: skip
-        )
+        defects.append(_defect(cl, cov_from, cov_to, lim, cfg))
     defects.sort(key=lambda d: (d.priority, -d.depth_mm, d.start_m))
     return defects
+
+
+def _evidence(kind: str, obs: Sequence[Observation], ratio: float) -> Evidence:
+    passes = {(p.kind, p.id): p for o in obs for p in o.passes}
+    times = [p.recorded_at for p in passes.values()]
+    return Evidence(
+        kind=kind,
+        passes=len(passes),
+        loads=count_loads([p.wheel_load_n for p in passes.values()], ratio),
+        sightings=len(obs),
+        first_seen=min(times),
+        last_seen=max(times),
+    )
+
+
+def _defect(
+    cl: Sequence[Observation],
+    cov_from: np.ndarray,
+    cov_to: np.ndarray,
+    lim: Limits,
+    cfg: RegisterConfig,
+) -> Defect:
+    """One defect from the sightings of one place."""
+    by_kind: dict[str, list[Observation]] = {}
+    for o in cl:
+        by_kind.setdefault(o.source, []).append(o)
+    # one single-run sighting per run: a run that split a zone in two keeps its deeper part
+    if "pass" in by_kind:
+        per_run: dict[int, Observation] = {}
+        for o in by_kind["pass"]:
+            if o.run_id not in per_run or o.depth_mm > per_run[o.run_id].depth_mm:
+                per_run[o.run_id] = o
+        by_kind["pass"] = list(per_run.values())
+    kinds = sorted(by_kind, key=lambda k: SOURCES[k].rank)
+    for k in kinds:
+        by_kind[k].sort(key=lambda o: (o.recorded_at, o.run_id))
+    evidence = tuple(_evidence(k, by_kind[k], cfg.load_ratio) for k in kinds)
+    # the figures, extent and trend of the most trusted kind present
+    main = kinds[0]
+    hist = by_kind[main]
+    t = np.array([o.recorded_at.timestamp() / 86400.0 for o in hist])
+    depth = np.array([o.depth_mm for o in hist])
+    loss_vals = [o.stiffness_loss_pct for o in hist]
+    loss = np.array([v if v is not None and math.isfinite(v) else np.nan for v in loss_vals])
+    slope, se = _slope_per_month(t, depth)
+    lm = np.isfinite(loss)
+    lslope, lse = _slope_per_month(t[lm], loss[lm]) if lm.sum() >= 2 else (0.0, math.inf)
+    # statistics.median: a cluster holds a few dozen values at most, where numpy's per-call
+    # overhead dominated the register of a long line (thousands of clusters)
+    start = float(statistics.median([o.start_m for o in hist]))
+    end = float(statistics.median([o.end_m for o in hist]))
+    peak = float(statistics.median([o.peak_m for o in hist]))
+    latest = hist[-1]
+    latest_loss = latest.stiffness_loss_pct
+    if latest_loss is not None and not math.isfinite(latest_loss):
+        latest_loss = None
+    supporters = {(p.kind, p.id): p for k in kinds for o in by_kind[k] for p in o.passes}
+    n_passes = len(supporters)
+    if n_passes == 1:
+        status = "new"
+    elif len(hist) < cfg.min_runs_trend:
+        # independent passes support it, but too few successive sightings for a trend
+        status = "confirmed"
+    elif (slope >= cfg.worsening_rate_mm_per_month and slope > 2 * se) or (
+        lslope >= cfg.worsening_loss_pct_per_month and lslope > 2 * lse
+    ):
+        status = "worsening"
+    else:
+        status = "stable"
+    level = lim.level(latest.depth_mm, latest_loss)
+    level_since = None
+    if level is not None:
+        rank = LEVELS.index(level)
+        for o in hist:
+            lv = lim.level(o.depth_mm, o.stiffness_loss_pct)
+            if lv is not None and LEVELS.index(lv) <= rank:
+                level_since = o.recorded_at
+                break
+    covering = int(np.count_nonzero((cov_from <= start) & (cov_to >= end)))
+    priority = (LEVELS.index(level) + 1) if level is not None else len(LEVELS) + 1
+    times = [p.recorded_at for p in supporters.values()]
+    history = sorted(
+        (o for k in kinds for o in by_kind[k]), key=lambda o: (o.recorded_at, o.run_id)
+    )
+    first = history[0]
+    return Defect(
+        id=f"{first.run_id}-{first.peak_m:.1f}",
+        start_m=start,
+        end_m=end,
+        peak_m=peak,
+        first_seen=min(times),
+        last_seen=max(times),
+        runs_seen=n_passes,
+        runs_covering=max(covering, n_passes),
+        depth_mm=float(latest.depth_mm),
+        stiffness_loss_pct=latest_loss,
+        trend_mm_per_month=slope,
+        trend_loss_pct_per_month=lslope,
+        status=status,
+        level=level,
+        priority=priority,
+        level_since=level_since,
+        source=main,
+        stiffness_loss_lo_pct=latest.loss_lo_pct if latest_loss is not None else None,
+        stiffness_loss_hi_pct=latest.loss_hi_pct if latest_loss is not None else None,
+        evidence=evidence,
+        history=history,
+    )

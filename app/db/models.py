@@ -485,6 +485,8 @@ class TrackStiffnessSpot(Base):
     loss_lo_pct: Mapped[float | None] = mapped_column(Float)
     loss_hi_pct: Mapped[float | None] = mapped_column(Float)
     confidence: Mapped[float | None] = mapped_column(Float)
+    # the passes with data over the spot: [{"kind": "run"|"survey", "id", "force_n"}]
+    support: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON)
 
 
 class TrackCenterline(Base):

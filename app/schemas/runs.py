@@ -419,7 +419,19 @@ class RunCreated(RunPublic):
 
     duplicate: bool = Field(
         default=False,
-        description="True when the same content (or Idempotency-Key) was stored before",
+        description="True when the same log (its content, whatever the options sent with it) "
+        "or the same Idempotency-Key was stored before: the stored run answers, nothing new is "
+        "stored (a log is one pass)",
+    )
+    ignored: list[str] = Field(
+        default_factory=list,
+        description="On a duplicate: the fields this upload asked differently from how the "
+        "stored run was read and placed; they were not applied",
+    )
+    note: str | None = Field(
+        default=None,
+        description="On a duplicate with ignored fields: what happened and how to read the "
+        "log differently (delete the run, upload again)",
     )
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 from typing import Any, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
@@ -72,7 +74,12 @@ class SimulateRequest(StrictModel):
     """A synthetic run: a track with soft zones (straight, or with the rail geometry of a
     standard spectrum), the vehicle at constant speed."""
 
-    track: Name = Field(default="simulated", description="Track to store the run on")
+    track: Name | None = Field(
+        default=None,
+        description="Track to store the run on (default: a track of its own per simulated "
+        "physical track — rail, length, zones, support scatter and seed —, named after it, "
+        "e.g. 'simulated straight 500 m, seed 0, 2 zones [3fa2c1]'; never mixed with real runs)",
+    )
     vehicle: Name | None = Field(default=None, description="Vehicle name (default table1)")
     name: Name | None = None
     length_m: float = Field(default=500.0, ge=80, le=5000, description="Track length, m")
@@ -126,6 +133,27 @@ class SimulateRequest(StrictModel):
     def _zones_sorted(cls, zones: list[ZoneSpec]) -> list[ZoneSpec]:
         return sorted(zones, key=lambda z: z.start_m)
 
+    def simulated_track_name(self) -> str:
+        """The default track of this simulation: one per physical track simulated (rail
+        geometry, length, zones, support scatter, seed), so runs over the same simulated track
+        meet and nothing simulated mixes with a real track's runs."""
+        physical = {
+            "length_m": self.length_m, "jitter": self.jitter, "seed": self.seed,
+            "zones": [z.model_dump() for z in self.zones],
+            "irregularity": None if self.irregularity is None else self.irregularity.model_dump(),
+        }  # fmt: skip
+        tag = hashlib.sha256(json.dumps(physical, sort_keys=True).encode()).hexdigest()[:6]
+        rail = (
+            "straight"
+            if self.irregularity is None
+            else f"{self.irregularity.spectrum} rail seed {self.irregularity.seed}"
+        )
+        n = len(self.zones)
+        return (
+            f"simulated {rail} {self.length_m:g} m, seed {self.seed}, "
+            f"{n} zone{'s' if n != 1 else ''} [{tag}]"
+        )
+
     def to_spec(self) -> SimulationSpec:
         """The service's plain description of this request (engine types, the sensor chosen)."""
         if self.sensor_grade is not None:
@@ -140,7 +168,7 @@ class SimulateRequest(StrictModel):
         else:
             sensor = SensorModel(**self.sensor.model_dump())
         return SimulationSpec(
-            track=self.track,
+            track=self.track or self.simulated_track_name(),
             vehicle=self.vehicle,
             name=self.name,
             length_m=self.length_m,

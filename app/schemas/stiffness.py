@@ -41,6 +41,18 @@ class ContributorPublic(BaseModel):
     vehicle: str | None = Field(default=None, description="The run's vehicle (runs)")
 
 
+class NotSeparablePublic(BaseModel):
+    """A stretch where geometry and stiffness are not separable, and why."""
+
+    from_m: float = Field(description="Start, m (aligned)")
+    to_m: float = Field(description="End, m (aligned, inclusive)")
+    reason: Literal["load", "precision"] = Field(
+        description="load: the passes there have one wheel load (a pass with another load, "
+        "or a survey, would separate it); precision: their levels are too uncertain (near "
+        "the ends of runs, or too few passes)"
+    )
+
+
 class StiffnessPublic(BaseModel):
     """A track's separated geometry and support stiffness over a window (0.25 m grid).
 
@@ -57,7 +69,14 @@ class StiffnessPublic(BaseModel):
     n: int = Field(description="Grid points some pass covers in the window")
     separable: bool = Field(description="True when part of the window is separable")
     separable_fraction: float = Field(description="Share of the covered points separable, 0-1")
-    message: str | None = Field(description="Why (part of) the window is not separable")
+    message: str | None = Field(
+        description="Where the window is not separable (chainages in km+m) and what would make "
+        "it separable, as sentences; null where the separation holds everywhere"
+    )
+    not_separable: list[NotSeparablePublic] = Field(
+        default_factory=list,
+        description="The stretches that are not separable, in order",
+    )
     updating: bool = Field(
         description="A run stored a moment ago covers part of the window and its separation "
         "is being redone: this is the state before it; read again in a few seconds"

@@ -7,12 +7,12 @@ Chainage in m (aligned), levels and depths in mm, stiffness loss in %, trends pe
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Literal
+from typing import Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.services.aggregate import NEWEST_PASSES
-from engine.register import Limits
+from engine.register import SOURCES, Limits
 
 from .common import StrictModel
 
@@ -44,16 +44,44 @@ class TrackProfileAggregatePublic(BaseModel):
     n_runs: list[int] = Field(description="Aligned runs in the point's median")
 
 
-class DefectObservationPublic(BaseModel):
-    """One run's sighting of a defect (aligned chainage)."""
+SightingSource = Literal["pass", "separated", "aggregate"]
+"""The kinds of sighting (``engine.register.SOURCES``; checked at import)."""
+if set(get_args(SightingSource)) != set(SOURCES):  # pragma: no cover - a developer's slip
+    raise RuntimeError("SightingSource must list engine.register.SOURCES")
 
-    run_id: int
-    recorded_at: datetime = Field(description="When the run was recorded (else uploaded)")
+
+class DefectObservationPublic(BaseModel):
+    """One sighting of a defect (aligned chainage): one run's, or the separation's."""
+
+    run_id: int = Field(description="The run (for a separated spot: its earliest pass)")
+    recorded_at: datetime = Field(
+        description="When the run was recorded (else uploaded); for a separated spot, the "
+        "recording time of the pass that brought its passes to two wheel loads"
+    )
     start_m: float
     end_m: float
     peak_m: float
     depth_mm: float
     stiffness_loss_pct: float | None
+    source: SightingSource = Field(description="pass (one run), separated, aggregate")
+    passes: list[str] = Field(description="The passes behind it: 'run 12', 'survey 3'")
+    loss_lo_pct: float | None = Field(description="Band of the loss, % (separated)")
+    loss_hi_pct: float | None = None
+
+
+class DefectEvidencePublic(BaseModel):
+    """One kind of sighting behind a defect."""
+
+    kind: SightingSource = Field(
+        description="pass: single runs' detections; separated: the track's geometry/stiffness "
+        "separation across wheel loads; aggregate: the many-pass aggregate"
+    )
+    passes: int = Field(description="Distinct passes (runs, surveys) behind these sightings")
+    loads: int = Field(description="Distinct wheel loads among them (10 % apart or more)")
+    sightings: int = Field(description="Sightings of this kind")
+    first_seen: datetime = Field(description="Recording time of the earliest of those passes")
+    last_seen: datetime = Field(description="Recording time of the latest")
+    text: str = Field(description="As a person reads it: 'separated: 4 passes, 2 loads'")
 
 
 class DefectPublic(BaseModel):
@@ -68,21 +96,37 @@ class DefectPublic(BaseModel):
         description="Recording time of the first run that reached today's level (or worse)"
     )
     status: DefectStatus = Field(
-        description="new (one run), confirmed (fewer runs than a trend needs), worsening "
-        "(significant growth of depth or stiffness loss), stable"
+        description="new (one pass supports it), confirmed (independent passes support it, "
+        "too few successive sightings for a trend), worsening (significant growth of depth or "
+        "stiffness loss), stable"
     )
     start_m: float = Field(description="Start, m (median over the runs that saw it)")
     end_m: float = Field(description="End, m (median)")
     peak_m: float = Field(description="Deepest point, m (median)")
-    depth_mm: float = Field(description="Depth in the latest run, mm")
-    stiffness_loss_pct: float | None = Field(description="Stiffness loss in the latest run, %")
+    source: SightingSource = Field(
+        description="The kind of evidence its figures come from (the most trusted present: "
+        "separated, then aggregate, then pass)"
+    )
+    depth_mm: float = Field(
+        description="Depth in the latest sighting, mm; for a separated spot the dip the "
+        "softened support causes under the reference wheel load (100 kN)"
+    )
+    stiffness_loss_pct: float | None = Field(description="Stiffness loss in the latest sighting, %")
+    stiffness_loss_lo_pct: float | None = Field(description="Band of the loss, low end, %")
+    stiffness_loss_hi_pct: float | None = Field(description="Band of the loss, high end, %")
+    evidence: list[DefectEvidencePublic] = Field(
+        description="What supports it, most trusted kind first"
+    )
+    evidence_text: str = Field(
+        description="The evidence as one line: 'separated: 4 passes, 2 loads'"
+    )
     trend_mm_per_month: float = Field(description="Depth trend (least squares), mm/month")
     trend_loss_pct_per_month: float = Field(
         description="Stiffness-loss trend, percentage points/month"
     )
-    first_seen: datetime
-    last_seen: datetime
-    runs_seen: int = Field(description="Runs that detected it")
+    first_seen: datetime = Field(description="Recording time of the earliest supporting pass")
+    last_seen: datetime = Field(description="Recording time of the latest supporting pass")
+    runs_seen: int = Field(description="Passes that support it (every kind of evidence)")
     runs_covering: int = Field(description="Aligned runs whose profile covers it")
     history: list[DefectObservationPublic] | None = Field(
         default=None, description="Every run's sighting, oldest first (?include=history)"

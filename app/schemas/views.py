@@ -99,7 +99,7 @@ class ZonePublic(BaseModel):
     start_m: float = Field(description="Median start over the runs that saw it, m")
     end_m: float = Field(description="Median end over the runs that saw it, m")
     peak_m: float = Field(description="Median peak chainage of the member spots, m")
-    runs_seen: int = Field(description="Runs that detected a soft spot in the zone")
+    runs_seen: int = Field(description="Passes that support the zone (every kind of evidence)")
     runs_total: int = Field(description="Map runs whose profile covers the zone")
     depth_mm: float = Field(description="Depth seen by the latest run that saw it, mm")
     depth_max_mm: float = Field(description="Deepest sighting, mm")
@@ -109,7 +109,15 @@ class ZonePublic(BaseModel):
     )
     first_seen: datetime | None
     last_seen: datetime | None
-    run_ids: list[int]
+    run_ids: list[int] = Field(description="The runs behind it (every kind of evidence)")
+    source: str = Field(
+        default="pass",
+        description="Kind of evidence its figures come from: pass (single runs), separated "
+        "(the track's geometry/stiffness separation), aggregate",
+    )
+    evidence_text: str = Field(
+        default="", description="Its evidence as one line: 'separated: 4 passes, 2 loads'"
+    )
 
 
 class MapTrackPublic(BaseModel):
@@ -146,6 +154,12 @@ class WindowRunPublic(BaseModel):
     id: int
     label: str
     recorded_at: datetime | None
+    wheel_load_n: float | None = Field(
+        default=None,
+        description="Mean wheel force of the run (else its declared static wheel load), N: "
+        "passes of different loads are what tells a soft support from the rail's geometry",
+    )
+    vehicle: str | None = Field(default=None, description="Vehicle name")
     decimated: bool
     chainage_m: list[float]
     level_mm: list[float | None]

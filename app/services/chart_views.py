@@ -48,6 +48,7 @@ from engine.register import Observation, RegisterConfig, RunCoverage, build_regi
 
 from .errors import Invalid
 from .profiles import nullable, profile_arrays, read_profile
+from .register import LOAD_RATIO, separated_observations
 from .retention import require_detail
 from .runs import detail_run
 from .window import Window
@@ -181,16 +182,20 @@ def _spots(
     return out
 
 
-def map_zones(spots: MapSpotsPublic, runs: list[Run]) -> list[ZonePublic]:
+def map_zones(
+    spots: MapSpotsPublic, runs: list[Run], separated: Sequence[Observation] = ()
+) -> list[ZonePublic]:
     """The zones of the map: the register (:func:`engine.register.build_register`, the one
-    zone model) over the soft spots shown, whatever the alignment state of their runs.
+    zone model) over the soft spots shown, whatever the alignment state of their runs, and the
+    track's separated soft spots (``separated``: the register's own sightings).
 
-    A zone keeps the register's definitions: spots overlapping or at most
-    ``RegisterConfig.join_gap_m`` (1 m) apart join; one observation per run (its deepest) for
-    the peak (median), depth and loss (the latest run's); ``runs_total`` counts the map runs
-    covering it. Its extent is that of every spot merged into it (a map shows where soft spots
-    were seen; the register's median extent would hide a neighbouring dip it absorbed).
-    ``severity`` ranks it for the map: the depth times the share of covering runs that saw it.
+    A zone keeps the register's definitions: sightings overlapping or at most
+    ``RegisterConfig.join_gap_m`` (1 m) apart join; one sighting per run (its deepest); the
+    figures of the most trusted kind of evidence (the separation before single runs);
+    ``runs_total`` counts the map runs covering it. Its extent is that of every sighting
+    merged into it (a map shows where soft spots were seen; the register's median extent
+    would hide a neighbouring dip it absorbed). ``severity`` ranks it for the map: the depth
+    times the share of covering passes that support it.
     """
     by_id = {r.id: r for r in runs}
     observations = [
@@ -208,20 +213,23 @@ def map_zones(spots: MapSpotsPublic, runs: list[Run]) -> list[ZonePublic]:
             spots.stiffness_loss_pct, strict=True,
         )
     ]  # fmt: skip
+    observations += separated
     coverage = []
     for r in runs:
         lo, hi = r.aligned_extent()
         if lo is not None and hi is not None:
             coverage.append(RunCoverage(r.id, _when(r), lo, hi))
-    defects = build_register(observations, coverage)
+    defects = build_register(observations, coverage, config=RegisterConfig(load_ratio=LOAD_RATIO))
     # the register's clusters are merge_intervals groups: find each defect's by a member
     group_of: dict[int, int] = {}
     extents: list[tuple[float, float]] = []
     gap = RegisterConfig().join_gap_m
-    for g in merge_intervals(spots.start_m, spots.end_m, gap):
+    starts = [o.start_m for o in observations]
+    ends = [o.end_m for o in observations]
+    for g in merge_intervals(starts, ends, gap):
         for i in g:
             group_of[id(observations[i])] = len(extents)
-        extents.append((min(spots.start_m[i] for i in g), max(spots.end_m[i] for i in g)))
+        extents.append((min(starts[i] for i in g), max(ends[i] for i in g)))
     spans = [extents[group_of[id(d.history[0])]] for d in defects]
     order = sorted(range(len(defects)), key=lambda k: spans[k][0])
     return [
@@ -233,12 +241,14 @@ def map_zones(spots: MapSpotsPublic, runs: list[Run]) -> list[ZonePublic]:
             runs_seen=d.runs_seen,
             runs_total=d.runs_covering,
             depth_mm=d.depth_mm,
-            depth_max_mm=max(o.depth_mm for o in d.history),
+            depth_max_mm=max(o.depth_mm for o in d.history if o.source == d.source),
             stiffness_loss_pct=d.stiffness_loss_pct,
             severity=d.depth_mm * d.runs_seen / d.runs_covering,
             first_seen=d.first_seen,
             last_seen=d.last_seen,
-            run_ids=sorted(o.run_id for o in d.history),
+            run_ids=sorted({p.id for o in d.history for p in o.passes if p.kind == "run"}),
+            source=d.source,
+            evidence_text=d.evidence_text,
         )
         for n, k in enumerate(order)
         for d in (defects[k],)
@@ -341,10 +351,22 @@ def chainage_map(
         runs_omitted=omitted,
         runs_pending=pending,
         spots=spot_cols,
-        zones=map_zones(spot_cols, runs) if spot_cols is not None and zones else None,
+        zones=map_zones(spot_cols, runs, _separated_in(session, track.id, window))
+        if spot_cols is not None and zones
+        else None,
         heatmap=heat,
         heatmap_note=note,
     )
+
+
+def _separated_in(session: Session, track_id: int, window: Window) -> list[Observation]:
+    """The track's separated soft spots overlapping the window, as register sightings."""
+    return [
+        o
+        for o in separated_observations(session, track_id)
+        if (window.from_m is None or o.end_m >= window.from_m)
+        and (window.to_m is None or o.start_m <= window.to_m)
+    ]
 
 
 def track_window(
@@ -381,6 +403,8 @@ def track_window(
                 id=run.id,
                 label=_run_label(run),
                 recorded_at=run.recorded_at,
+                wheel_load_n=run.mean_wheel_force_n or run.static_wheel_load_n,
+                vehicle=run.vehicle.name,
                 decimated=decimated,
                 chainage_m=xd.tolist(),
                 level_mm=nullable(cd["level_mm"]),

@@ -38,8 +38,11 @@ DEFECT_CSV_FIELDS = (
     "priority", "id", "level", "level_since", "status", "start_m", "end_m", "peak_m",
     "depth_mm", "stiffness_loss_pct", "trend_mm_per_month", "trend_loss_pct_per_month",
     "runs_seen", "runs_covering", "first_seen", "last_seen", "stiffness_basis", "message",
+    "stiffness_loss_lo_pct", "stiffness_loss_hi_pct", "evidence_text",
 )  # fmt: skip
-DEFECT_FIELDS = tuple(f.name for f in dataclasses.fields(Defect) if f.name != "history")
+DEFECT_FIELDS = tuple(
+    f.name for f in dataclasses.fields(Defect) if f.name not in ("history", "evidence")
+)
 REPORT_RUNS = 200
 """Runs listed in the report (the newest)."""
 _BATCH = 20_000
@@ -118,6 +121,8 @@ def defect_dict(d: Defect, with_history: bool = False) -> dict[str, Any]:
     for k in ("first_seen", "last_seen", "level_since"):
         if out[k] is not None:
             out[k] = out[k].isoformat()
+    out["evidence"] = [e.to_dict() for e in d.evidence]
+    out["evidence_text"] = d.evidence_text
     return out
 
 
@@ -138,7 +143,7 @@ def defects_csv(defects: Sequence[Defect], notes: Sequence[tuple[str | None, str
             v = row[k]
             if isinstance(v, float):
                 cells.append(f"{v:.6g}" if math.isfinite(v) else "")
-            elif k == "message" and v is not None:
+            elif k in ("message", "evidence_text") and v is not None:
                 cells.append('"' + str(v).replace('"', '""') + '"')
             else:
                 cells.append("" if v is None else str(v))

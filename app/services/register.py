@@ -2,10 +2,10 @@
 
 The register is built on request (``engine.register.build_register``) from the stored soft
 spots of the track's merged runs (reference or aligned; every processed run when none is
-merged), shifted by each run's offset, with
-each run's aligned extent as its coverage and its recording time (upload time when unknown)
-as the time of its observations. Limits are stored per track; a track without its own uses
-the engine's defaults.
+merged), shifted by each run's offset, and from the track's separated soft spots with the
+passes behind them; each run's aligned extent is its coverage and its recording time (upload
+time when unknown) the time of its sightings. Limits are stored per track; a track without
+its own uses the engine's defaults.
 """
 
 from __future__ import annotations
@@ -16,19 +16,32 @@ import math
 from collections.abc import Sequence
 from dataclasses import fields
 from datetime import datetime
+from typing import Any
 
 import numpy as np
-from sqlalchemy import ColumnElement, select
+from sqlalchemy import ColumnElement, func, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Run, SoftSpot, TrackLimits, TrackStiffnessSpot
+from app.db.models import Run, SoftSpot, Survey, TrackLimits, TrackStiffness, TrackStiffnessSpot
 from engine.accumulate import detect_on_aggregate
-from engine.chainage import GRID_STEP_M
-from engine.register import Defect, Limits, Observation, RunCoverage, build_register
+from engine.register import (
+    Defect,
+    Limits,
+    Observation,
+    RegisterConfig,
+    RunCoverage,
+    Support,
+    build_register,
+    complete_at,
+)
+from engine.separation import SeparationConfig
 
 from .aggregate import CHUNK_POINTS, _batches, aggregate_chunk_range, newest_levels
-from .alignment import MERGED_STATUSES
+from .alignment import GRID_STEP_M, MERGED_STATUSES
 from .stiffness import NOT_SEPARABLE, separable_intervals
+
+LOAD_RATIO = SeparationConfig().min_load_ratio
+"""Wheel loads this ratio apart count as distinct: the separation's own threshold."""
 
 LIMIT_FIELDS = tuple(f.name for f in fields(Limits))
 """The limit names, in the order alert, intervention, immediate (depth then loss)."""
@@ -57,11 +70,13 @@ def save_limits(session: Session, track_id: int, limits: Limits) -> TrackLimits:
 def track_observations(
     session: Session, track_id: int
 ) -> tuple[list[Observation], list[RunCoverage]]:
-    """Every soft spot of the track's merged runs and every such run's extent (aligned, m).
+    """Every sighting on the track and every merged run's extent (aligned, m).
 
-    A track none of whose runs is merged (all stored before alignment existed, or none could
-    be aligned) uses every processed run at its own chainage: the register is the one zone
-    model, aligned or not.
+    The sightings are the soft spots of the track's merged runs, one run each (``pass``), and
+    the separated soft spots (``separated``), each with the passes behind it and their wheel
+    loads. A track none of whose runs is merged (all stored before alignment existed, or none
+    could be aligned) uses every processed run at its own chainage: the register is the one
+    zone model, aligned or not.
     """
     done = (Run.track_id == track_id, Run.status == "done")
     merged: tuple[ColumnElement[bool], ...] = (*done, Run.alignment_status.in_(MERGED_STATUSES))
@@ -69,13 +84,16 @@ def track_observations(
         merged = done
     runs = session.execute(
         select(Run.id, Run.recorded_at, Run.created_at, Run.chainage_offset_m,
-               Run.chainage_min_m, Run.chainage_max_m).where(*merged)
+               Run.chainage_min_m, Run.chainage_max_m,
+               func.coalesce(Run.mean_wheel_force_n, Run.static_wheel_load_n)).where(*merged)
     ).all()  # fmt: skip
     info: dict[int, tuple[datetime, float]] = {}
+    passes: dict[tuple[str, int], Support] = {}
     coverage = []
-    for rid, recorded, created, off, lo, hi in runs:
+    for rid, recorded, created, off, lo, hi, load in runs:
         at: datetime = recorded or created
         info[rid] = (at, off or 0.0)
+        passes["run", rid] = Support(rid, at, load)
         if lo is not None and hi is not None:
             coverage.append(RunCoverage(rid, at, lo + (off or 0.0), hi + (off or 0.0)))
     t = SoftSpot.__table__
@@ -88,9 +106,13 @@ def track_observations(
     observations = []
     for rid, start, end, peak, depth, loss in rows:
         at, off = info[rid]
-        observations.append(Observation(rid, at, start + off, end + off, peak + off, depth, loss))
-    observations = with_aggregate_sightings(session, track_id, observations, coverage)
-    return with_separated_spots(session, track_id, observations, coverage), coverage
+        observations.append(
+            Observation(rid, at, start + off, end + off, peak + off, depth, loss,
+                        support=(passes["run", rid],))
+        )  # fmt: skip
+    observations = with_aggregate_sightings(session, track_id, observations, coverage, passes)
+    observations += separated_observations(session, track_id, passes)
+    return observations, coverage
 
 
 AGGREGATE_MARGIN_CHUNKS = 1
@@ -103,6 +125,7 @@ def with_aggregate_sightings(
     track_id: int,
     observations: list[Observation],
     coverage: list[RunCoverage],
+    passes: dict[tuple[str, int], Support],
 ) -> list[Observation]:
     """The runs' dips plus what the combined passes show (``engine.accumulate``).
 
@@ -155,54 +178,80 @@ def with_aggregate_sightings(
                         out[i] = dataclasses.replace(out[i], stiffness_loss_pct=loss)
                 if not own:
                     out.append(Observation(rid, when[rid], spot.start_m, spot.end_m, spot.peak_m,
-                                           spot.depth_mm, loss))  # fmt: skip
+                                           spot.depth_mm, loss,
+                                           support=_one(passes, rid)))  # fmt: skip
     return out
 
 
-def with_separated_spots(
-    session: Session,
-    track_id: int,
-    observations: list[Observation],
-    coverage: list[RunCoverage],
-) -> list[Observation]:
-    """The runs' dips with the stiffness loss of the separated soft spots they overlap.
+def _one(passes: dict[tuple[str, int], Support], rid: int) -> tuple[Support, ...]:
+    support = passes.get(("run", rid))
+    return (support,) if support is not None else ()
 
-    Where the track's passes separate geometry from stiffness, a separated soft spot gives
-    its loss to every run's dip over it; a separated spot no run saw as a dip (a soft support
-    under a geometric hump) becomes an observation of the latest run covering it, its depth
-    the engine's (the compliance dip as a level dip under its reference wheel load). Dips
-    elsewhere keep what they had: by depth only unless the run's own figures are valid.
-    """
+
+def run_supports(session: Session, track_id: int) -> dict[tuple[str, int], Support]:
+    """Every processed run of the track as a pass: recording time (else upload) and load."""
+    rows = session.execute(
+        select(Run.id, Run.recorded_at, Run.created_at,
+               func.coalesce(Run.mean_wheel_force_n, Run.static_wheel_load_n))
+        .where(Run.track_id == track_id, Run.status == "done")
+    ).all()  # fmt: skip
+    return {("run", rid): Support(rid, rec or cre, load) for rid, rec, cre, load in rows}
+
+
+def separated_observations(
+    session: Session, track_id: int, passes: dict[tuple[str, int], Support] | None = None
+) -> list[Observation]:
+    """The track's separated soft spots as sightings, each supported by the passes with data
+    over it (``track_stiffness_spots.support``; for a spot stored before that was kept, the
+    passes of its chunk). Depth is the dip the softened support causes under the separation's
+    reference wheel load; the sighting dates from when its passes first spanned two loads."""
     spots = session.scalars(
         select(TrackStiffnessSpot)
         .where(TrackStiffnessSpot.track_id == track_id)
         .order_by(TrackStiffnessSpot.start_m)
     ).all()
     if not spots:
-        return observations
-    out = list(observations)
+        return []
+    passes = dict(run_supports(session, track_id) if passes is None else passes)
+    for sid, recorded, created, load in session.execute(
+        select(Survey.id, Survey.recorded_at, Survey.created_at, Survey.wheel_load_n).where(
+            Survey.track_id == track_id
+        )
+    ):
+        passes["survey", sid] = Support(sid, recorded or created, load, kind="survey")
+    out = []
     for spot in spots:
-        hits = [
-            i for i, o in enumerate(out)
-            if o.start_m <= spot.end_m and o.end_m >= spot.start_m
-        ]  # fmt: skip
-        for i in hits:
-            out[i] = dataclasses.replace(out[i], stiffness_loss_pct=spot.loss_pct)
-        if hits:
+        entries = spot.support if spot.support is not None else _chunk_passes(session, spot)
+        support = tuple(
+            dataclasses.replace(passes[e["kind"], e["id"]], wheel_load_n=e.get("force_n"))
+            for e in entries
+            if (e["kind"], e["id"]) in passes
+        )
+        if not support:
             continue
-        covering = [
-            c for c in coverage if c.from_m <= spot.start_m and c.to_m >= spot.end_m
-        ]  # fmt: skip
-        if not covering:
-            continue
-        latest = max(covering, key=lambda c: (c.recorded_at, c.run_id))
+        runs = sorted((p for p in support if p.kind == "run"), key=lambda p: (p.recorded_at, p.id))
         out.append(
             Observation(
-                latest.run_id, latest.recorded_at, spot.start_m, spot.end_m, spot.peak_m,
-                spot.depth_mm or 0.0, spot.loss_pct,
+                runs[0].id if runs else 0, complete_at(support, LOAD_RATIO), spot.start_m,
+                spot.end_m, spot.peak_m, spot.depth_mm or 0.0, spot.loss_pct,
+                source="separated", support=support, loss_lo_pct=spot.loss_lo_pct,
+                loss_hi_pct=spot.loss_hi_pct,
             )
         )  # fmt: skip
     return out
+
+
+def _chunk_passes(session: Session, spot: TrackStiffnessSpot) -> list[dict[str, Any]]:
+    chunk = math.floor(spot.peak_m / GRID_STEP_M) // CHUNK_POINTS
+    meta = session.scalar(
+        select(TrackStiffness.meta).where(
+            TrackStiffness.track_id == spot.track_id, TrackStiffness.chunk == chunk
+        )
+    )
+    return [
+        {"kind": c["kind"], "id": c["id"], "force_n": c.get("mean_force_n")}
+        for c in (meta or {}).get("contributors", [])
+    ]
 
 
 def track_register(session: Session, track_id: int, limits: Limits | None = None) -> list[Defect]:
@@ -210,7 +259,9 @@ def track_register(session: Session, track_id: int, limits: Limits | None = None
     if limits is None:
         limits, _ = load_limits(session, track_id)
     observations, coverage = track_observations(session, track_id)
-    return build_register(observations, coverage, limits=limits)
+    return build_register(
+        observations, coverage, limits=limits, config=RegisterConfig(load_ratio=LOAD_RATIO)
+    )
 
 
 def stiffness_notes(
@@ -218,8 +269,9 @@ def stiffness_notes(
 ) -> list[tuple[str | None, str | None]]:
     """What each defect's stiffness loss rests on, and the message where there is none.
 
-    ``("separated", None)`` inside a stretch where the track's passes separate geometry from
-    stiffness, ``("single pass", None)`` for a loss from runs over smooth rail, and
+    ``("separated", None)`` for a defect the separation found, ``("single pass", None)`` for
+    a loss from runs over smooth rail, ``(None, None)`` for a dip by depth only inside a
+    stretch where the separation holds (it found no soft support there: geometry), and
     ``(None, NOT_SEPARABLE)`` for a dip listed by depth only because one load cannot tell.
     """
     intervals = separable_intervals(session, track_id)
@@ -233,10 +285,12 @@ def stiffness_notes(
 
     out: list[tuple[str | None, str | None]] = []
     for d in defects:
-        if separable(d):
-            out.append(("separated" if d.stiffness_loss_pct is not None else None, None))
+        if d.source == "separated":
+            out.append(("separated", None))
         elif d.stiffness_loss_pct is not None:
             out.append(("single pass", None))
+        elif separable(d):
+            out.append((None, None))
         else:
             out.append((None, NOT_SEPARABLE))
     return out

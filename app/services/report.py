@@ -19,6 +19,8 @@ from numpy.typing import NDArray
 from engine.decimate import minmax_indices
 from engine.register import LEVELS, Defect, Limits
 
+from .notation import km_m, km_m_range
+
 REPORT_MAX_POINTS = 1400
 """Most profile points drawn in the report's SVG (each 700 buckets' lowest and highest)."""
 
@@ -301,6 +303,16 @@ th{background:#f1f5f9}td.num,th.num{text-align:right;font-variant-numeric:tabula
 """
 
 
+def _loss_band(d: Defect) -> str:
+    """The loss with its band where the evidence gives one: ``46 (38–55)``."""
+    if d.stiffness_loss_lo_pct is None or d.stiffness_loss_hi_pct is None:
+        return _num(d.stiffness_loss_pct, 0)
+    return (
+        f"{_num(d.stiffness_loss_pct, 0)} ({_num(d.stiffness_loss_lo_pct, 0)}–"
+        f"{_num(d.stiffness_loss_hi_pct, 0)})"
+    )
+
+
 def render_report(data: ReportInput) -> str:
     """The HTML report of a track (a complete document, UTF-8)."""
     defects = list(data.defects)
@@ -343,23 +355,23 @@ def render_report(data: ReportInput) -> str:
                 "<tr>"
                 f'<td class="num">{ranks[d.id]}</td><td class="num">{d.priority}</td>'
                 f"<td>{lvl}</td><td>{escape(d.status)}</td>"
-                f'<td class="num">{_num(d.start_m, 1)}–{_num(d.end_m, 1)}</td>'
-                f'<td class="num">{_num(d.peak_m, 1)}</td>'
+                f'<td class="num">{km_m_range(d.start_m, d.end_m)}</td>'
+                f'<td class="num">{km_m(d.peak_m)}</td>'
                 f'<td class="num">{_num(d.depth_mm, 3)}</td>'
-                f'<td class="num">{_num(d.stiffness_loss_pct, 0)}</td>'
+                f'<td class="num">{_loss_band(d)}</td>'
                 f'<td class="num">{_signed(d.trend_mm_per_month, 3)}</td>'
                 f'<td class="num">{_signed(d.trend_loss_pct_per_month, 1)}</td>'
-                f'<td class="num">{d.runs_seen} / {d.runs_covering}</td>'
+                f"<td>{escape(d.evidence_text)} ({d.runs_seen} of {d.runs_covering} covering)</td>"
                 f"<td>{_day(d.first_seen)}</td><td>{_day(d.last_seen)}</td>"
                 f"<td>{_day(d.level_since)}</td><td>{escape(d.id)}</td></tr>"
             )
         parts.append(
             "<table><thead><tr>"
             '<th class="num">#</th><th class="num">Priority</th><th>Level</th><th>Status</th>'
-            '<th class="num">Extent (m)</th><th class="num">Peak (m)</th>'
+            '<th class="num">Extent (km+m)</th><th class="num">Peak (km+m)</th>'
             '<th class="num">Depth (mm)</th><th class="num">Loss (%)</th>'
             '<th class="num">Trend (mm/month)</th><th class="num">Trend (%/month)</th>'
-            '<th class="num">Seen / covering</th><th>First seen</th><th>Last seen</th>'
+            "<th>Evidence</th><th>First seen</th><th>Last seen</th>"
             "<th>Level since</th><th>Id</th></tr></thead><tbody>"
             + "".join(rows)
             + "</tbody></table>"
@@ -402,7 +414,7 @@ def render_report(data: ReportInput) -> str:
                 f"<td>{escape(r.status)}</td><td>{escape(r.alignment_status or '—')}</td>"
                 f'<td class="num">{_signed(r.offset_m, 2)}</td>'
                 f'<td class="num">{_num(r.correlation, 2)}</td>'
-                f'<td class="num">{_num(r.chainage_min_m, 1)}–{_num(r.chainage_max_m, 1)}</td>'
+                f'<td class="num">{km_m_range(r.chainage_min_m, r.chainage_max_m)}</td>'
                 f'<td class="num">{"—" if r.n_soft_spots is None else r.n_soft_spots}</td></tr>'
             )
         parts.append(
@@ -410,7 +422,7 @@ def render_report(data: ReportInput) -> str:
             '<th class="num">Run</th><th>Name</th><th>Recorded (UTC)</th><th>Vehicle</th>'
             "<th>File</th><th>Status</th><th>Alignment</th>"
             '<th class="num">Offset (m)</th><th class="num">Correlation</th>'
-            '<th class="num">Extent (m, aligned)</th><th class="num">Soft spots</th>'
+            '<th class="num">Extent (km+m, aligned)</th><th class="num">Soft spots</th>'
             "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>"
         )
     else:

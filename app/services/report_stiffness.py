@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from engine.decimate import minmax_indices
 from engine.register import Limits
 
+from .notation import km_m, km_m_range
 from .stiffness import StiffnessWindow
 
 MAX_POINTS = 3000
@@ -165,13 +166,14 @@ def stiffness_section(window: StiffnessWindow, limits: Limits) -> str:
         )
         if window.spots:
             rows = "".join(
-                f'<tr><td class="num">{s.start_m:.1f}–{s.end_m:.1f}</td>'
-                f'<td class="num">{s.peak_m:.1f}</td><td class="num">{s.loss_pct:.0f}</td>'
+                f'<tr><td class="num">{km_m_range(s.start_m, s.end_m)}</td>'
+                f'<td class="num">{km_m(s.peak_m)}</td><td class="num">{s.loss_pct:.0f}</td>'
                 f'<td class="num">{_band(s.loss_lo_pct, s.loss_hi_pct)}</td></tr>'
                 for s in window.spots
             )
             parts.append(
-                '<table><thead><tr><th class="num">Extent (m)</th><th class="num">Peak (m)</th>'
+                '<table><thead><tr><th class="num">Extent (km+m)</th>'
+                '<th class="num">Peak (km+m)</th>'
                 '<th class="num">Loss (%)</th><th class="num">Band (%)</th></tr></thead>'
                 f"<tbody>{rows}</tbody></table>"
             )

@@ -45,11 +45,18 @@ from app.db.models import (
     Vehicle,
 )
 from engine.errors import EngineError
-from engine.separation import NOT_SEPARABLE_MESSAGE, Pass, SeparationResult, separate
+from engine.separation import (
+    NOT_SEPARABLE_MESSAGE,
+    Pass,
+    SeparationConfig,
+    SeparationResult,
+    separate,
+)
 from engine.track import TrackParams
 
 from .aggregate import CHUNK_POINTS, newest_runs
 from .alignment import GRID_STEP_M
+from .notation import km_m, km_m_range
 from .packing import unpack_f4
 
 STIFFNESS_ARRAYS = (
@@ -287,6 +294,8 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
                 "loss_lo_pct": _finite(sp.loss_lo_pct),
                 "loss_hi_pct": _finite(sp.loss_hi_pct),
                 "confidence": _finite(sp.confidence),
+                "depth_mm": _finite(sp.depth_mm),
+                "support": _support(passes, grid, sp.start_m, sp.end_m),
             }  # fmt: skip
             for sp in res.soft_spots
             if x_lo <= float(sp.peak_m) < x_hi and math.isfinite(float(sp.loss_pct))
@@ -294,6 +303,20 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
         if spots:
             session.execute(insert(TrackStiffnessSpot), spots)
     return written
+
+
+def _support(
+    passes: list[PassLevels], grid: NDArray[np.float64], start_m: float, end_m: float
+) -> list[dict[str, Any]]:
+    """The passes with a level over ``[start_m, end_m]`` and their mean wheel force there (N)."""
+    lo, hi = (int(i) for i in np.searchsorted(grid, [start_m, end_m + 1e-9]))
+    out = []
+    for p in passes:
+        f = p.force_n[lo:hi]
+        ok = np.isfinite(f)
+        if ok.any():
+            out.append({"kind": p.kind, "id": p.id, "force_n": round(float(f[ok].mean()), 1)})
+    return out
 
 
 def _finite(v: Any) -> float | None:
@@ -356,6 +379,8 @@ class StiffnessWindow:
     updating: bool = False
     """A run stored just now changed the window's passes and its separation is being redone
     (``app.services.integrate.separate_pending``): what is read is the state before it."""
+    not_separable: list[Stretch] = dataclasses.field(default_factory=list)
+    """Where the window is not separable, and why (``message`` says it in words)."""
 
     @property
     def n(self) -> int:
@@ -458,7 +483,94 @@ def read_stiffness(
         and (from_m is None or (pending[1] + 1) * CHUNK_POINTS * GRID_STEP_M > from_m)
         and (to_m is None or pending[0] * CHUNK_POINTS * GRID_STEP_M <= to_m)
     )
-    return StiffnessWindow(columns, spots, contrib, message if x.size else None, updating)
+    stretches = not_separable_stretches(x, named["n_passes"], named["load_ratio"], separable)
+    return StiffnessWindow(
+        columns, spots, contrib, stretches_message(stretches) if x.size else None, updating,
+        stretches,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Stretch:
+    """A stretch (aligned m, inclusive) where geometry and stiffness are not separable, and why:
+    ``load`` (the passes there lack a second wheel load) or ``precision`` (their levels are too
+    uncertain: near the ends of runs, or too few passes)."""
+
+    from_m: float
+    to_m: float
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict."""
+        return {"from_m": self.from_m, "to_m": self.to_m, "reason": self.reason}
+
+
+def not_separable_stretches(
+    x: NDArray[np.float64],
+    n_passes: NDArray[np.float64],
+    load_ratio: NDArray[np.float64],
+    separable: NDArray[np.bool_],
+) -> list[Stretch]:
+    """The covered stretches that are not separable, each with its reason (see :class:`Stretch`);
+    a gap in the coverage or a change of reason starts a new one."""
+    cfg = SeparationConfig()
+    lacking = (n_passes > 0) & ~separable
+    if not lacking.any():
+        return []
+    with np.errstate(invalid="ignore"):
+        load = (n_passes < cfg.min_passes) | ~(load_ratio >= cfg.min_load_ratio)
+    out: list[Stretch] = []
+    idx = np.flatnonzero(lacking)
+    start = prev = int(idx[0])
+    for i in [*idx[1:].tolist(), None]:
+        if (
+            i is not None
+            and x[i] - x[prev] <= GRID_STEP_M * 1.5
+            and bool(load[i]) == bool(load[start])
+        ):
+            prev = i
+            continue
+        out.append(Stretch(float(x[start]), float(x[prev]), "load" if load[start] else "precision"))
+        if i is not None:
+            start = prev = i
+    return out
+
+
+_REMEDY = {
+    "load": (
+        "the passes there have one wheel load; a pass with a wheel load at least "
+        "{pct:.0f} % different, or a survey, would separate them"
+    ),
+    "precision": (
+        "the passes' levels there are too uncertain (near the ends of runs, or too few "
+        "passes); more passes over them would separate them"
+    ),
+}
+
+
+def stretches_message(stretches: list[Stretch]) -> str | None:
+    """Where geometry and stiffness are not separable and what would make them separable, as
+    sentences with chainages in km+m; None where the separation holds everywhere."""
+    if not stretches:
+        return None
+    pct = 100.0 * (SeparationConfig().min_load_ratio - 1.0)
+    parts = []
+    for reason in ("load", "precision"):
+        mine = [s for s in stretches if s.reason == reason]
+        if not mine:
+            continue
+        where = ", ".join(
+            km_m(s.from_m) if s.to_m - s.from_m < GRID_STEP_M else km_m_range(s.from_m, s.to_m)
+            for s in mine[:6]
+        )
+        if len(mine) > 6:
+            where += f" and {len(mine) - 6} more stretches"
+        parts.append(
+            f"Geometry and stiffness are not separable at {where}: "
+            + _REMEDY[reason].format(pct=pct)
+            + "."
+        )
+    return " ".join(parts)
 
 
 def separable_intervals(session: Session, track_id: int) -> list[tuple[float, float]]:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 import re
 import threading
 from collections.abc import Iterator
@@ -84,19 +83,65 @@ class Submission:
 
     @property
     def identity(self) -> str:
-        """What makes two submissions the same run: the log's content *and* how it is to be
-        read and placed (start chainage, direction, vehicle, loads, column/unit options).
+        """What makes two submissions the same run: the log's content alone.
 
-        Stored as the run's ``content_hash``: re-sending a file with a corrected start
-        chainage is a new run, not a silent ``duplicate`` that drops the correction.
+        A log is one pass over the track whatever the options it is sent with (start
+        chainage, direction, vehicle, loads, column/unit options): a browser upload and a
+        pipeline's upload of the same file are one run, never two passes that would confirm
+        each other in the register. The same content sent again is answered with the stored
+        run; :func:`ignored_options` names what the repeat asked differently.
         """
-        how = {
-            "content": self.content_hash, "start_chainage_m": self.start_chainage_m,
-            "direction": self.direction, "vehicle": self.vehicle, "vehicle_id": self.vehicle_id,
+        return self.content_hash
+
+    def how(self) -> dict[str, Any]:
+        """How this submission asks the log to be read and placed (what a repeat may differ in)."""
+        return {
+            "start_chainage_m": self.start_chainage_m, "direction": self.direction,
             "payload_kg": self.payload_kg, "static_wheel_load_n": self.static_wheel_load_n,
-            "options": self.options,
+            **_flat(self.options),
         }  # fmt: skip
-        return hashlib.sha256(json.dumps(how, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _flat(options: dict[str, Any]) -> dict[str, Any]:
+    # the CSV options are kept as {"csv": {...}}: compare them one by one, by their own names
+    out: dict[str, Any] = {}
+    for k, v in options.items():
+        if isinstance(v, dict):
+            out.update(v)
+        else:
+            out[k] = v
+    return out
+
+
+def ignored_options(session: Session, run_id: int, sub: Submission) -> list[str]:
+    """The fields a repeated upload of run ``run_id``'s log asked differently from how the run
+    was stored (they were not applied: the stored run answers). Fields the repeat left out are
+    not differences; the vehicle is compared by id."""
+    run = session.get(Run, run_id)
+    if run is None:
+        return []
+    stored: dict[str, Any] = {
+        "start_chainage_m": run.start_chainage_m, "direction": run.direction,
+        "payload_kg": run.payload_kg, "static_wheel_load_n": run.static_wheel_load_n,
+        **_flat(run.options or {}),
+    }  # fmt: skip
+    out = []
+    placed_by_gnss = run.positioning is not None
+    for k, v in sub.how().items():
+        if v is None or (k == "direction" and placed_by_gnss and sub.start_chainage_m is None):
+            continue  # left out, or both placed by the fixes (direction from the fixes)
+        if k == "start_chainage_m" and placed_by_gnss:
+            out.append(k)  # placed by GNSS when stored: a given start is a different placement
+        elif stored.get(k) != v:
+            out.append(k)
+    if sub.vehicle_id is not None or sub.vehicle is not None:
+        try:
+            wanted = resolve_vehicle(session, sub.vehicle, sub.vehicle_id).id
+        except Invalid:
+            wanted = None
+        if wanted != run.vehicle_id:
+            out.append("vehicle_id" if sub.vehicle_id is not None else "vehicle")
+    return sorted(out)
 
 
 _inflight_guard = threading.Lock()

@@ -18,7 +18,7 @@ from alembic import op
 from app.db.base import UTCDateTime
 
 revision: str = "0017"
-down_revision: str | Sequence[str] | None = "0010"
+down_revision: str | Sequence[str] | None = "0014"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -61,6 +61,32 @@ export function fmt(value, digits = 2) {
   return Number(value).toFixed(digits);
 }
 
+/**
+ * A chainage as railways write it, km+m: 12645.04 -> "12+645.0" (the API answers in metres).
+ * The Python twin is app/services/notation.py km_m.
+ */
+export function fmtKm(value, digits = 1) {
+  if (value === null || value === undefined || !Number.isFinite(Number(value))) return "—";
+  const v = Number(value);
+  const scaled = Number(Math.abs(v).toFixed(digits));
+  const km = Math.floor(scaled / 1000);
+  const m = (scaled - 1000 * km).toFixed(digits).padStart(digits > 0 ? 4 + digits : 3, "0");
+  return `${v < 0 ? "-" : ""}${km}+${m}`;
+}
+
+/** A stretch from one chainage to another, km+m: "0+120.0–0+126.0". */
+export function fmtKmRange(a, b, digits = 1) {
+  return `${fmtKm(a, digits)}–${fmtKm(b, digits)}`;
+}
+
+/** An engine or API message as a sentence: capital first letter, closing full stop. */
+export function sentence(text) {
+  const t = String(text || "").trim();
+  if (!t) return "";
+  const first = t.charAt(0).toUpperCase() + t.slice(1);
+  return /[.!?]$/.test(first) ? first : `${first}.`;
+}
+
 /** A count with its noun: "1 run", "2 runs", "1 soft spot" ("1,200 runs" for large n). */
 export function plural(n, word, words = `${word}s`) {
   return `${Number(n).toLocaleString("en")} ${n === 1 ? word : words}`;

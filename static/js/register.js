@@ -2,7 +2,7 @@
 // profile plot, the alerts since a date, the limits form and the export links. Every value
 // from the API is shown through text nodes (h(), textContent); nothing is parsed as HTML.
 
-import { h, clear, append, announce, fmt, fmtDay, field, messageBox } from "./dom.js";
+import { h, clear, append, announce, fmt, fmtDay, fmtKm, fmtKmRange, field, messageBox } from "./dom.js";
 import { ApiError, apiFetch, apiSchema } from "./api.js";
 import { applyBounds, clearFieldErrors, numberProblem, showFieldError, showServerErrors } from "./formerrors.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, TERMS } from "./plots.js";
@@ -25,22 +25,38 @@ function signed(v, digits) {
   return `${v > 0 ? "+" : "−"}${text}`;
 }
 
-/** A trend needs two runs: a defect seen once has none (shown "—", not "0.000"). */
+/** A trend needs two successive sightings of the kind the figures come from: a defect seen
+ * once, or one separation, has none (shown "—", not "0.000"). */
 function trendOf(d, key) {
-  return d.runs_seen >= 2 ? d[key] : null;
+  const main = Array.isArray(d.evidence) && d.evidence.length ? d.evidence[0].sightings : d.runs_seen;
+  return main >= 2 ? d[key] : null;
+}
+
+/** "separated: 4 passes, 2 loads" (of the runs covering it); older answers: "3 of 4". */
+export function evidenceOf(d) {
+  const covering = d.runs_covering > d.runs_seen ? ` (of ${d.runs_covering} covering)` : "";
+  return d.evidence_text ? `${d.evidence_text}${covering}` : `${d.runs_seen} of ${d.runs_covering}`;
+}
+
+/** The loss with its band where the evidence gives one: "46 (38–55)". */
+export function lossOf(d) {
+  const v = fmt(d.stiffness_loss_pct, 0);
+  if (d.stiffness_loss_lo_pct == null || d.stiffness_loss_hi_pct == null || d.stiffness_loss_pct == null) return v;
+  return `${v} (${fmt(d.stiffness_loss_lo_pct, 0)}–${fmt(d.stiffness_loss_hi_pct, 0)})`;
 }
 
 /** Columns of the register table (the first is the rank, drawn as the row header). */
 export const REGISTER_COLUMNS = [
   { key: "rank", label: "Rank", num: true, get: (d) => d.rank },
-  { key: "start_m", label: "Zone (m)", num: true, get: (d) => d.start_m, show: (d) => `${fmt(d.start_m, 1)}–${fmt(d.end_m, 1)}` },
-  { key: "peak_m", label: "Peak (m)", num: true, get: (d) => d.peak_m, show: (d) => fmt(d.peak_m, 1) },
+  // Priority and level first after the rank: on a phone (390 px) the first columns show.
   { key: "priority", label: "Priority", num: true, get: (d) => d.priority, show: (d) => String(d.priority) },
   { key: "level", label: "Level", title: "Limit level reached by the latest run (none: below the alert limits)", get: (d) => (d.level ? 3 - ["alert", "intervention", "immediate"].indexOf(d.level) : 9), show: (d) => (d.level ? SHORT_LEVEL[d.level] : "none"), cls: (d) => `level level-${d.level || "none"}` },
+  { key: "start_m", label: "Zone", title: "Extent, chainage in km+m", num: true, get: (d) => d.start_m, show: (d) => fmtKmRange(d.start_m, d.end_m) },
+  { key: "peak_m", label: "Peak", title: "Deepest point, chainage in km+m", num: true, get: (d) => d.peak_m, show: (d) => fmtKm(d.peak_m) },
   { key: "status", label: "Status", get: (d) => d.status, show: (d) => d.status, cls: (d) => `defect-status defect-${d.status}` },
-  { key: "runs_seen", label: "Seen", num: true, get: (d) => d.runs_seen, show: (d) => `${d.runs_seen} of ${d.runs_covering}` },
+  { key: "runs_seen", label: "Evidence", title: "What supports the defect: single passes, or the separation of geometry from stiffness across passes of different wheel loads (passes that support it of the runs covering it)", get: (d) => d.runs_seen, show: evidenceOf },
   { key: "depth_mm", label: "Depth (mm)", title: TERMS.depth, num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
-  { key: "stiffness_loss_pct", label: "Loss (%)", title: TERMS.loss, num: true, get: (d) => d.stiffness_loss_pct, show: (d) => fmt(d.stiffness_loss_pct, 0) },
+  { key: "stiffness_loss_pct", label: "Loss (%)", title: `${TERMS.loss} (with its band where the separation gives one)`, num: true, get: (d) => d.stiffness_loss_pct, show: lossOf },
   { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month (— until two runs saw the defect)", num: true, get: (d) => trendOf(d, "trend_mm_per_month"), show: (d) => signed(trendOf(d, "trend_mm_per_month"), 3) },
   { key: "trend_loss_pct_per_month", label: "Trend (%/mo)", title: "Stiffness-loss trend, percentage points per month (— until two runs saw the defect)", num: true, get: (d) => trendOf(d, "trend_loss_pct_per_month"), show: (d) => signed(trendOf(d, "trend_loss_pct_per_month"), 1) },
   { key: "first_seen", label: "First seen", get: (d) => d.first_seen || "", show: (d) => fmtDay(d.first_seen) },
@@ -132,7 +148,7 @@ function isoDay(d) {
 }
 
 /** Alerts: the defects whose current level was reached since a chosen date. */
-export function alertsCard(enc) {
+export function alertsCard(enc, getDefects = null) {
   const input = h("input", { type: "date", id: "alerts-since", required: true, value: isoDay(new Date(Date.now() - 30 * 86400e3)) });
   const button = h("button", { type: "submit", class: "button", id: "alerts-show" }, "Show alerts");
   const out = h("div", { id: "alerts-out", "aria-live": "polite" });
@@ -156,23 +172,30 @@ export function alertsCard(enc) {
       return;
     }
     if (!alerts.length) {
-      out.append(h("p", { class: "muted", id: "alerts-none" }, `No defect reached a limit since ${since}.`));
-      announce(`No alerts since ${since}.`);
+      // "No defect reached a limit" would read as "nothing to do" above defects at a limit
+      // reached before the date: say those too.
+      const atLimit = (getDefects ? getDefects() : []).filter((d) => d.level);
+      const earlier = atLimit.length
+        ? ` ${atLimit.length === 1 ? "One defect is" : `${atLimit.length} defects are`} at a limit reached before that (${["immediate", "intervention", "alert"].map((lv) => [lv, atLimit.filter((d) => d.level === lv).length]).filter(([, n]) => n).map(([lv, n]) => `${n} ${LEVEL_LABELS[lv].toLowerCase()}`).join(", ")}): see the defect register.`
+        : "";
+      out.append(h("p", { class: atLimit.length ? "message warning" : "muted", id: "alerts-none" }, `No defect reached a new limit level since ${since}.${earlier}`));
+      announce(`No new alerts since ${since}.${earlier}`);
       return;
     }
     const rows = alerts.map((d) => h("tr", {},
       h("td", { class: "num" }, String(d.priority)),
       h("td", { class: `level level-${d.level}` }, LEVEL_LABELS[d.level] || d.level),
       h("td", {}, fmtDay(d.level_since)),
-      h("td", { class: "num" }, `${fmt(d.start_m, 1)}–${fmt(d.end_m, 1)}`),
+      h("td", { class: "num" }, fmtKmRange(d.start_m, d.end_m)),
       h("td", { class: "num" }, fmt(d.depth_mm, 2)),
-      h("td", { class: "num" }, fmt(d.stiffness_loss_pct, 0)),
-      h("td", {}, d.status)));
+      h("td", { class: "num" }, lossOf(d)),
+      h("td", {}, d.status),
+      h("td", {}, evidenceOf(d))));
     out.append(
       h("p", { class: "small", id: "alerts-count" }, `${alerts.length} defect${alerts.length === 1 ? "" : "s"} reached a limit since ${since}.`),
-      h("div", { class: "table-scroll" }, h("table", { class: "data", id: "alerts-table" },
+      h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": `Alerts since ${since}` }, h("table", { class: "data", id: "alerts-table" },
         h("caption", { class: "visually-hidden" }, `Defects that reached a limit since ${since}`),
-        h("thead", {}, h("tr", {}, [["Priority", 1], ["Level"], ["Since"], ["Zone (m)", 1], ["Depth (mm)", 1], ["Loss (%)", 1], ["Status"]].map(([t, num]) => h("th", { scope: "col", class: num ? "num" : null }, t)))),
+        h("thead", {}, h("tr", {}, [["Priority", 1], ["Level"], ["Since"], ["Zone", 1], ["Depth (mm)", 1], ["Loss (%)", 1], ["Status"], ["Evidence"]].map(([t, num]) => h("th", { scope: "col", class: num ? "num" : null }, t)))),
         h("tbody", {}, rows))),
       h("a", { class: "button small", href: `/api/v1/tracks/${enc}/alerts?since=${encodeURIComponent(since)}&format=csv`, download: "alerts.csv" }, "These alerts (CSV)"));
     announce(`${alerts.length} alerts since ${since}.`);

@@ -4,7 +4,7 @@
 // and the passes that contributed with their wheel loads. Where the passes cannot separate
 // the two, the card says so in plain words and draws no stiffness.
 
-import { h, fmt, messageBox } from "./dom.js";
+import { h, fmt, fmtKm, fmtKmRange, messageBox } from "./dom.js";
 import { apiFetch } from "./api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly } from "./plots.js";
 
@@ -71,10 +71,10 @@ function contributorsList(st) {
 
 function spotsTable(spots, limits) {
   if (!spots.length) return h("p", { class: "muted", id: "stiffness-spots" }, "No soft spot where the stiffness is separated.");
-  const head = h("tr", {}, ...["Zone (m)", "Peak (m)", "Loss (%)", "Band (%)", "Level"].map((t) => h("th", { scope: "col" }, t)));
+  const head = h("tr", {}, ...["Zone", "Peak", "Loss (%)", "Band (%)", "Level"].map((t) => h("th", { scope: "col" }, t)));
   const rows = spots.map((s) => h("tr", {},
-    h("td", { class: "num" }, `${fmt(s.start_m, 1)}–${fmt(s.end_m, 1)}`),
-    h("td", { class: "num" }, fmt(s.peak_m, 1)),
+    h("td", { class: "num" }, fmtKmRange(s.start_m, s.end_m)),
+    h("td", { class: "num" }, fmtKm(s.peak_m)),
     h("td", { class: "num" }, fmt(s.stiffness_loss_pct, 0)),
     h("td", { class: "num" }, `${fmt(s.loss_lo_pct, 0)}–${fmt(s.loss_hi_pct, 0)}`),
     h("td", {}, lossLevel(s.stiffness_loss_pct, limits).label)));
@@ -127,9 +127,12 @@ export function stiffnessCard(enc) {
       return;
     }
     div.hidden = false;
+    // On a phone the legend wraps to several lines: below the plot it covers nothing.
+    const narrow = div.clientWidth > 0 && div.clientWidth < 560;
     const layout = baseLayout({
-      height: 440, hovermode: "closest", shapes: spotShapes(st.soft_spots, limits),
-      margin: { l: 64, r: 16, t: 16, b: 52 }, legend: { orientation: "h", x: 0, y: 1.1 },
+      height: narrow ? 560 : 440, hovermode: "closest", shapes: spotShapes(st.soft_spots, limits),
+      margin: narrow ? { l: 52, r: 8, t: 16, b: 150 } : { l: 64, r: 16, t: 16, b: 52 },
+      legend: narrow ? { orientation: "h", x: 0, y: -0.12, yanchor: "top", font: { size: 10 } } : { orientation: "h", x: 0, y: 1.1 },
       yaxis: { title: { text: "Stiffness (% of nominal)" }, domain: [0.4, 1], gridcolor: "#e3e6ea", automargin: true },
       yaxis2: { title: { text: "Geometry (mm)" }, domain: [0, 0.3], gridcolor: "#e3e6ea", automargin: true },
     });

@@ -41,8 +41,10 @@ def _check_command(monkeypatch, settings, *args: str) -> tuple[int, str]:
 
 def _two_runs(client, synthetic_run) -> tuple[int, int]:
     ids = []
-    for start in (12.0, 12.3):
-        r = upload(client, synthetic_run["csv"], track="L", start_chainage_m=start)
+    for i, start in enumerate((12.0, 12.3)):
+        # distinct logs (a trailing blank line): the same bytes again are the stored run
+        csv = synthetic_run["csv"] + b"\n" * i
+        r = upload(client, csv, track="L", start_chainage_m=start)
         assert r.status_code == 201, r.text
         ids.append(r.json()["id"])
     return ids[0], ids[1]
@@ -75,7 +77,7 @@ def test_a_delete_waits_for_a_store_in_progress(start_app, settings, synthetic_r
     client = start_app(start_worker=False)
     done_id, _ = _two_runs(client, synthetic_run)
     queued = start_app(inline_max_samples=0, start_worker=False)
-    r = upload(queued, synthetic_run["csv"], track="L", start_chainage_m=12.6)
+    r = upload(queued, synthetic_run["csv"] + b"\n" * 2, track="L", start_chainage_m=12.6)
     assert r.status_code == 202, r.text
     run_id = r.json()["id"]
     tid = client.get("/api/v1/tracks/L").json()["id"]

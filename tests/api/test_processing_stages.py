@@ -19,8 +19,10 @@ from app.services import worker as worker_module
 def test_a_run_over_its_budget_fails_clearly_and_frees_the_slot(start_app, synthetic_run):
     c = start_app(inline_max_samples=0, processing_budget_s=1e-6, workers=1)
     ids = [
-        upload(c, synthetic_run["csv"], track="L", start_chainage_m=start).json()["id"]
-        for start in (12, 13)  # two runs: the second needs the slot the first held
+        upload(
+            c, synthetic_run["csv"] + b"\n" * (start - 12), track="L", start_chainage_m=start
+        ).json()["id"]  # fmt: skip
+        for start in (12, 13)  # two runs (two logs): the second needs the slot the first held
     ]
     for run_id in ids:
         run = wait_status(c, run_id, {"done", "failed"}, timeout=60)

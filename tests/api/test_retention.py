@@ -25,8 +25,9 @@ STARTS = (12.0, 12.5, 13.0)  # m: three distinct runs of the same stretch
 
 def _runs(client: TestClient, csv: bytes, recorded: list[str]) -> list[int]:
     ids = []
-    for start, when in zip(STARTS, recorded, strict=False):
-        r = upload(client, csv, track="R", start_chainage_m=start, recorded_at=when)
+    for i, (start, when) in enumerate(zip(STARTS, recorded, strict=False)):
+        # distinct logs (a trailing blank line each): the same bytes again are the stored run
+        r = upload(client, csv + b"\n" * i, track="R", start_chainage_m=start, recorded_at=when)
         assert r.status_code == 201, r.text
         assert r.json()["status"] == "done"
         ids.append(r.json()["id"])
@@ -111,7 +112,8 @@ def test_new_run_after_expiry_keeps_the_expired_runs_share(start_app, synthetic_
     ids = _runs(client, synthetic_run["csv"], [OLD, NEW])
     sweep(client.app.state.ctx.db, RetentionPolicy.from_settings(client.app.state.ctx.settings))
     assert client.get(f"/api/v1/runs/{ids[0]}/profile").status_code == 410
-    r = upload(client, synthetic_run["csv"], track="R", start_chainage_m=STARTS[2],
+    # a third log (a trailing blank line): the same bytes again would be a stored run
+    r = upload(client, synthetic_run["csv"] + b"\n" * 2, track="R", start_chainage_m=STARTS[2],
                recorded_at=NEW)  # fmt: skip
     assert r.json()["status"] == "done", r.text
     agg = client.get("/api/v1/tracks/R/profile").json()
@@ -141,8 +143,9 @@ def test_reads_during_the_sweep_never_fail(start_app, synthetic_run) -> None:
     client = start_app(detail_retention_days=30, start_worker=False)
     ids = []
     for k in range(4):
-        r = upload(client, synthetic_run["csv"], track="R", start_chainage_m=12.0 + 0.25 * k,
-                   recorded_at=OLD)  # fmt: skip
+        # four logs (trailing blank lines): the same bytes again would be the stored run
+        r = upload(client, synthetic_run["csv"] + b"\n" * k, track="R",
+                   start_chainage_m=12.0 + 0.25 * k, recorded_at=OLD)  # fmt: skip
         ids.append(r.json()["id"])
     full = {rid: client.get(f"/api/v1/runs/{rid}/profile").json()["n"] for rid in ids}
     answers: list[tuple[int, int]] = []

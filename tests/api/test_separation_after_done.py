@@ -35,8 +35,10 @@ def _same_separation(a: dict[str, Any], b: dict[str, Any]) -> None:
 
 def _queue_both(c, synthetic_run, track: str) -> list[int]:
     ids = []
-    for kg in LOADS_KG:
-        r = upload(c, synthetic_run["csv"], track=track,
+    for i, kg in enumerate(LOADS_KG):
+        # two passes are two logs: the same bytes again would be the stored run
+        csv = synthetic_run["csv"] + b"\n" * i
+        r = upload(c, csv, track=track,
                    start_chainage_m=synthetic_run["start_chainage_m"], payload_kg=kg)  # fmt: skip
         assert r.status_code in (201, 202), r.text
         ids.append(int(r.json()["id"]))

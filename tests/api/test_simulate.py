@@ -89,3 +89,20 @@ def test_run_in_decreasing_chainage(client: TestClient) -> None:
     run = r.json()["run"]
     assert run["direction"] == "decreasing"
     assert_zones_match(client.get(f"/api/v1/runs/{run['id']}/soft-spots").json(), BODY["zones"])
+
+
+def test_a_simulated_track_is_a_track_of_its_own() -> None:
+    """Without a track name, a simulation's runs go to a track named after the physical track
+    simulated (never a shared "simulated" track mixing with others): the same setting meets
+    again, another zone, seed or rail is another track; speed and vehicle are not the track."""
+    from app.schemas.simulate import SimulateRequest
+
+    base = SimulateRequest()
+    same = SimulateRequest(speed_mps=30.0, vehicle="heavy")
+    other_zone = SimulateRequest(zones=[{"start_m": 100, "end_m": 106, "loss": 0.4}])
+    other_seed = SimulateRequest(seed=4)
+    rough = SimulateRequest(irregularity={"spectrum": "german-low", "seed": 3})
+    names = [r.to_spec().track for r in (base, other_zone, other_seed, rough)]
+    assert same.to_spec().track == names[0]
+    assert len(set(names)) == 4 and all(n.startswith("simulated ") for n in names)
+    assert SimulateRequest(track="Line 9").to_spec().track == "Line 9"

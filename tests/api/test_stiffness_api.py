@@ -247,8 +247,9 @@ def test_one_load_is_not_separable_and_says_so(client: TestClient, stored: dict[
     figure, no soft spot, and the message in plain words (JSON and CSV)."""
     st = client.get(f"/api/v1/tracks/{TRACK}/stiffness").json()
     assert st["n"] > 400 and st["separable"] is False
-    assert st["message"].startswith("dips: geometry and stiffness not separable here")
-    assert "different wheel load or a survey" in st["message"]
+    assert st["message"].startswith("Geometry and stiffness are not separable at ")
+    assert "different, or a survey, would separate them" in st["message"]
+    assert any(s["reason"] == "load" for s in st["not_separable"])
     assert all(v is None for v in st["k_rel"]) and all(v is None for v in st["geometry_mm"])
     assert st["soft_spots"] == []
     csv = client.get(f"/api/v1/tracks/{TRACK}/stiffness", params={"format": "csv"}).text

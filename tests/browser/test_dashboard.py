@@ -41,6 +41,7 @@ def uploaded_run(browser: Any, live_server: LiveServer, sample_csv: Path, screen
         page.dispatch_event("#track-input", "input")
         page.fill("#start-chainage", str(SAMPLE_START_M))
         page.screenshot(path=str(screenshots / "upload.png"), full_page=True)
+        page.select_option("#vehicle-select", "table1")  # the form asks among several
         page.click("#upload-button")
         page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
         return int(page.url.rsplit("/", 1)[1])
@@ -211,24 +212,24 @@ def test_track_view_draws_chainage_map_and_zone_table(
     assert drawn["rows"] == len(demo_track)
     rows = page.locator("#zone-table tbody tr")
     assert rows.count() == len(defects)
-    seen = f"{len(demo_track)} of {len(demo_track)}"
-    assert any(seen in t for t in rows.all_inner_texts())
+    seen = f"single pass: {len(demo_track)} passes"  # the evidence column
+    assert any(seen in t for t in rows.all_inner_texts()), rows.all_inner_texts()
     wait_for_plot(page, "#zone-plot")  # the top-ranked zone is shown at once
-    deep_row = page.locator("#zone-table tbody tr", has_text="140.")
+    deep_row = page.locator("#zone-table tbody tr", has_text="0+140.")  # km+m
     deep_row.first.get_by_role("button").click()
     page.wait_for_function(
-        "() => document.getElementById('zone-info').textContent.startsWith('Zone 14')"
+        "() => document.getElementById('zone-info').textContent.startsWith('Zone 0+14')"
     )
     zone_traces = page.evaluate(
         "() => document.getElementById('zone-plot').data"
         ".filter(t => String(t.meta).startsWith('run-')).length"
     )
     assert zone_traces == len(demo_track)
-    peak_header = page.locator("#zone-table thead th", has_text="Peak (m)")
+    peak_header = page.locator("#zone-table thead th", has_text="Peak")
     peak_header.get_by_role("button").click()
     assert peak_header.get_attribute("aria-sort") == "ascending"
-    cells = page.locator("#zone-table tbody tr td:nth-child(3)").all_inner_texts()
-    peaks = [float(c) for c in cells]
+    cells = page.locator("#zone-table tbody tr td:nth-child(5)").all_inner_texts()
+    peaks = [1000 * float(c.split("+")[0]) + float(c.split("+")[1]) for c in cells]  # km+m
     assert peaks == sorted(peaks)
     page.fill("#alerts-since", "2025-01-01")  # the morning pull, as shown in the screenshot
     page.click("#alerts-show")
@@ -303,6 +304,7 @@ def test_upload_error_names_column_and_row(
     page.fill("#start-chainage", "0")
     # The preview already saw the bad value: the upload needs an explicit "upload anyway".
     page.check("#ignore-problems")
+    page.select_option("#vehicle-select", "table1")  # the form asks among several
     page.click("#upload-button")
     status = page.locator("#upload-status.error")
     status.wait_for()
@@ -425,6 +427,7 @@ def test_raw_imu_log_is_recognised_and_processed(
     assert "included" in page.locator("#map-gravity").inner_text()
     page.fill("#track-input", "Raw logger line")
     page.fill("#start-chainage", str(SAMPLE_START_M))
+    page.select_option("#vehicle-select", "table1")  # the form asks among several
     page.click("#upload-button")
     page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
     wait_for_plot(page, "#profile-plot")
@@ -463,6 +466,7 @@ def test_unrecognised_columns_are_mapped_by_hand(
     )
     page.fill("#track-input", "Hand-mapped line")
     page.fill("#start-chainage", str(SAMPLE_START_M))
+    page.select_option("#vehicle-select", "table1")  # the form asks among several
     page.click("#upload-button")
     page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
     wait_for_plot(page, "#profile-plot")
@@ -522,6 +526,7 @@ def test_background_processing_is_followed_until_done(
                                  attributes: true});
             }"""
         )
+        page.select_option("#vehicle-select", "table1")  # the form asks among several
         page.click("#upload-button")
         page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
         seen = " / ".join(page.evaluate("() => window.__progress"))

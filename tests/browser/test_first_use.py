@@ -273,7 +273,7 @@ def test_track_page_fits_a_phone_and_explains_a_single_run(
         trend = row.locator("td.num").nth(-2).inner_text()  # the depth trend column
         assert trend == "—", trend
         assert "1 processed run " in page.inner_text("#track-lead") + " "
-        assert re.search(r"\b2 soft spots from 1 run\b", page.inner_text("#map-note"))
+        assert re.search(r"\b2 single-run soft spots from 1 run\b", page.inner_text("#map-note"))
         assert_no_cloud_links(page)
         assert axe_violations(page, axe) == []
         assert not errors, errors
@@ -325,6 +325,7 @@ def test_upload_form_guides_a_first_time_user(
     page.fill("#track-input", "UX line")
     page.dispatch_event("#track-input", "input")
     page.fill("#payload-kg", "-5")
+    page.select_option("#vehicle-select", "table1")  # the form asks among several
     page.click("#upload-button")
     start_error = page.locator("#start-chainage-error")
     start_error.wait_for()
@@ -345,11 +346,13 @@ def test_upload_form_guides_a_first_time_user(
     page.wait_for_selector("#preview-warnings")
     page.fill("#start-chainage", "10")
     page.fill("#payload-kg", "")
+    page.select_option("#vehicle-select", "table1")  # the form asks among several
     page.click("#upload-button")
     page.wait_for_selector("#upload-status.error")
     assert "Upload anyway" in page.inner_text("#upload-status")
     assert not [u for u in posts if u.endswith("/api/v1/runs")]
     page.check("#ignore-problems")
+    page.select_option("#vehicle-select", "table1")  # the form asks among several
     page.click("#upload-button")
     page.wait_for_function("() => document.querySelector('.progress-box.failed')")
     assert page.inner_text(".progress-box").count("failed") >= 1

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from browser.harness import LiveServer
+from browser.harness import LiveServer, axe_source, axe_violations
 from playwright.sync_api import expect
 
 from engine.synthetic import make_run
@@ -50,16 +50,19 @@ def test_centerline_upload_gnss_run_and_plan_view(
     page: Any, live_server: LiveServer, gnss_files: tuple[Path, Path]
 ) -> None:
     line, run = gnss_files
-    with live_server.api() as api:
-        assert api.post("/api/v1/tracks", json={"name": TRACK}).status_code == 201
+    # a newcomer creates the track on the home page (no run needed), which opens its page
+    page.goto(f"{live_server.url}/#/")
+    page.fill("#new-track-name", TRACK)
+    page.click("#new-track-create")
+    page.wait_for_url(re.compile(r".*#/tracks/\d+$"))
     # the track page offers the centerline upload while the track has none
-    page.goto(f"{live_server.url}/#/tracks/{TRACK}")
     page.wait_for_selector("#centerline-upload")
     assert "has no centerline" in page.locator("#plan-info").inner_text()
     page.set_input_files("#centerline-file", str(line))
     page.click("#centerline-upload")
     page.wait_for_selector("#plan-plot .main-svg")
-    assert "Centerline stored: 281 vertices" in page.locator("#plan-card .message").inner_text()
+    stored = page.locator("#plan-card .message.success").inner_text()
+    assert "Centerline stored: 281 vertices" in stored
 
     # the upload page recognises lat/lon and lets the start chainage be empty
     page.goto(f"{live_server.url}/#/upload")
@@ -74,6 +77,7 @@ def test_centerline_upload_gnss_run_and_plan_view(
     # is known (debounced request), that the run is placed by them
     expect(page.locator("#gnss-note")).to_contain_text("placed by its fixes", timeout=30_000)
     assert page.input_value("#start-chainage") == ""
+    page.select_option("#vehicle-select", "table1")  # the form asks among several
     page.click("#upload-button")
     page.wait_for_url(re.compile(r".*#/runs/\d+$"), timeout=60_000)
     run_id = int(page.url.rsplit("/", 1)[1])
@@ -81,6 +85,13 @@ def test_centerline_upload_gnss_run_and_plan_view(
         got = api.get(f"/api/v1/runs/{run_id}").json()
     assert got["positioning"]["method"] == "gnss", got
     assert abs(got["start_chainage_m"] - (LINE_START_CHAINAGE_M + RUN_OFFSET_M + 20.0)) < 1.5
+    # the run page shows the placement: method, fixes used/rejected, residual, scale, offset
+    page.wait_for_selector("#run-placement-facts")
+    facts = page.locator("#run-placement-facts").inner_text()
+    pos = got["positioning"]
+    assert "GNSS fixes fitted" in facts and f"{pos['n_used']} of {pos['n_fixes']}" in facts
+    for label in ("Residual (RMS)", "Odometer scale", "Lateral offset"):
+        assert label in facts
 
     # the plan view marks the defect; clicking it opens the defect in the register
     page.goto(f"{live_server.url}/#/tracks/{TRACK}")
@@ -88,6 +99,11 @@ def test_centerline_upload_gnss_run_and_plan_view(
     page.wait_for_selector("#plan-plot .scatterlayer .trace:nth-of-type(2) .point")
     points = page.locator("#plan-plot .scatterlayer .trace:nth-of-type(2) .point")
     assert points.count() == 1
+    # chainage marks in km+m and the run's stretch with its ends; the centerline covers it
+    names = page.evaluate("() => document.getElementById('plan-plot').data.map(t => t.name)")
+    assert "Chainage (km+m)" in names, names
+    assert any(f"run {run_id} (" in str(n) for n in names), names
+    assert page.locator("#plan-flag").is_hidden()
     page.locator("#plan-card").scroll_into_view_if_needed()
     box = points.first.bounding_box()
     assert box is not None
@@ -95,4 +111,11 @@ def test_centerline_upload_gnss_run_and_plan_view(
     page.mouse.click(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     expect(page.locator("#plan-info")).to_contain_text("is open in the register", timeout=15_000)
     expect(page.locator("#zone-info")).not_to_have_text("", timeout=15_000)
+    # axe: no serious or critical violation on the track page with its plan view drawn
+    src = axe_source()
+    for width in (1280, 390):
+        page.set_viewport_size({"width": width, "height": 900})
+        page.goto(f"{live_server.url}/#/tracks/{TRACK}")
+        page.wait_for_selector("#plan-plot .main-svg")
+        assert not axe_violations(page, src), (width, axe_violations(page, src))
     page.watch.assert_clean()

@@ -89,13 +89,15 @@ def test_one_wheel_load_says_not_separable(
     page.goto(f"{live_server.url}/#/tracks/{tracks['coach_track']}")
     page.wait_for_selector("#stiffness-message:not([hidden])")
     text = page.locator("#stiffness-message").inner_text()
-    assert "geometry and stiffness not separable here" in text
-    assert "needs a pass with a different wheel load or a survey" in text
+    # where (km+m) and what would separate it, as a sentence
+    assert text.startswith("Geometry and stiffness are not separable at 0+"), text
+    assert "or a survey, would separate them." in text
     assert page.locator("#stiffness-map").is_hidden()
     run = tracks["coach_run"]
     page.goto(f"{live_server.url}/#/runs/{run['id']}")
     page.wait_for_selector("#run-stiffness-message")
-    assert "not separable" in page.locator("#run-stiffness-message").inner_text()
+    assert "cannot tell" in page.locator("#run-summary").inner_text()
+    assert "stiffness map" in page.locator("#run-stiffness-message").inner_text()
     losses = page.locator("#spots-table tbody tr td:nth-child(6)").all_inner_texts()
     assert all(v.strip() in ("—", "") for v in losses), losses
 

@@ -63,8 +63,9 @@ def test_track_view_shows_the_register_with_status_and_priority(
     page: Any, live_server: LiveServer, register_track: tuple[int, list[dict[str, Any]]]
 ) -> None:
     """The register table lists every defect in the service's priority order with its priority,
-    level, status, runs seen of runs covering and trend; the deepening zone shows as worsening;
-    the aggregated profile is drawn with its spread band; alerts and exports are offered."""
+    level, status, its evidence (kind, passes, loads) and trend; the deepening zone shows as
+    worsening; the aggregated profile is drawn with its spread band; alerts and exports are
+    offered."""
     track_id, defects = register_track
     page.goto(f"{live_server.url}/#/tracks/{track_id}")
     wait_for_plot(page, "#chainage-map")
@@ -77,8 +78,11 @@ def test_track_view_shows_the_register_with_status_and_priority(
         assert row["Priority"] == str(d["priority"])
         assert row["Status"] == d["status"]
         assert row["Level"] == levels.get(d["level"], "none")
-        assert row["Seen"] == f"{d['runs_seen']} of {d['runs_covering']}"
-        assert row["Peak (m)"] == f"{d['peak_m']:.1f}"
+        more = d["runs_covering"] > d["runs_seen"]
+        covering = f" (of {d['runs_covering']} covering)" if more else ""
+        assert row["Evidence"] == d["evidence_text"] + covering
+        km, m = divmod(round(d["peak_m"], 1), 1000)
+        assert row["Peak"] == f"{int(km)}+{m:05.1f}"  # km+m
     priorities = [int(r["Priority"]) for r in rows]
     assert priorities == sorted(priorities)
     deep = [d for d in defects if 240 < d["peak_m"] < 270]

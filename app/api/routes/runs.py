@@ -45,7 +45,7 @@ from app.services.logs import (
     recorded_at_of,
     sha256_hex,
 )
-from app.services.submit import Submission, submit
+from app.services.submit import Submission, ignored_options, submit
 from engine.runlog import RunLog
 
 from .lookup import get_track
@@ -192,10 +192,21 @@ def load_run_public(ctx: AppContext, run_id: int) -> RunPublic:
         return run_public(runs.get_run(s, run_id))
 
 
+def _ignored(ctx: AppContext, run_id: int, sub: Submission) -> list[str]:
+    with ctx.db.session() as s:
+        return ignored_options(s, run_id, sub)
+
+
 async def answer_submission(
-    ctx: AppContext, response: Response, run_id: int, created: bool, wait: bool
+    ctx: AppContext,
+    response: Response,
+    run_id: int,
+    created: bool,
+    wait: bool,
+    ignored: list[str] | None = None,
 ) -> RunCreated:
-    """Status code and body of an accepted run: 201 stored, 202 processing, 200 repeated."""
+    """Status code and body of an accepted run: 201 stored, 202 processing, 200 repeated
+    (with the fields a repeat asked differently, not applied)."""
     public = await run_in_threadpool(load_run_public, ctx, run_id)
     if wait and public.status == "processing":
         deadline = time.monotonic() + ctx.settings.wait_timeout_s
@@ -206,7 +217,17 @@ async def answer_submission(
         response.status_code = 200
     else:
         response.status_code = 202 if public.status == "processing" else 201
-    return RunCreated(**public.model_dump(), duplicate=not created)
+    note = None
+    if ignored:
+        note = (
+            f"This log is already stored as run {run_id}; a log is one pass, so it was not "
+            f"stored again and {', '.join(ignored)} of this upload "
+            f"{'was' if len(ignored) == 1 else 'were'} not applied. To read it differently, "
+            f"delete run {run_id} and upload the log again."
+        )
+    return RunCreated(
+        **public.model_dump(), duplicate=not created, ignored=ignored or [], note=note
+    )
 
 
 @router.post(
@@ -290,8 +311,9 @@ async def create_run(
         )
     sub.idempotency_owner = owner
     run_id, created = await run_in_threadpool(submit, ctx, sub)
+    ignored = [] if created else await run_in_threadpool(_ignored, ctx, run_id, sub)
     del sub
-    return await answer_submission(ctx, response, run_id, created, wait)
+    return await answer_submission(ctx, response, run_id, created, wait, ignored)
 
 
 @router.get("", response_model=RunsPublic)

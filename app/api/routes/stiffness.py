@@ -97,6 +97,7 @@ def read_track_stiffness(
         "separable": sep.separable,
         "separable_fraction": sep.separable_fraction,
         "message": sep.message,
+        "not_separable": [st.to_dict() for st in sep.not_separable],
         "updating": sep.updating,
         "chainage_m": cols["chainage_m"],
         "k_rel": cols["k_rel"],

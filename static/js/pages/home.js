@@ -1,7 +1,8 @@
 // Home: the tracks (each opens its chainage map) and the latest runs (each opens its run view).
 
-import { h, clear, announce, fmt, fmtDate, messageBox, plural } from "../dom.js";
-import { apiFetch } from "../api.js";
+import { h, clear, announce, field, fmt, fmtDate, fmtKmRange, messageBox, plural } from "../dom.js";
+import { ApiError, apiFetch, apiPostJson } from "../api.js";
+import { evidenceOf, LEVEL_LABELS } from "../register.js";
 import { loadPlotly } from "../plots.js";
 
 const PAGE = 50;
@@ -24,6 +25,11 @@ export async function render(main) {
   const runsSection = h("section", { class: "card", "aria-labelledby": "runs-h" },
     h("div", { class: "section-head" }, h("h2", { id: "runs-h" }, "Latest runs"), h("a", { class: "button primary", href: "#/upload" }, "Upload a run")));
   main.append(h("div", { class: "home-grid" }, tracksSection, runsSection));
+  const attention = h("section", { class: "card", "aria-labelledby": "attention-h", id: "attention" },
+    h("h2", { id: "attention-h" }, "Needs attention"),
+    h("p", { class: "muted", id: "attention-body" }, "Reading the tracks' registers…"));
+  main.insertBefore(attention, main.querySelector(".home-grid"));
+  main.appendChild(newTrackCard());
 
   let tracks = [];
   let tracksTotal = 0;
@@ -43,6 +49,7 @@ export async function render(main) {
     return null;
   }
 
+  fillAttention(attention, tracks);
   if (tracks.length === 0) {
     tracksSection.appendChild(h("p", {}, "No track yet. ", h("a", { href: "#/upload" }, "Upload a run"), " or ", h("a", { href: "#/simulate" }, "simulate one"), " to start."));
   } else {
@@ -147,4 +154,68 @@ export async function render(main) {
     idle(() => loadPlotly().catch(() => {}), { timeout: 1500 });
   }
   return null;
+}
+
+const ATTENTION_ROWS = 12;
+
+/** Across tracks: the defects at a limit level, most urgent first (each track's register). */
+async function fillAttention(section, tracks) {
+  const body = section.querySelector("#attention-body");
+  const found = [];
+  await Promise.all(tracks.map(async (t) => {
+    try {
+      const defects = await apiFetch(`/api/v1/tracks/${encodeURIComponent(t.id)}/defects`);
+      for (const d of defects) if (d.level) found.push({ ...d, track: t });
+    } catch {
+      // a track whose register cannot be read is left out here; its own page says why
+    }
+  }));
+  if (!found.length) {
+    body.textContent = tracks.length ? "No defect of any track has reached a limit." : "No track yet.";
+    return;
+  }
+  found.sort((a, b) => a.priority - b.priority || b.depth_mm - a.depth_mm);
+  const rows = found.slice(0, ATTENTION_ROWS).map((d) => h("tr", {},
+    h("td", { class: `level level-${d.level}` }, LEVEL_LABELS[d.level]),
+    h("td", {}, h("a", { href: `#/tracks/${encodeURIComponent(d.track.id)}` }, d.track.name)),
+    h("td", { class: "num" }, fmtKmRange(d.start_m, d.end_m)),
+    h("td", { class: "num" }, fmt(d.depth_mm, 2)),
+    h("td", { class: "num" }, fmt(d.stiffness_loss_pct, 0)),
+    h("td", {}, evidenceOf(d))));
+  body.replaceWith(
+    h("p", { class: "small", id: "attention-count" }, `${plural(found.length, "defect")} at a limit level across ${plural(new Set(found.map((d) => d.track.id)).size, "track")}${found.length > ATTENTION_ROWS ? `; the ${ATTENTION_ROWS} most urgent:` : ":"}`),
+    h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "Defects needing attention" },
+      h("table", { class: "data", id: "attention-table" },
+        h("thead", {}, h("tr", {}, ["Level", "Track", "Zone", "Depth (mm)", "Loss (%)", "Evidence"].map((t) => h("th", { scope: "col" }, t)))),
+        h("tbody", {}, rows))));
+}
+
+/** A new track by name, then its page: where its centerline is uploaded (GNSS placement). */
+function newTrackCard() {
+  const name = h("input", { type: "text", id: "new-track-name", maxlength: 200, required: true, autocomplete: "off" });
+  const desc = h("input", { type: "text", id: "new-track-description", maxlength: 500 });
+  const msg = messageBox("info");
+  const form = h("form", { id: "new-track-form" },
+    h("div", { class: "grid-2" }, field("Track name", name), field("Description (optional)", desc)),
+    h("div", { class: "actions" }, h("button", { type: "submit", class: "button secondary", id: "new-track-create" }, "Create the track")),
+    msg.el);
+  form.addEventListener("submit", async (e) => {
+    e.preventDefault();
+    const n = name.value.trim();
+    if (!n) {
+      msg.show("Give the track a name.", "error");
+      name.focus();
+      return;
+    }
+    try {
+      const t = await apiPostJson("tracks", { name: n, ...(desc.value.trim() ? { description: desc.value.trim() } : {}) });
+      window.location.hash = `#/tracks/${encodeURIComponent(t.id)}`;
+    } catch (err) {
+      msg.show(err instanceof ApiError ? `Not created: ${err.message}` : String(err), "error");
+    }
+  });
+  return h("section", { class: "card", "aria-labelledby": "new-track-h" },
+    h("h2", { id: "new-track-h" }, "New track"),
+    h("p", { class: "hint" }, "Create a track before its first run — for instance to give it its centerline, so that runs with GNSS fixes are placed without a start chainage. Its page opens with the centerline upload."),
+    form);
 }

@@ -1,7 +1,7 @@
 // Run view: fused loaded profile with shaded, labelled soft spots; front/rear axle profiles on
 // demand; raw signals against time; metadata and quality; downloads.
 
-import { h, clear, append, announce, fmt, fmtDate, downloadBlob, messageBox, plural } from "../dom.js";
+import { h, clear, append, announce, fmt, fmtDate, fmtKm, downloadBlob, messageBox, plural } from "../dom.js";
 import { ApiError, apiFetch, apiGetOptional, runErrorMessage } from "../api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, TERMS, zoomControls, zoomTo } from "../plots.js";
 import { unseenText } from "../visibility.js";
@@ -115,19 +115,30 @@ export async function render(main, [id]) {
   const spots = (spotsAnswer || []).slice().sort((a, b) => a.start_m - b.start_m);
 
   // ---- summary -------------------------------------------------------------------------------
+  // Over rough rail one pass cannot tell a soft support from the rail's own geometry: "no soft
+  // spot" would claim what it cannot know, so the summary says what it can and cannot tell.
   // A pass never says "no soft spot" without what it could not have seen (its detection limit).
   const unseen = unseenText(run.detection_limit);
-  const summary = h("p", { class: "summary", id: "run-summary" },
-    spots.length === 0
-      ? `No soft spot detected. ${unseen}`
-      : `${plural(spots.length, "soft spot")} detected — shaded in orange on the profile below, deepest ${fmt(Math.max(...spots.map((s) => s.depth_mm)), 2)} mm. ${unseen}`);
+  const rough = run.stiffness_basis === "not separable";
+  const deepest = spots.length ? fmt(Math.max(...spots.map((s) => s.depth_mm)), 2) : null;
+  let said;
+  if (rough) {
+    said = spots.length === 0
+      ? "No dip beyond this pass's detection limit. On its own, this pass cannot tell whether the supports here are sound: the rail's own geometry is larger than what a soft support adds."
+      : `${plural(spots.length, "dip")} deeper than this pass's detection limit (deepest ${deepest} mm), listed by depth only: this pass alone cannot tell a soft support from the rail's own geometry.`;
+  } else {
+    said = spots.length === 0
+      ? "No soft spot detected on this run."
+      : `${plural(spots.length, "soft spot")} detected — shaded in orange on the profile below, deepest ${deepest} mm.`;
+  }
+  const summary = h("p", { class: "summary", id: "run-summary" }, unseen ? `${said} ${unseen}` : said);
   main.appendChild(summary);
-  // Honesty (issue 10): where one pass cannot tell rail geometry from stiffness its dips are
-  // listed by depth only; over smooth rail the single-pass losses stay, labelled as such.
+  // Honesty: where one pass cannot tell rail geometry from stiffness its dips are listed by
+  // depth only; over smooth rail the single-pass losses stay, labelled as such.
   if (run.stiffness_message) {
     main.appendChild(h("div", { class: "message warning", role: "status", id: "run-stiffness-message" },
-      run.stiffness_message, " ",
-      h("a", { href: `#/tracks/${encodeURIComponent(run.track_id)}` }, "See the track's stiffness map.")));
+      "The track's stiffness map separates geometry from stiffness where passes of different wheel loads (or a survey) cover the rail, and lists the soft spots found there. ",
+      h("a", { href: `#/tracks/${encodeURIComponent(run.track_id)}?view=stiffness`, id: "run-stiffness-link" }, "Open the track's stiffness map"), "."));
   } else if (run.stiffness_basis === "single pass") {
     main.appendChild(h("p", { class: "hint", id: "run-stiffness-basis" },
       "Stiffness losses from this pass alone (single pass): the rail is smooth at the noise level here."));
@@ -343,6 +354,31 @@ async function loadSignals(encId, div, note) {
   await (await loadPlotly()).newPlot(div, traces, layout, CONFIG);
 }
 
+/** How the run was placed on the track: from its start chainage, or fitted to its GNSS fixes
+ * along the track's centerline (method, fixes used/rejected, residual, scale, lateral offset). */
+function placementBox(run) {
+  const p = run.positioning;
+  const box = h("div", { id: "run-placement" }, h("h3", {}, "Placement on the track"));
+  if (!p) {
+    box.append(h("p", {}, run.start_chainage_m === null || run.start_chainage_m === undefined
+      ? "From the log's chainage column."
+      : `From the start chainage given with the upload: ${fmtKm(run.start_chainage_m, 2)}, ${run.direction}.`));
+    return box;
+  }
+  const dl = h("dl", { class: "meta", id: "run-placement-facts" });
+  const rows = [
+    ["Method", `GNSS fixes fitted to the track's centerline${p.pieces > 1 ? ` (odometer in ${p.pieces} pieces)` : ""}`],
+    ["Start", `${fmtKm(p.start_chainage_m, 2)}, ${p.direction}`],
+    ["Fixes used", `${p.n_used} of ${p.n_fixes} (${p.n_rejected} rejected: off the line or outliers)`],
+    ["Residual (RMS)", `${fmt(p.residual_rms_m, 2)} m`],
+    ["Odometer scale", `${fmt(p.scale, 4)} (true / logged distance)`],
+    ["Lateral offset", `median ${fmt(p.offset_median_m, 2)} m, 95 % ${fmt(p.offset_p95_m, 2)} m`],
+  ];
+  for (const [k, v] of rows) dl.append(h("dt", {}, k), h("dd", {}, v));
+  box.append(dl);
+  return box;
+}
+
 function metadataSection(run) {
   const meta = run;
   const dl = h("dl", { class: "meta", id: "run-metadata" });
@@ -362,7 +398,7 @@ function metadataSection(run) {
     }
   }
   return h("section", { class: "card two-col", "aria-labelledby": "meta-h" },
-    h("div", {}, h("h2", { id: "meta-h" }, "Run metadata"), dl),
+    h("div", {}, h("h2", { id: "meta-h" }, "Run metadata"), dl, placementBox(run)),
     h("div", {}, h("h2", {}, "Quality indicators"),
       quality ? qBox : h("p", { class: "muted" }, "No quality indicators for this run.")),
   );

@@ -93,7 +93,7 @@ export async function render(main) {
   const railSeedInput = h("input", { type: "number", id: "sim-rail-seed", value: "0", step: "1" });
   // The track the simulated run is stored on: an existing one (its nominal properties apply)
   // or a new name; blank: "simulated" (or one track per rail spectrum and seed).
-  const trackInput = h("input", { type: "text", id: "sim-track", list: "sim-track-list", maxlength: 200, autocomplete: "off", placeholder: "simulated" });
+  const trackInput = h("input", { type: "text", id: "sim-track", list: "sim-track-list", maxlength: 200, autocomplete: "off", placeholder: "its own simulated track" });
   const trackList = h("datalist", { id: "sim-track-list" });
   apiFetchAll("tracks").then((tracks) => {
     for (const t of tracks) trackList.appendChild(h("option", { value: t.name }));
@@ -140,7 +140,7 @@ export async function render(main) {
         field("Vehicle", vehicleSel, "table1: the paper's coach; heavy: about twice its wheel load."),
         field("Rail geometry", railSel, "A standard spectrum puts real-track irregularity under the wheels."),
         field("Rail seed", railSeedInput, "Same spectrum and seed, same track: runs of different vehicles over it separate geometry from stiffness."),
-        h("div", {}, field("Store on track", trackInput, "An existing track or a new name; blank: a track named after the rail (“simulated”)."), trackList)),
+        h("div", {}, field("Store on track", trackInput, "An existing track or a new name; blank: a track of its own for this simulated track (rail, length, zones, seed), never mixed with real runs."), trackList)),
       h("fieldset", {},
         h("legend", {}, "Soft zones"),
         h("table", { class: "data compact", id: "sim-zones" },
@@ -231,7 +231,7 @@ export async function render(main) {
       await showResults(result);
       const n = result.soft_spots.length;
       const link = h("a", { href: `#/runs/${enc}`, id: "sim-run-link" }, `open it as run ${id}`);
-      status.show(`Done in ${((performance.now() - t0) / 1000).toFixed(1)} s: ${n} soft spot${n === 1 ? "" : "s"} recovered for ${request.zones.length} true zone${request.zones.length === 1 ? "" : "s"}. ${answer.run.detection_limit ? `${unseenText(answer.run.detection_limit)} ` : ""}The run is stored on the track “simulated”; `, "success", [link, "."]);
+      status.show(`Done in ${((performance.now() - t0) / 1000).toFixed(1)} s: ${n} soft spot${n === 1 ? "" : "s"} recovered for ${request.zones.length} true zone${request.zones.length === 1 ? "" : "s"}. ${answer.run.detection_limit ? `${unseenText(answer.run.detection_limit)} ` : ""}The run is stored on the track “${answer.run.track}”; `, "success", [link, "."]);
       announce("Simulation done.");
     } catch (err) {
       status.show(`The simulation failed: ${err.message}`, "error",
@@ -322,7 +322,8 @@ function simulateBody(req) {
   };
   return {
     // an irregular rail is a track of its own (spectrum and seed): runs over it can be compared
-    track: req.track || (req.rail ? `simulated ${req.rail.spectrum} seed ${req.rail.seed}` : "simulated"),
+    // blank: the service's own track for this simulated track (rail, length, zones, seed)
+    track: req.track || null,
     vehicle: req.vehicle || "table1",
     irregularity: req.rail,
     length_m: req.length_m,

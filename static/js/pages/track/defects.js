@@ -1,10 +1,36 @@
 // The track page's defect register: the sortable table of tracked defects (most urgent first)
 // and the profiles of all runs around the chosen defect.
 
-import { h, clear, announce, fmt, plural } from "../../dom.js";
+import { h, clear, announce, fmt, fmtKm, fmtKmRange, plural } from "../../dom.js";
 import { apiFetch, apiGetOptional } from "../../api.js";
 import { baseLayout, CONFIG, loadPlotly, viridis } from "../../plots.js";
 import { REGISTER_COLUMNS, aggregateTraces, defectShapes } from "../../register.js";
+
+/** Group index of each load (N): sorted, a load 10 % or more above its group's lightest
+ * starts a new group (the separation's own threshold); unknown loads: group 0. */
+function loadGroups(loads) {
+  const known = loads.map((v, i) => [v, i]).filter(([v]) => v).sort((a, b) => a[0] - b[0]);
+  const out = loads.map(() => 0);
+  let g = 0;
+  let base = known.length ? known[0][0] : 0;
+  for (const [v, i] of known) {
+    if (v >= 1.1 * base) {
+      g += 1;
+      base = v;
+    }
+    out[i] = g;
+  }
+  return out;
+}
+
+/** Plotly axis ticks labelled in km+m over [from, to] m (about six of them). */
+export function kmTicks(from, to) {
+  const span = Math.max(to - from, 1);
+  const step = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 20000, 50000].find((s) => span / s <= 6) || 100000;
+  const tickvals = [];
+  for (let v = Math.ceil(from / step) * step; v <= to; v += step) tickvals.push(v);
+  return { tickvals, ticktext: tickvals.map((v) => fmtKm(v, step < 1 ? 1 : 0)) };
+}
 
 function escapeExtra(text) {
   // Plotly renders <extra> content as pseudo-HTML: keep user text literal.
@@ -105,7 +131,7 @@ export function registerCards(main, { enc, getZones, isStopped }) {
   main.appendChild(h("div", { class: "track-register" },
     h("section", { class: "card", "aria-labelledby": "zones-h" },
       h("h2", { id: "zones-h" }, "Defect register"),
-      h("p", { class: "hint" }, "Soft spots of all aligned runs (of every run, as logged, when none is aligned) merged into tracked defects, most urgent first (priority from the limits below, then depth). Seen: runs that detected it, of the runs covering it. Depth and loss: latest run. Trend: least-squares change per month. Status: new (one run), confirmed (two), worsening (significant growth) or stable. Click a column title to sort; click a defect (or its rank) to see its profile across runs."),
+      h("p", { class: "hint" }, "Soft spots of all aligned runs (of every run, as logged, when none is aligned) merged into tracked defects, most urgent first (priority from the limits below, then depth). Evidence: what supports it — single passes, or the separation of geometry from stiffness across passes of different wheel loads (“separated: 4 passes, 2 loads”). Depth and loss: the most trusted evidence, latest (a separated spot: its depth under a 100 kN wheel, its loss with the band). Trend: least-squares change per month. Status: new (one pass), confirmed (independent passes), worsening (significant growth) or stable. Chainage in km+m. Click a column title to sort; click a defect (or its rank) to see its profile across runs."),
       tableBox),
     h("section", { class: "card", "aria-labelledby": "zoneplot-h" },
       h("h2", { id: "zoneplot-h" }, "Defect across runs"),
@@ -117,7 +143,7 @@ export function registerCards(main, { enc, getZones, isStopped }) {
     const width = Math.max(zone.end_m - zone.start_m, 2);
     const from = zone.start_m - Math.max(20, 2 * width);
     const to = zone.end_m + Math.max(20, 2 * width);
-    zoneInfo.textContent = `Loading the profiles of ${fmt(from, 0)}–${fmt(to, 0)} m…`;
+    zoneInfo.textContent = `Loading the profiles of ${fmtKmRange(from, to, 0)}…`;
     try {
       const [win, aggWindow] = await Promise.all([
         apiFetch(`/api/v1/views/tracks/${enc}/window?from_m=${from}&to_m=${to}`),
@@ -126,12 +152,18 @@ export function registerCards(main, { enc, getZones, isStopped }) {
       if (isStopped()) return;
       const traces = [];
       const wr = win.runs || [];
+      // The wheel load tells weak support from geometry: a soft spot deepens under the heavier
+      // wheel, a geometric dip does not. Each load group gets its own dash (colour: date).
+      const groups = loadGroups(wr.map((r) => r.wheel_load_n));
+      const dashes = ["solid", "dash", "dot", "dashdot"];
       wr.forEach((r, i) => {
+        const kn = r.wheel_load_n ? `${fmt(r.wheel_load_n / 1000, 0)} kN` : "load unknown";
+        const name = `${r.label || `run ${r.id}`} · ${kn}`;
         traces.push({
-          type: "scatter", mode: "lines", name: r.label || `run ${r.id}`,
+          type: "scatter", mode: "lines", name,
           x: r.chainage_m, y: r.level_mm, meta: `run-${r.id}`,
-          line: { color: viridis(wr.length > 1 ? i / (wr.length - 1) : 0), width: 1.3 },
-          hovertemplate: `%{y:.3f} mm<extra>${escapeExtra(r.label || `run ${r.id}`)}</extra>`,
+          line: { color: viridis(wr.length > 1 ? i / (wr.length - 1) : 0), width: 1.3, dash: dashes[groups[i] % dashes.length] },
+          hovertemplate: `%{y:.3f} mm<extra>${escapeExtra(name)}</extra>`,
         });
       });
       traces.push(...aggregateTraces(aggWindow));
@@ -139,16 +171,18 @@ export function registerCards(main, { enc, getZones, isStopped }) {
       const layout = baseLayout({
         height: narrow ? 380 + 18 * Math.min(traces.length, 12) : 380,
         shapes: defectShapes([zone]),
-        xaxis: { title: { text: "Chainage (m)" }, range: [from, to], gridcolor: "#e3e6ea" },
+        xaxis: { title: { text: "Chainage (km+m)" }, range: [from, to], gridcolor: "#e3e6ea", ...kmTicks(from, to) },
         // On a phone the legend goes below the plot, which keeps the width.
         legend: narrow ? { orientation: "h", x: 0, y: -0.25, yanchor: "top", font: { size: 10 } } : { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
         margin: narrow ? { l: 52, r: 8, t: 24, b: 60 } : { l: 64, r: 12, t: 24, b: 52 },
       });
       await (await loadPlotly()).react(zonePlotDiv, traces, layout, CONFIG);
       const covers = wr.length === 1 ? "1 run covers it" : `${wr.length} runs cover it`;
-      zoneInfo.textContent = `Zone ${fmt(zone.start_m, 1)}–${fmt(zone.end_m, 1)} m (shaded): ${covers}, ${zone.runs_seen} detected a soft spot there.`
-        + (wr.length > 1 ? " Lines run from dark (oldest) to light (newest)." : "");
-      announce(`Showing zone at ${fmt(zone.peak_m, 1)} m across ${plural(wr.length, "run")}.`);
+      const nLoads = new Set(groups).size;
+      zoneInfo.textContent = `Zone ${fmtKmRange(zone.start_m, zone.end_m)} (shaded): ${covers}; evidence: ${zone.evidence_text || `${zone.runs_seen} detected a soft spot there`}.`
+        + (wr.length > 1 ? " Lines run from dark (oldest) to light (newest)" : "")
+        + (nLoads > 1 ? `; ${nLoads} wheel loads, one dash each (solid: the lightest), named in the legend.` : wr.length > 1 ? "." : "");
+      announce(`Showing zone at ${fmtKm(zone.peak_m)} across ${plural(wr.length, "run")}.`);
     } catch (err) {
       zoneInfo.textContent = `Cannot load the zone's profiles: ${err.message}`;
     }

@@ -7,7 +7,7 @@
 // state.js: what the page loads; map.js: the chainage map; defects.js: the register;
 // remove.js: deleting the track.
 
-import { h, append, announce, fmt, messageBox, plural } from "../../dom.js";
+import { h, append, announce, fmtKmRange, messageBox, plural } from "../../dom.js";
 import { ApiError, apiFetch } from "../../api.js";
 import { aggregateCard, alertsCard, alignmentNotice, exportLinks, limitsCard } from "../../register.js";
 import { stiffnessCard } from "../../stiffness.js";
@@ -17,7 +17,7 @@ import { registerCards } from "./defects.js";
 import { planCard } from "./plan.js";
 import { deleteTrackControl } from "./remove.js";
 
-export async function render(main, [ref]) {
+export async function render(main, [ref], query) {
   let stopped = false;
   const isStopped = () => stopped;
   const heading = h("h1", { id: "track-title" }, "Track ", h("span", { class: "track-name" }, ref));
@@ -55,7 +55,7 @@ export async function render(main, [ref]) {
   const trackInfo = map.track || {};
   append(lead, [
     `${plural(runs.length, "processed run")}`,
-    map.chainage_min_m !== null && map.chainage_min_m !== undefined ? ` covering ${fmt(map.chainage_min_m, 0)}–${fmt(map.chainage_max_m, 0)} m` : "",
+    map.chainage_min_m !== null && map.chainage_min_m !== undefined ? ` covering ${fmtKmRange(map.chainage_min_m, map.chainage_max_m, 0)}` : "",
     trackInfo.description ? ` · ${trackInfo.description}` : "",
     " · ",
     h("a", { href: "#/upload" }, "Upload another run"),
@@ -83,6 +83,11 @@ export async function render(main, [ref]) {
   } catch (err) {
     status.show(`Cannot load the defect register: ${err.message}`, "error");
   }
+  // The map draws single runs' detections; over rough rail the register's separated soft
+  // spots are what the track knows: say how many, beside the map's own count.
+  const separated = register.filter((d) => d.source === "separated").length;
+  const mapNote = document.getElementById("map-note");
+  if (separated && mapNote) mapNote.append(h("span", { id: "map-separated" }, `Besides: ${plural(separated, "soft spot")} separated from the rail's geometry across wheel loads (in the register below and on the stiffness map).`));
   const notice = alignmentNotice(trackRuns);
   if (notice) main.insertBefore(notice, mapView.section);
   // The aggregated profile is made of aligned runs only: no card for a track without any.
@@ -96,19 +101,22 @@ export async function render(main, [ref]) {
   const stiffness = anyAligned ? stiffnessCard(enc) : null;
   if (stiffness) {
     main.appendChild(stiffness.section);
-    stiffness.render();
+    const drawn = stiffness.render();
+    // A run over rough rail links here: bring the map into view once it is drawn.
+    if (query && query.get("view") === "stiffness") drawn.then(() => stiffness.section.scrollIntoView());
   }
 
   // ---- register (ranked by priority) ---------------------------------------------------------
   const registerView = registerCards(main, { enc, getZones: () => zones, isStopped });
   main.appendChild(plan.section);
+  plan.showRuns(runs);
   plan.showDefects(() => zones, (zone) => registerView.showZone(zone));
 
   // ---- alerts and limits ---------------------------------------------------------------------
   // Alerts and limits serve the maintenance of aligned tracks (a track whose runs were never
   // aligned has its register as logged, but nothing to plan from yet).
   if (anyAligned) {
-    const alerts = alertsCard(enc);
+    const alerts = alertsCard(enc, () => register);
     const limits = limitsCard(enc, async () => {
       register = await apiFetch(`/api/v1/tracks/${enc}/defects`);
       zones = ranked(register);

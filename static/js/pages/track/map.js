@@ -213,7 +213,9 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
       + (map.runs_omitted ? ` ${map.runs_omitted} older runs not shown.` : "")
       + (map.runs_pending ? ` ${plural(map.runs_pending, "run")} still processing or failed ${map.runs_pending === 1 ? "is" : "are"} not shown.` : "");
   };
-  describe(map, `${plural(map.spots ? map.spots.peak_m.length : 0, "soft spot")} from ${plural(runs.length, "run")}, loaded in ${(elapsed / 1000).toFixed(2)} s. `);
+  // "single-run": over rough rail no single run detects a soft support, the separation across
+  // wheel loads does (the track page adds those from the register)
+  describe(map, `${plural(map.spots ? map.spots.peak_m.length : 0, "single-run soft spot")} from ${plural(runs.length, "run")}, loaded in ${(elapsed / 1000).toFixed(2)} s. `);
 
   // Zooming asks the server for that window only: its soft spots and, up to 10 km wide, the
   // binned levels; the plot then holds what it shows rather than the whole line.

@@ -12,7 +12,7 @@ import {
   canPlaceWithoutStart, fileRecordedAt, formatBytes, localInputValue,
 } from "./state.js";
 import {
-  errorFactsOfRun, errorList, errorText, highlightFields, markFailed, previewProblems,
+  errorFactsOfRun, errorList, errorText, highlightFields, markFailed, pickVehicle, previewProblems,
   resetProgress, showChoices, showPlacement, showPreview, showPreviewMessage, updateNewTrack,
 } from "./view.js";
 
@@ -38,6 +38,28 @@ export async function loadChoices(ui, state) {
   showChoices(ui, state);
 }
 
+/** The vehicle of most of a track's runs (its newest 100), kept per track name. */
+export async function loadUsualVehicle(ui, state) {
+  const name = ui.trackInput.value.trim();
+  state.usualVehicle = state.usualVehicle || {};
+  const track = state.tracks.find((t) => t.name === name);
+  if (track && !(name in state.usualVehicle)) {
+    try {
+      const runs = await apiFetch(`/api/v1/runs?track=${encodeURIComponent(track.id)}&limit=100`);
+      const counts = {};
+      for (const r of runs.data) counts[r.vehicle] = (counts[r.vehicle] || 0) + 1;
+      const ranked = Object.entries(counts).sort((a, b) => b[1] - a[1]);
+      // a tie is no usual vehicle: the form asks rather than guess
+      const tie = ranked.length > 1 && ranked[0][1] === ranked[1][1];
+      state.usualVehicle[name] = ranked.length && !tie ? ranked[0][0] : null;
+      if (tie) (state.mixedVehicles = state.mixedVehicles || {})[name] = ranked.map(([v]) => v);
+    } catch {
+      state.usualVehicle[name] = null; // the form asks instead
+    }
+  }
+  if (ui.trackInput.value.trim() === name) pickVehicle(ui, state);
+}
+
 async function createVehicle(ui, state) {
   const { vehicleName, vehicleInputs, vehicleMsg } = ui;
   const name = vehicleName.value.trim();
@@ -61,7 +83,8 @@ async function createVehicle(ui, state) {
   try {
     await apiPostJson("vehicles", { name, params });
     await loadChoices(ui, state);
-    ui.vehicleSel.value = name;
+    state.vehicleChosen = name;
+    pickVehicle(ui, state);
     vehicleMsg.show(`Vehicle ${name} created and selected.`, "success");
   } catch (err) {
     vehicleMsg.show(errorText(err), "error", errorList(err));
@@ -173,6 +196,7 @@ function formData(ui, state) {
   const track = trackInput.value.trim();
   if (!track) problem(trackInput, "is required: name the track the run was recorded on");
   const newTrack = track && !state.tracks.some((t) => t.name === track);
+  if (!ui.vehicleSel.value) problem(ui.vehicleSel, "is required: choose the vehicle that recorded this log");
   const startProblem = numberProblem(startInput, { required: !canPlaceWithoutStart(state) });
   if (startProblem) {
     problem(startInput, startProblem === "is required"
@@ -240,6 +264,15 @@ async function submit(ui, state) {
     uploadBar.value = 1;
     uploadLabel.textContent = "Upload 100 %";
     const id = created.id;
+    if (created.duplicate) {
+      // A log is one pass: the stored run answers. Say so, and what was not applied.
+      processBar.value = 1;
+      processLabel.textContent = "Already stored";
+      const open = h("a", { href: `#/runs/${encodeURIComponent(id)}`, id: "open-run" }, `Open run ${id}`);
+      status.show(created.note || `This log is already stored as run ${id}: a log is one pass, so nothing new was stored. `, created.note ? "warning" : "info", [" ", open]);
+      announce(`This log is already stored as run ${id}.`);
+      return;
+    }
     status.show(`Uploaded as run ${id}. Processing…`, "info");
     announce("Upload complete, processing the run.");
     const run = created.status === "done" ? created : await poll(ui, state, id, Date.now());
@@ -275,7 +308,15 @@ async function submit(ui, state) {
 export function bind(ui, state) {
   const { dropZone, fileInput, form } = ui;
   showReading(ui, state);
-  ui.trackInput.addEventListener("input", () => updateNewTrack(ui, state));
+  ui.trackInput.addEventListener("input", () => {
+    updateNewTrack(ui, state);
+    clearTimeout(state.usualTimer);
+    state.usualTimer = setTimeout(() => loadUsualVehicle(ui, state), 250);
+  });
+  ui.vehicleSel.addEventListener("change", () => {
+    state.vehicleChosen = ui.vehicleSel.value || null;
+    pickVehicle(ui, state);
+  });
   ui.createVehicleBtn.addEventListener("click", () => createVehicle(ui, state));
   for (const ev of ["dragenter", "dragover"]) {
     dropZone.addEventListener(ev, (e) => {

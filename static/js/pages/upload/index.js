@@ -6,7 +6,7 @@ import { h } from "../../dom.js";
 import { apiSchema } from "../../api.js";
 import { createState, vocabularyOf } from "./state.js";
 import { buildForm, updateNewTrack } from "./view.js";
-import { bind, loadChoices } from "./actions.js";
+import { bind, loadChoices, loadUsualVehicle } from "./actions.js";
 import { bindGnss } from "./gnss.js";
 
 export async function render(main) {
@@ -24,6 +24,7 @@ export async function render(main) {
   await loadChoices(ui, state);
   if (!ui.trackInput.value && state.tracks.length === 1) ui.trackInput.value = state.tracks[0].name;
   updateNewTrack(ui, state);
+  if (ui.trackInput.value) await loadUsualVehicle(ui, state);
 
   return () => {
     state.stopped = true;

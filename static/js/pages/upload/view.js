@@ -87,7 +87,8 @@ export function buildForm(main, state) {
       field("Sleeper spacing (m)", ui.trackSpacing)),
   ]);
 
-  ui.vehicleSel = h("select", { name: "vehicle", id: "vehicle-select" });
+  ui.vehicleSel = h("select", { name: "vehicle", id: "vehicle-select", "aria-describedby": "vehicle-why" });
+  ui.vehicleHint = h("p", { class: "hint", id: "vehicle-why", "aria-live": "polite" });
   ui.vehicleMsg = messageBox("info");
   ui.vehicleInputs = {};
   ui.vehicleName = h("input", { type: "text", id: "vehicle-name", maxlength: 200 });
@@ -126,7 +127,7 @@ export function buildForm(main, state) {
     h("legend", {}, "3. Track, vehicle and position"),
     h("div", { class: "grid-2" },
       h("div", {}, field("Track", ui.trackInput, "Pick an existing track or type a new name."), ui.trackList),
-      field("Vehicle", ui.vehicleSel),
+      h("div", {}, field("Vehicle", ui.vehicleSel), ui.vehicleHint),
       field("Start chainage (m)", ui.startInput, "Where on the track the log starts: the chainage (distance along the line, m) of the body centre (the IMU) at the first sample. Required unless the file has a chainage column."),
       field("Direction of travel", ui.directionSel),
       field("Recorded at (local time)", ui.recordedInput, "Taken from the file's timestamps when it has them; otherwise give it (else the upload time is stored)."),
@@ -218,10 +219,44 @@ export function resetProgress(ui) {
 export function showChoices(ui, state) {
   clear(ui.trackList);
   for (const t of state.tracks) ui.trackList.appendChild(h("option", { value: t.name }));
-  const previous = ui.vehicleSel.value;
   clear(ui.vehicleSel);
-  for (const v of state.vehicles) ui.vehicleSel.appendChild(h("option", { value: v.name }, v.name));
-  if (previous) ui.vehicleSel.value = previous;
+  ui.vehicleSel.appendChild(h("option", { value: "" }, "Choose the vehicle…"));
+  const names = state.vehicles.map((v) => v.name);
+  // table1 is always a choice: the engine's preset, stored on first use
+  if (!names.includes(DEFAULT_VEHICLE)) ui.vehicleSel.appendChild(h("option", { value: DEFAULT_VEHICLE }, `${DEFAULT_VEHICLE} (preset)`));
+  for (const name of names) ui.vehicleSel.appendChild(h("option", { value: name }, name));
+  pickVehicle(ui, state);
+}
+
+export const DEFAULT_VEHICLE = "table1";
+
+/**
+ * The vehicle the form proposes, said next to it — never a silent choice: the user's own
+ * choice; else the vehicle of most of the track's runs; else table1 when it is the only
+ * candidate; else none, and the form asks (several vehicles and nothing to tell them apart).
+ */
+export function pickVehicle(ui, state) {
+  const track = ui.trackInput.value.trim();
+  const usual = state.usualVehicle ? state.usualVehicle[track] : undefined;
+  const others = state.vehicles.filter((v) => v.name !== DEFAULT_VEHICLE);
+  let value = "";
+  let why;
+  if (state.vehicleChosen && ui.vehicleSel.querySelector(`option[value="${CSS.escape(state.vehicleChosen)}"]`)) {
+    value = state.vehicleChosen;
+    why = "Your choice.";
+  } else if (usual) {
+    value = usual;
+    why = `The vehicle of most runs on track “${track}”: check it recorded this log.`;
+  } else if (others.length === 0) {
+    value = DEFAULT_VEHICLE;
+    why = `The default vehicle (${DEFAULT_VEHICLE}, the Table 1 passenger coach): the only one registered.`;
+  } else {
+    const mixed = state.mixedVehicles ? state.mixedVehicles[track] : null;
+    const reason = mixed ? `this track's runs are as many of ${mixed.join(" as of ")}` : track ? "this track has no runs yet" : "no track is chosen";
+    why = `${others.length + 1} vehicles are registered and ${reason}: choose the vehicle that recorded this log (its wheel load matters).`;
+  }
+  ui.vehicleSel.value = value;
+  ui.vehicleHint.textContent = why;
 }
 
 /** The new-track details show when the typed name is not an existing track. */
