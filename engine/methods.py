@@ -17,10 +17,11 @@ from numpy.typing import NDArray
 
 from .chainage import AxlePositions, bandpass_distance, to_grid
 from .direct import direct_inverse, filtered_direct_inverse
+from .errors import ParameterError
 from .optimisation import windowed_least_squares
 from .runlog import RunLog
 from .spectral import BandSpectrum, estimate_white_noise, spectral_inverse
-from .vehicle import VehicleParams
+from .vehicle import VehicleModel, VehicleParams
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,7 @@ class MethodInput:
         Regular chainage grid of the profile, m (increasing).
     step_m : float
         Its step, m.
-    vehicle : VehicleParams
+    vehicle : VehicleModel
         The logging vehicle.
     f_lo_hz, f_hi_hz : float
         Time-frequency band of the inversion, Hz (from :func:`engine.pipeline.check_run`).
@@ -51,7 +52,7 @@ class MethodInput:
     positions: AxlePositions
     grid: NDArray[np.float64]
     step_m: float
-    vehicle: VehicleParams
+    vehicle: VehicleModel
     f_lo_hz: float
     f_hi_hz: float
     lambda_min_m: float
@@ -136,19 +137,32 @@ def spectral(m: MethodInput) -> Inversion:
     )  # fmt: skip
 
 
+def _half_car(m: MethodInput, method: str) -> VehicleParams:
+    """The half car of a method whose algebra is the half car's (the paper's recursion)."""
+    if not isinstance(m.vehicle, VehicleParams):
+        raise ParameterError(
+            f"the {method} method needs a half-car vehicle, got kind {m.vehicle.kind!r} "
+            "(use the spectral or least-squares method)",
+            field="method",
+        )
+    return m.vehicle
+
+
 def filtered_direct(m: MethodInput) -> Inversion:
-    """Time-domain direct inversion with band-limited integration."""
+    """Time-domain direct inversion with band-limited integration (half car only)."""
     log = m.log
     res = filtered_direct_inverse(
-        log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz
-    )
+        log.accel_z_mps2, log.pitch_rate_radps, log.dt, _half_car(m, "filtered-direct"),
+        m.f_lo_hz, m.f_hi_hz,
+    )  # fmt: skip
     return _from_samples(m, res.y_front, res.y_rear, *_noise(log))
 
 
 def direct(m: MethodInput) -> Inversion:
-    """Time-domain direct inversion (Newmark), no band limit inside the integration."""
+    """Time-domain direct inversion (Newmark), no band limit inside the integration (half
+    car only)."""
     log = m.log
-    res = direct_inverse(log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle)
+    res = direct_inverse(log.accel_z_mps2, log.pitch_rate_radps, log.dt, _half_car(m, "direct"))
     return _from_samples(m, res.y_front, res.y_rear, *_noise(log))
 
 

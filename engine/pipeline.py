@@ -20,7 +20,7 @@ from .results import ProcessResult, Quality, SoftSpot
 from .runlog import RunLog
 from .stiffness import fit_zone
 from .track import TrackParams
-from .vehicle import TABLE1, VehicleParams
+from .vehicle import TABLE1, VehicleModel
 from .wheel_force import dynamic_wheel_forces, force_spectrum
 
 Method = Literal["spectral", "filtered-direct", "least-squares", "direct"]
@@ -162,7 +162,7 @@ class RunCheck:
         log: RunLog,
         start_chainage_m: float | None,
         direction: str,
-        vehicle: VehicleParams,
+        vehicle: VehicleModel,
         config: ProcessConfig,
     ) -> bool:
         """Whether this check stands for ``log`` (the same object) with these parameters."""
@@ -178,7 +178,7 @@ def check_run(
     *,
     start_chainage_m: float | None = None,
     direction: str = "increasing",
-    vehicle: VehicleParams = TABLE1,
+    vehicle: VehicleModel = TABLE1,
     config: ProcessConfig | None = None,
 ) -> RunCheck:
     """Check up front that a log can be inverted, without inverting it (cheap, O(n)).
@@ -223,7 +223,7 @@ def process_run(
     *,
     start_chainage_m: float | None = None,
     direction: str = "increasing",
-    vehicle: VehicleParams = TABLE1,
+    vehicle: VehicleModel = TABLE1,
     track: TrackParams | None = None,
     config: ProcessConfig | None = None,
     budget: TimeBudget | None = None,
@@ -239,7 +239,7 @@ def process_run(
         Chainage of the body centre at the first sample, m (needed without a chainage column).
     direction : {"increasing", "decreasing"}
         Direction of travel.
-    vehicle : VehicleParams
+    vehicle : VehicleModel
         Parameters of the logging vehicle.
     track : TrackParams, optional
         Nominal track properties (for stiffness-loss estimates); default UIC60 on 80 kN/mm.
