@@ -89,14 +89,19 @@ def _soft_spots(
     cfg: ProcessConfig,
     trk: TrackParams,
     load: float,
+    wheel_offsets_m: tuple[float, ...] = (0.0,),
 ) -> list[SoftSpot]:
-    """Fit each dip with the beam model; dips whose fitted zones overlap become one zone."""
+    """Fit each dip with the beam model (``load`` N on each wheel of a measured point, at
+    ``wheel_offsets_m`` from it); dips whose fitted zones overlap become one zone."""
     if not cfg.fit_stiffness:
         return [SoftSpot(d.start_m, d.end_m, d.peak_m, d.depth_mm, float("nan")) for d in dips]
     half = 0.5 * trk.spacing
 
     def fit(a: float, b: float) -> tuple[float, float, float]:
-        f = fit_zone(grid, residual, a, b, trk, load, cfg.lambda_min_m, cfg.lambda_max_m)
+        f = fit_zone(
+            grid, residual, a, b, trk, load, cfg.lambda_min_m, cfg.lambda_max_m,
+            wheel_offsets_m=wheel_offsets_m,
+        )  # fmt: skip
         return f.start_m - half, f.end_m + half, f.loss
 
     merged = [(d, *fit(d.start_m, d.end_m)) for d in dips]
@@ -309,9 +314,10 @@ def process_run(
     baseline = robust_baseline(fused, step, cfg.detection.baseline_window_m)
     residual = fused - baseline
     dips, _thr = find_dips(grid, residual, cfg.detection)
-    loads = vehicle.static_axle_loads()
-    load = 0.5 * (loads[0] + loads[1])
-    spots = _soft_spots(grid, residual, dips, cfg, trk, load)
+    # the fused profile is the mean of the two measured points: each wheel carries the mean
+    # wheel load, at its offset from its point (front and rear alike for every kind)
+    load = float(np.mean(vehicle.static_wheel_loads()))
+    spots = _soft_spots(grid, residual, dips, cfg, trk, load, vehicle.axle_wheel_offsets_m[0])
     spent("the soft-spot detection")
     geometry_check = is_smooth_rail(robust_sigma(residual))
     if not geometry_check.smooth:
