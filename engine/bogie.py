@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import ParameterError
-from .vehicle import GRAVITY, _param, check_fields
+from .vehicle import GRAVITY, VehicleParams, _param, check_fields
 
 N_DOF = 10
 """Degrees of freedom of the per-rail bogie vehicle."""
@@ -268,6 +268,22 @@ class BogieParams:
         C = sum((c * np.outer(v, v) for v, _, c in links), np.zeros((N_DOF, N_DOF)))
         K[WHEEL_DOFS, WHEEL_DOFS] += self.contact_k_n_per_m
         return M, C, K
+
+    def lumped_half_car(self) -> VehicleParams:
+        """The half car a user would map this vehicle onto (each bogie one axle): body per
+        rail; axle = frame + its two wheels; suspension = the secondary in series with the
+        two primaries (static value; damping the secondary's); contact = the two wheels'
+        springs in parallel. An approximation (the bogie's own dynamics and its wheelbase are
+        lost), kept where a half-car parameter set is wanted."""
+        ks, kp = self.secondary_k_n_per_m, 2 * self.primary_k_n_per_m
+        mu = 0.5 * self.bogie_mass_kg + self.wheelset_mass_kg
+        k = ks * kp / (ks + kp)
+        return VehicleParams(
+            ms=self.ms, Is=0.5 * self.body_pitch_inertia_kgm2, mu1=mu, mu2=mu, ks1=k, ks2=k,
+            cs1=self.secondary_c_ns_per_m, cs2=self.secondary_c_ns_per_m,
+            kt1=2 * self.contact_k_n_per_m, kt2=2 * self.contact_k_n_per_m,
+            d1=self.bogie_half_spacing_m, d2=self.bogie_half_spacing_m, sensor_x_m=self.sensor_x_m,
+        )  # fmt: skip
 
     def derived(self, g: float = GRAVITY) -> dict[str, float]:
         """The whole-vehicle quantities a plausibility check looks at.

@@ -17,17 +17,19 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Run, RunInput, SoftSpot, Vehicle, VehicleVersion
 from engine.errors import ParameterError
-from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import Vehicle as EngineVehicle
+from engine.vehicle_kinds import vehicle_from_dict
 
 from .errors import Conflict, Invalid
 from .integrate import remove_run_from_track
 from .profiles import delete_profile
 
 
-def checked_params(params: dict[str, Any], field: str = "params") -> VehicleParams:
-    """The engine's vehicle from a parameter mapping; Invalid naming the parameter otherwise."""
+def checked_params(params: dict[str, Any], field: str = "params") -> EngineVehicle:
+    """The engine's vehicle (of the mapping's ``kind``, default the half car) from a
+    parameter mapping; Invalid naming the parameter otherwise."""
     try:
-        return VehicleParams.from_dict(params)
+        return vehicle_from_dict(params)
     except ParameterError as exc:
         raise Invalid.from_engine(exc, field=field) from None
 
@@ -43,7 +45,8 @@ def create_vehicle(
     vp = checked_params(params)
     if session.scalar(select(Vehicle.id).where(Vehicle.name == name)) is not None:
         raise Conflict(f"a vehicle named {name!r} already exists", field="name")
-    vehicle = Vehicle(name=name, description=description, version=1, **vp.to_dict())
+    vehicle = Vehicle(name=name, description=description, version=1)
+    vehicle.set_params(vp)
     session.add(vehicle)
     try:
         session.flush()
@@ -63,7 +66,7 @@ def create_vehicle(
 def new_version(
     session: Session,
     vehicle: Vehicle,
-    params: VehicleParams,
+    params: EngineVehicle,
     *,
     source: str,
     created_by: str | None = None,
@@ -78,8 +81,7 @@ def new_version(
     session.execute(select(Vehicle.id).where(Vehicle.id == vehicle.id).with_for_update())
     session.refresh(vehicle)
     version = vehicle.version + 1
-    for name, value in params.to_dict().items():
-        setattr(vehicle, name, value)
+    vehicle.set_params(params)
     vehicle.version = version
     session.add(
         VehicleVersion(
