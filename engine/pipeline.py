@@ -134,6 +134,27 @@ def _soft_spots(
     ]
 
 
+def _agreement(
+    front: NDArray[np.float64],
+    rear: NDArray[np.float64],
+    both: NDArray[np.bool_],
+    cfg: ProcessConfig,
+    step: float,
+) -> float:
+    """RMS difference of the front and rear profiles (mm) where both are away from their
+    band-pass ends: each profile is band-passed over its own stretch, and the common stretch
+    ends where one of them does, so its first and last ``lambda_max (1 + taper)`` metres hold
+    one profile's edge effect (millimetres on rough rail) and say nothing of agreement. A
+    common stretch too short for that is taken whole."""
+    idx = np.flatnonzero(both)
+    if idx.size == 0:
+        return float("nan")
+    edge = int(np.ceil(cfg.lambda_max_m * (1 + cfg.taper) / step))
+    if idx.size > 2 * edge + int(np.ceil(20.0 / step)):
+        idx = idx[edge:-edge]
+    return float(np.sqrt(np.mean((front[idx] - rear[idx]) ** 2)))
+
+
 @dataclass(frozen=True)
 class RunCheck:
     """What :func:`check_run` found: the run can be inverted with these values.
@@ -323,9 +344,7 @@ def process_run(
     if not geometry_check.smooth:
         # a dip may be rail geometry: depth only, never a stiffness-loss figure
         spots = [replace(s, stiffness_loss_pct=float("nan")) for s in spots]
-    agreement = (
-        float(np.sqrt(np.mean((front[both] - rear[both]) ** 2))) if both.any() else float("nan")
-    )
+    agreement = _agreement(front, rear, both, cfg, step)
     quality = Quality(
         noise_accel_mps2=sa,
         noise_pitch_rate_radps=sg,
