@@ -74,6 +74,8 @@ class BogieParams:
     """
 
     kind: ClassVar[str] = "bogie"
+    rails: ClassVar[int] = 2
+    """The datasheet is the whole vehicle: both rails."""
 
     body_mass_kg: float = _param(27000.0, "kg", "Car body mass", bounds=(1000.0, 2e5))
     body_pitch_inertia_kgm2: float = _param(

@@ -138,6 +138,8 @@ class VehicleParams:
     )  # fmt: skip
 
     kind: ClassVar[str] = "half_car"
+    rails: ClassVar[int] = 1
+    """Rails the parameters describe: the half car's are one rail's already."""
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -270,6 +272,8 @@ class VehicleModel(Protocol):
     """
 
     kind: ClassVar[str]
+    rails: ClassVar[int]
+    """Rails the parameters (a payload, a whole-vehicle mass) describe; the model is one."""
 
     @property
     def d1(self) -> float: ...

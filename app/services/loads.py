@@ -44,12 +44,14 @@ def declared_body_mass(
     """The (per-rail) body mass a declared load gives, kg (None: nothing declared; not
     checked).
 
-    A payload is carried on top of the registered body mass; the ``n`` wheels of a rail carry
+    A payload (on the whole vehicle, shared by the rails its parameters describe,
+    ``vehicle.rails``) is carried on top of the registered body mass; the ``n`` wheels of a
+    rail carry
     the body and the rest of the vehicle's mass ``m_rest``: ``n W = (ms + m_rest) g`` (the
     half car: ``2 W = (ms + mu1 + mu2) g``).
     """
     if payload_kg is not None:
-        return vehicle.ms + payload_kg
+        return vehicle.ms + payload_kg / vehicle.rails
     if static_wheel_load_n is not None:
         n = vehicle.contact_k.size
         return n * static_wheel_load_n / GRAVITY - _rest_mass(vehicle)

@@ -121,3 +121,26 @@ def test_runs_of_a_bogie_vehicle_are_processed(client) -> None:
     spots = spots["data"] if isinstance(spots, dict) else spots
     assert len(spots) == 1, spots
     assert abs(spots[0]["start_m"] - 120.0) <= 1.5 and abs(spots[0]["end_m"] - 124.2) <= 1.5
+
+
+def test_a_declared_wheel_load_sets_a_bogie_vehicles_body_mass() -> None:
+    """A run's static wheel load is per wheel for any kind: the coach at its own wheel load
+    is the coach; 10 % more per wheel is carried by the body alone (four wheels per rail);
+    a payload is on the whole vehicle, as the datasheet's body mass is."""
+    from app.services.errors import Invalid
+    from app.services.loads import loaded_vehicle
+    from engine.vehicle import GRAVITY
+
+    coach = PASSENGER_COACH
+    wheel = float(coach.static_wheel_loads()[0])
+    same = loaded_vehicle(coach, static_wheel_load_n=wheel)
+    assert same.body_mass_kg == pytest.approx(coach.body_mass_kg)
+    heavier = loaded_vehicle(coach, static_wheel_load_n=1.1 * wheel)
+    extra = 2 * 4 * 0.1 * wheel / GRAVITY  # two rails of four wheels
+    assert heavier.body_mass_kg == pytest.approx(coach.body_mass_kg + extra)
+    assert float(heavier.static_wheel_loads()[0]) == pytest.approx(1.1 * wheel)
+    loaded = loaded_vehicle(coach, payload_kg=1000.0)
+    assert loaded.body_mass_kg == pytest.approx(coach.body_mass_kg + 1000.0)
+    with pytest.raises(Invalid) as e:
+        loaded_vehicle(coach, static_wheel_load_n=5000.0)
+    assert e.value.facts["field"] == "static_wheel_load_n"
