@@ -29,7 +29,11 @@ def test_run_page_says_what_the_pass_could_not_see(page: Any, live_server: LiveS
     summary = page.locator("#run-summary")
     summary.wait_for()
     text = summary.inner_text()
-    assert text.startswith("No soft spot detected. This pass could not see losses below")
+    # smooth rail: "No soft spot detected."; a noisy pass the rail check calls rough says no
+    # dip beyond its limit instead (it cannot tell supports from geometry): either way the
+    # limit follows
+    assert text.startswith(("No soft spot detected. ", "No dip beyond this pass's detection"))
+    assert "This pass could not see losses below" in text
     assert f"{loss3:.0f} % over 3 m" in text and "over 6 m" in text
     page.watch.assert_clean()
 

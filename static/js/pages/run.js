@@ -128,7 +128,7 @@ export async function render(main, [id]) {
       : `${plural(spots.length, "dip")} deeper than this pass's detection limit (deepest ${deepest} mm), listed by depth only: this pass alone cannot tell a soft support from the rail's own geometry.`;
   } else {
     said = spots.length === 0
-      ? "No soft spot detected on this run."
+      ? "No soft spot detected."
       : `${plural(spots.length, "soft spot")} detected — shaded in orange on the profile below, deepest ${deepest} mm.`;
   }
   const summary = h("p", { class: "summary", id: "run-summary" }, unseen ? `${said} ${unseen}` : said);
