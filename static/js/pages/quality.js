@@ -16,11 +16,12 @@ function sectionTraces(q) {
   const secs = q.sections.filter((s) => s.d1_sd_mm !== null);
   return Object.keys(CLASS_COLORS).map((cls) => {
     const mine = secs.filter((s) => s.quality_class === cls);
+    // one filled step per section (start to end at its SD; null between sections): the
+    // dashboard's plotly bundle has scatter and heatmap only, no bar trace
     return {
-      type: "bar", name: `Class ${cls}`, meta: `class-${cls}`,
-      x: mine.map((s) => (s.start_m + s.end_m) / 2), y: mine.map((s) => s.d1_sd_mm),
-      width: mine.map((s) => s.end_m - s.start_m), text: mine.map(() => cls), textposition: "inside",
-      marker: { color: CLASS_COLORS[cls], line: { color: "#1b1f24", width: 1 } },
+      type: "scatter", mode: "lines", fill: "tozeroy", connectgaps: false, name: `Class ${cls}`, meta: `class-${cls}`,
+      x: mine.flatMap((s) => [s.start_m, s.end_m, null]), y: mine.flatMap((s) => [s.d1_sd_mm, s.d1_sd_mm, null]),
+      line: { color: "#1b1f24", width: 1 }, fillcolor: CLASS_COLORS[cls],
       hovertemplate: `%{x:.0f} m: D1 SD %{y:.2f} mm (class ${cls})<extra></extra>`,
     };
   }).filter((t) => t.x.length);
