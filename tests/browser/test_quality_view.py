@@ -60,7 +60,8 @@ def test_quality_view_shows_classes_levels_and_exceedances(
     wait_for_plot(page, "#quality-levels", 2)
     wait_for_plot(page, "#quality-classes", 1)
     bars = page.evaluate(
-        "() => document.getElementById('quality-classes').data.map(t => [t.meta, t.x.filter(v => v !== null).length / 2])"
+        "() => document.getElementById('quality-classes').data"
+        ".map(t => [t.meta, t.x.filter(v => v !== null).length / 2])"
     )
     want: dict[str, int] = {}
     for s in q["sections"]:
