@@ -32,7 +32,7 @@ def _track(client: Any) -> dict[str, Any]:
 def test_upgrade_moves_the_aggregate_value_for_value(start_app, settings, synthetic_run) -> None:
     client = start_app(start_worker=False)
     for k, start in enumerate((12.0, 12.5)):
-        r = upload(client, synthetic_run["csv"], track="G", start_chainage_m=start,
+        r = upload(client, synthetic_run["csv"] + b"\n" * k, track="G", start_chainage_m=start,
                    recorded_at=f"2026-11-0{k + 1}T08:00:00Z")  # fmt: skip
         assert r.json()["status"] == "done", r.text
     before = _track(client)
