@@ -211,6 +211,10 @@ def test_track_view_draws_chainage_map_and_zone_table(
     assert drawn["markers"] == n_spots and drawn["points"] >= n_spots
     assert drawn["rows"] == len(demo_track)
     rows = page.locator("#zone-table tbody tr")
+    # the register answers after the chart is drawn (it detects on the combined passes too)
+    page.wait_for_function(
+        "n => document.querySelectorAll('#zone-table tbody tr').length === n", arg=len(defects)
+    )
     assert rows.count() == len(defects)
     seen = f"single pass: {len(demo_track)} passes"  # the evidence column
     assert any(seen in t for t in rows.all_inner_texts()), rows.all_inner_texts()
