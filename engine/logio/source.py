@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import IO, Any, BinaryIO
 
 from ..errors import InputTooLarge, LogFormatError
+from .limits import MAX_LINE_CHARS
 
 MAX_DECOMPRESSED_BYTES = 1 << 30
 """Largest gzip-decompressed size accepted, bytes (a guard against decompression bombs)."""
@@ -50,29 +51,82 @@ def _read_source(source: Source, max_bytes: int | None = None) -> bytes | bytear
     return data
 
 
-def _gunzip(data: bytes | bytearray, limit: int | None = None) -> bytes:
+_GUNZIP_CHUNK = 1 << 20
+"""Decompressed bytes read at a time, B."""
+_LONGEST_LINE_BYTES = 2 * MAX_LINE_CHARS
+"""A line of more bytes is over :data:`MAX_LINE_CHARS` in every encoding read (1 or 2 bytes
+per character): refused while decompressing, before the rest of the file is kept."""
+
+
+def _gunzip(data: bytes | bytearray, limit: int | None = None) -> bytes | bytearray:
     """Decompress gzip data, refusing more than ``limit`` (default MAX_DECOMPRESSED_BYTES).
 
     :mod:`gzip` reads every member of a multi-member file and skips zero padding between
     them; the limit counts exactly what it yields (a pre-check that stopped at the padding
     let the rest through unmeasured), after at most ``limit + 1`` bytes.
+
+    Decompressed a chunk at a time: a line over :data:`_LONGEST_LINE_BYTES` is refused as soon
+    as it is seen, and the rest of it is only counted, never kept (a 40 kB gzip of one 40 MB
+    line held the whole line, three uploads at once 120 MB, to refuse it afterwards).
     """
     cap = MAX_DECOMPRESSED_BYTES if limit is None else limit
+    out = bytearray()
+    line_start = 0  # offset in ``out`` where the current line starts
     try:
         with gzip.GzipFile(fileobj=io.BytesIO(data)) as gz:
-            out = gz.read(cap + 1)
+            while len(out) <= cap:
+                chunk = gz.read(min(_GUNZIP_CHUNK, cap + 1 - len(out)))
+                if not chunk:
+                    break
+                at = len(out)
+                out += chunk
+                last = max(chunk.rfind(b"\n"), chunk.rfind(b"\r"))
+                if last >= 0:
+                    line_start = at + last + 1
+                elif len(out) - line_start > _LONGEST_LINE_BYTES and out[:2] != _GZIP_MAGIC:
+                    _refuse_long_line(gz, out, line_start, cap, limit is None)
     except (OSError, EOFError, zlib.error) as e:
         raise LogFormatError(f"the gzip-compressed file is corrupt or truncated ({e})") from None
     if len(out) > cap:
-        raise InputTooLarge(
-            f"the gzip-compressed file expands to more than {cap / 1e6:g} MB, over "
-            f"{'MAX_DECOMPRESSED_BYTES' if limit is None else 'the upload limit'}, which applies "
-            "to the CSV itself: split the run into shorter logs",
-            limit_bytes=cap,
-        )
+        _too_large(cap, limit is None)
     if out[:2] == _GZIP_MAGIC:
         raise LogFormatError("the file is gzip-compressed twice: compress the CSV only once")
     return out
+
+
+def _refuse_long_line(
+    gz: gzip.GzipFile, out: bytearray, line_start: int, cap: int, default_cap: bool
+) -> None:
+    """Raise for the over-long line starting at ``line_start``, counting the rest of it from
+    ``gz`` without keeping it (a file expanding past the cap meanwhile is refused for that)."""
+    # a file with \r line ends alone numbers its lines by \r (as engine.logio.limits does)
+    breaks = out.count(b"\n", 0, line_start) or out.count(b"\r", 0, line_start)
+    size = len(out) - line_start
+    total = len(out)
+    while chunk := gz.read(min(_GUNZIP_CHUNK, cap + 1 - total)):
+        ends = [i for i in (chunk.find(b"\n"), chunk.find(b"\r")) if i >= 0]
+        if ends:
+            size += min(ends)
+            break
+        size += len(chunk)
+        total += len(chunk)
+    if total > cap:  # the size limit is the answer when both hold
+        _too_large(cap, default_cap)
+    line = breaks + 1
+    raise LogFormatError(
+        f"line {line} is {size} bytes long; any line may have at most {MAX_LINE_CHARS} "
+        "characters: is this a CSV run log with one sample per line?",
+        row=line,
+    )
+
+
+def _too_large(cap: int, default_cap: bool) -> None:
+    raise InputTooLarge(
+        f"the gzip-compressed file expands to more than {cap / 1e6:g} MB, over "
+        f"{'MAX_DECOMPRESSED_BYTES' if default_cap else 'the upload limit'}, which applies "
+        "to the CSV itself: split the run into shorter logs",
+        limit_bytes=cap,
+    )
 
 
 def _gunzip_head(data: bytes | bytearray, size: int) -> tuple[bytes, bool]:

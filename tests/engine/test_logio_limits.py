@@ -108,7 +108,7 @@ def test_header_fields_counts_any_delimiter() -> None:
 def test_gunzip_bounded_reads_every_member_and_counts_them() -> None:
     """Multi-member gzip with zero padding between members is read whole (as gzip does) and
     refused past the limit after decompressing at most limit + 1 bytes."""
-    member = gzip.compress(b"1" * 600_000)
+    member = gzip.compress((b"1" * 99 + b"\n") * 6_000)
     assert len(gunzip_bounded(member + b"\x00" + member, 2_000_000)) == 1_200_000
     with pytest.raises(InputTooLarge) as e:
         gunzip_bounded(member + b"\x00\x00" + member, 1_000_000)
@@ -117,11 +117,32 @@ def test_gunzip_bounded_reads_every_member_and_counts_them() -> None:
         gunzip_bounded(member[:50], 1_000_000)
     with pytest.raises(LogFormatError, match="twice"):
         gunzip_bounded(gzip.compress(member), 10_000_000)
-    bomb = gzip.compress(b"0" * 50_000_000)
+    bomb = gzip.compress(b"0" * 50_000_000)  # one line, also refused for its size
     t0 = time.perf_counter()
     with pytest.raises(InputTooLarge):
         gunzip_bounded(bomb, 2_000_000)
     assert time.perf_counter() - t0 < 0.5
+
+
+def test_gunzip_refuses_a_long_line_without_keeping_it() -> None:
+    """A gzip'd 40 MB line is refused while decompressing: its line and full length named,
+    and the decompressor never holds more than a few MB (not the 40 MB line)."""
+    data = b"# logger\n" + HEADER + b"0," * 20_000_000 + b"0\n" + ROW
+    packed = gzip.compress(data)
+    tracemalloc.start()
+    try:
+        with pytest.raises(LogFormatError) as e:
+            _gunzip(packed, 100_000_000)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert e.value.row == 3
+    assert "40000001 bytes" in str(e.value)
+    assert peak < 8_000_000, peak
+    cr = gzip.compress(data.replace(b"\n", b"\r"))
+    with pytest.raises(LogFormatError) as e:
+        _gunzip(cr, 100_000_000)
+    assert e.value.row == 3
 
 
 def test_the_reader_refuses_the_long_line_before_splitting() -> None:
