@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from .errors import InversionError
 from .runlog import RunLog
 from .spectral import band_window
-from .vehicle import VehicleParams
+from .vehicle import VehicleModel
 
 GRID_STEP_M = 0.25
 """The product's chainage grid step, m: profiles are resampled to it (the finest allowed), the
@@ -29,7 +29,7 @@ class AxlePositions:
 
 
 def axle_positions(
-    log: RunLog, vehicle: VehicleParams, start_chainage_m: float | None, direction: str
+    log: RunLog, vehicle: VehicleModel, start_chainage_m: float | None, direction: str
 ) -> AxlePositions:
     """Chainage of body centre and axles at each sample.
 
@@ -37,7 +37,7 @@ def axle_positions(
     ----------
     log : RunLog
         The run; its chainage column is used if present, otherwise its speed is integrated.
-    vehicle : VehicleParams
+    vehicle : VehicleModel
         Gives the axle distances ``d1`` (front, ahead) and ``d2`` (rear, behind), m.
     start_chainage_m : float or None
         Chainage of the body centre at the first sample, m (required without a chainage

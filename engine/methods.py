@@ -17,10 +17,11 @@ from numpy.typing import NDArray
 
 from .chainage import AxlePositions, bandpass_distance, to_grid
 from .direct import direct_inverse, filtered_direct_inverse
+from .errors import ParameterError
 from .optimisation import windowed_least_squares
 from .runlog import RunLog
 from .spectral import BandSpectrum, estimate_white_noise, spectral_inverse
-from .vehicle import VehicleParams
+from .vehicle import VehicleModel, VehicleParams
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,7 @@ class MethodInput:
         Regular chainage grid of the profile, m (increasing).
     step_m : float
         Its step, m.
-    vehicle : VehicleParams
+    vehicle : VehicleModel
         The logging vehicle.
     f_lo_hz, f_hi_hz : float
         Time-frequency band of the inversion, Hz (from :func:`engine.pipeline.check_run`).
@@ -51,7 +52,7 @@ class MethodInput:
     positions: AxlePositions
     grid: NDArray[np.float64]
     step_m: float
-    vehicle: VehicleParams
+    vehicle: VehicleModel
     f_lo_hz: float
     f_hi_hz: float
     lambda_min_m: float
@@ -141,7 +142,8 @@ def _axle_delays(m: MethodInput, most: int = 64) -> NDArray[np.float64]:
     body = m.positions.body
     speed = np.abs(np.gradient(body)) / m.log.dt
     pick = np.linspace(0, body.size - 1, min(most, body.size)).astype(np.intp)
-    out: NDArray[np.float64] = m.vehicle.wheelbase / np.maximum(speed[pick], 1e-3)
+    spacing = np.abs(m.positions.front[pick] - m.positions.rear[pick])  # any vehicle kind
+    out: NDArray[np.float64] = spacing / np.maximum(speed[pick], 1e-3)
     return out
 
 
@@ -160,19 +162,32 @@ def wiener(m: MethodInput) -> Inversion:
     )  # fmt: skip
 
 
+def _half_car(m: MethodInput, method: str) -> VehicleParams:
+    """The half car of a method whose algebra is the half car's (the paper's recursion)."""
+    if not isinstance(m.vehicle, VehicleParams):
+        raise ParameterError(
+            f"the {method} method needs a half-car vehicle, got kind {m.vehicle.kind!r} "
+            "(use the spectral or least-squares method)",
+            field="method",
+        )
+    return m.vehicle
+
+
 def filtered_direct(m: MethodInput) -> Inversion:
-    """Time-domain direct inversion with band-limited integration."""
+    """Time-domain direct inversion with band-limited integration (half car only)."""
     log = m.log
     res = filtered_direct_inverse(
-        log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz
-    )
+        log.accel_z_mps2, log.pitch_rate_radps, log.dt, _half_car(m, "filtered-direct"),
+        m.f_lo_hz, m.f_hi_hz,
+    )  # fmt: skip
     return _from_samples(m, res.y_front, res.y_rear, *_noise(log))
 
 
 def direct(m: MethodInput) -> Inversion:
-    """Time-domain direct inversion (Newmark), no band limit inside the integration."""
+    """Time-domain direct inversion (Newmark), no band limit inside the integration (half
+    car only)."""
     log = m.log
-    res = direct_inverse(log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle)
+    res = direct_inverse(log.accel_z_mps2, log.pitch_rate_radps, log.dt, _half_car(m, "direct"))
     return _from_samples(m, res.y_front, res.y_rear, *_noise(log))
 
 

@@ -12,28 +12,28 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.signal import cont2discrete
 
-from .vehicle import VehicleParams
+from .vehicle import VehicleModel
 
 
 def _discrete_vehicle(
-    vehicle: VehicleParams, dt: float
+    vehicle: VehicleModel, dt: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Bilinear (Newmark average-acceleration) discretisation of the half-car.
+    """Bilinear (Newmark average-acceleration) discretisation of the vehicle (any kind).
 
-    State ``[q, q']`` (8), input ``[y1, y2]`` (m), output ``[a (m/s²), pitch rate (rad/s)]``
-    with ``a`` the body acceleration at the accelerometer.
+    State ``[q, q']`` (2n), input ``[y1, y2]`` (m, the levels under the two measured
+    points), output ``[a (m/s²), pitch rate (rad/s)]`` with ``a`` the body acceleration at
+    the accelerometer.
     """
     M, C, K = vehicle.matrices()
+    n = M.shape[0]
     Minv = np.linalg.inv(M)
-    F = np.zeros((4, 2))
-    F[2, 0] = vehicle.kt1
-    F[3, 1] = vehicle.kt2
-    A = np.block([[np.zeros((4, 4)), np.eye(4)], [-Minv @ K, -Minv @ C]])
-    B = np.vstack([np.zeros((4, 2)), Minv @ F])
+    F = vehicle.axle_input()
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ C]])
+    B = np.vstack([np.zeros((n, 2)), Minv @ F])
     # measured acceleration: at the accelerometer, sensor_x_m ahead of the CG
     x = vehicle.sensor_x_m
-    Cout = np.vstack([A[4] + x * A[5], np.eye(8)[5]])
-    Dout = np.vstack([B[4] + x * B[5], np.zeros(2)])
+    Cout = np.vstack([A[n] + x * A[n + 1], np.eye(2 * n)[n + 1]])
+    Dout = np.vstack([B[n] + x * B[n + 1], np.zeros(2)])
     Ad, Bd, Cd, Dd, _ = cont2discrete((A, B, Cout, Dout), dt, method="bilinear")
     return Ad, Bd, Cd, Dd
 
@@ -45,7 +45,7 @@ def windowed_least_squares(
     x_front: NDArray[np.float64],
     x_rear: NDArray[np.float64],
     grid: NDArray[np.float64],
-    vehicle: VehicleParams,
+    vehicle: VehicleModel,
     *,
     window_s: float = 4.0,
     smoothing: float = 1e-3,
@@ -62,8 +62,8 @@ def windowed_least_squares(
         Chainage of each axle at each sample, m (increasing).
     grid : ndarray
         Regular chainage grid of the profile, m.
-    vehicle : VehicleParams
-        The half-car.
+    vehicle : VehicleModel
+        Any vehicle kind.
     window_s : float
         Length of each fitted window, s; windows overlap by half and the middle half is kept.
     smoothing : float

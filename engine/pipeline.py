@@ -20,7 +20,7 @@ from .results import ProcessResult, Quality, SoftSpot
 from .runlog import RunLog
 from .stiffness import fit_zone
 from .track import TrackParams
-from .vehicle import TABLE1, VehicleParams
+from .vehicle import TABLE1, VehicleModel
 from .vehicle_plausibility import check_result
 from .visibility import detection_limit
 from .wheel_force import dynamic_wheel_forces, force_spectrum
@@ -98,14 +98,19 @@ def _soft_spots(
     cfg: ProcessConfig,
     trk: TrackParams,
     load: float,
+    wheel_offsets_m: tuple[float, ...] = (0.0,),
 ) -> list[SoftSpot]:
-    """Fit each dip with the beam model; dips whose fitted zones overlap become one zone."""
+    """Fit each dip with the beam model (``load`` N on each wheel of a measured point, at
+    ``wheel_offsets_m`` from it); dips whose fitted zones overlap become one zone."""
     if not cfg.fit_stiffness:
         return [SoftSpot(d.start_m, d.end_m, d.peak_m, d.depth_mm, float("nan")) for d in dips]
     half = 0.5 * trk.spacing
 
     def fit(a: float, b: float) -> tuple[float, float, float]:
-        f = fit_zone(grid, residual, a, b, trk, load, cfg.lambda_min_m, cfg.lambda_max_m)
+        f = fit_zone(
+            grid, residual, a, b, trk, load, cfg.lambda_min_m, cfg.lambda_max_m,
+            wheel_offsets_m=wheel_offsets_m,
+        )  # fmt: skip
         return f.start_m - half, f.end_m + half, f.loss
 
     merged = [(d, *fit(d.start_m, d.end_m)) for d in dips]
@@ -136,6 +141,27 @@ def _soft_spots(
         )
         for d, a, b, loss in merged
     ]
+
+
+def _agreement(
+    front: NDArray[np.float64],
+    rear: NDArray[np.float64],
+    both: NDArray[np.bool_],
+    cfg: ProcessConfig,
+    step: float,
+) -> float:
+    """RMS difference of the front and rear profiles (mm) where both are away from their
+    band-pass ends: each profile is band-passed over its own stretch, and the common stretch
+    ends where one of them does, so its first and last ``lambda_max (1 + taper)`` metres hold
+    one profile's edge effect (millimetres on rough rail) and say nothing of agreement. A
+    common stretch too short for that is taken whole."""
+    idx = np.flatnonzero(both)
+    if idx.size == 0:
+        return float("nan")
+    edge = int(np.ceil(cfg.lambda_max_m * (1 + cfg.taper) / step))
+    if idx.size > 2 * edge + int(np.ceil(20.0 / step)):
+        idx = idx[edge:-edge]
+    return float(np.sqrt(np.mean((front[idx] - rear[idx]) ** 2)))
 
 
 @dataclass(frozen=True)
@@ -171,7 +197,7 @@ class RunCheck:
         log: RunLog,
         start_chainage_m: float | None,
         direction: str,
-        vehicle: VehicleParams,
+        vehicle: VehicleModel,
         config: ProcessConfig,
     ) -> bool:
         """Whether this check stands for ``log`` (the same object) with these parameters."""
@@ -187,7 +213,7 @@ def check_run(
     *,
     start_chainage_m: float | None = None,
     direction: str = "increasing",
-    vehicle: VehicleParams = TABLE1,
+    vehicle: VehicleModel = TABLE1,
     config: ProcessConfig | None = None,
 ) -> RunCheck:
     """Check up front that a log can be inverted, without inverting it (cheap, O(n)).
@@ -232,7 +258,7 @@ def process_run(
     *,
     start_chainage_m: float | None = None,
     direction: str = "increasing",
-    vehicle: VehicleParams = TABLE1,
+    vehicle: VehicleModel = TABLE1,
     track: TrackParams | None = None,
     config: ProcessConfig | None = None,
     budget: TimeBudget | None = None,
@@ -248,7 +274,7 @@ def process_run(
         Chainage of the body centre at the first sample, m (needed without a chainage column).
     direction : {"increasing", "decreasing"}
         Direction of travel.
-    vehicle : VehicleParams
+    vehicle : VehicleModel
         Parameters of the logging vehicle.
     track : TrackParams, optional
         Nominal track properties (for stiffness-loss estimates); default UIC60 on 80 kN/mm.
@@ -320,9 +346,10 @@ def process_run(
     baseline = robust_baseline(fused, step, cfg.detection.baseline_window_m)
     residual = fused - baseline
     dips, thr = find_dips(grid, residual, cfg.detection)
-    loads = vehicle.static_axle_loads()
-    load = 0.5 * (loads[0] + loads[1])
-    spots = _soft_spots(grid, residual, dips, cfg, trk, load)
+    # the fused profile is the mean of the two measured points: each wheel carries the mean
+    # wheel load, at its offset from its point (front and rear alike for every kind)
+    load = float(np.mean(vehicle.static_wheel_loads()))
+    spots = _soft_spots(grid, residual, dips, cfg, trk, load, vehicle.axle_wheel_offsets_m[0])
     limit = detection_limit(
         thr, params=trk, load=load, lambda_min_m=cfg.lambda_min_m,
         lambda_max_m=cfg.lambda_max_m, taper=cfg.taper, step_m=step,
@@ -336,9 +363,7 @@ def process_run(
     if not geometry_check.smooth:
         # a dip may be rail geometry: depth only, never a stiffness-loss figure
         spots = [replace(s, stiffness_loss_pct=float("nan")) for s in spots]
-    agreement = (
-        float(np.sqrt(np.mean((front[both] - rear[both]) ** 2))) if both.any() else float("nan")
-    )
+    agreement = _agreement(front, rear, both, cfg, step)
     quality = Quality(
         noise_accel_mps2=sa,
         noise_pitch_rate_radps=sg,

@@ -48,7 +48,9 @@ class Quality:
     noise_pitch_rate_radps : float
         Estimated white-noise level of the gyroscope, rad/s RMS.
     axle_agreement_mm : float
-        RMS difference between front- and rear-axle profiles where both cover the track, mm.
+        RMS difference between front- and rear-axle profiles where both cover the track,
+        away from the band-pass's ends (``lambda_max (1 + taper)`` at each end of the common
+        stretch), mm.
     coverage_m : float
         Length of track covered by the fused profile, m.
     speed_min_mps, speed_max_mps : float

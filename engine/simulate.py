@@ -1,13 +1,14 @@
 """Coupled vehicle-track forward simulation (Newmark-beta, moving contact).
 
-The half-car (:mod:`engine.vehicle`) rides on the FE rail (:mod:`engine.beam`) through two
-linear contact springs. The coupled matrices change every step only through the two contact
-points, so the rail is factorised once (banded Cholesky) and the contact enters each step as a
-rank-2 (Woodbury) update: one banded solve per step, whatever the track length.
+Any vehicle kind (:mod:`engine.vehicle_kinds`: the half car, the bogie vehicle) rides on the
+FE rail (:mod:`engine.beam`) through one linear contact spring per wheel. The coupled matrices
+change every step only through the contact points, so the rail is factorised once (banded
+Cholesky) and the contact enters each step as a low-rank (Woodbury) update, rank the number
+of wheels: one banded solve per step, whatever the track length.
 
 Coordinates are total (gravity acts on the vehicle), so the contact force is
-``kt_i * (y_i - u_ui)`` (compression positive) and the rail level under wheel ``i`` is
-``y_i = N_i(x_i) w + r(x_i)`` (m, positive up).
+``kt_i * (y_i - u_i)`` (compression positive, ``u_i`` the wheel's DOF) and the rail level
+under wheel ``i`` is ``y_i = N_i(x_i) w + r(x_i)`` (m, positive up).
 
 One module of about 500 lines: the time stepper and the contact update it calls every step are
 one algorithm; the result object and the input checks are what make up the rest.
@@ -30,7 +31,7 @@ from .beam import BANDWIDTH, RailMatrices, assemble_rail
 from .errors import ParameterError
 from .newmark import Newmark
 from .track import Track
-from .vehicle import GRAVITY, TABLE1, VehicleParams
+from .vehicle import TABLE1, VehicleModel
 
 Speed = float | Callable[[NDArray[np.float64]], NDArray[np.float64]] | NDArray[np.float64]
 """Constant speed (m/s), a function of time (s -> m/s), or one speed per output sample."""
@@ -46,13 +47,13 @@ def room_to_run(
     length_m: float,
     start_chainage_m: float,
     direction: str,
-    vehicle: VehicleParams,
+    vehicle: VehicleModel,
     end_margin_m: float = END_MARGIN_M,
 ) -> float:
     """How far the vehicle can travel before its leading axle is ``end_margin_m`` from the end.
 
-    The leading axle is the front one in either direction (``d1`` ahead of the body centre);
-    the rear axle (``d2`` behind) must start on the track.
+    The leading axle is the front one in either direction (the vehicle's foremost wheel, ``d1``
+    ahead of the body centre for the half car); the rearmost wheel must start on the track.
 
     Parameters
     ----------
@@ -62,8 +63,8 @@ def room_to_run(
         Body-centre chainage at the start, m.
     direction : {"increasing", "decreasing"}
         Direction of travel.
-    vehicle : VehicleParams
-        The vehicle (axle distances ``d1``, ``d2``, m).
+    vehicle : VehicleModel
+        The vehicle (its wheels' offsets from the body centre, m).
     end_margin_m : float
         Distance kept to the end of the track, m.
 
@@ -86,14 +87,15 @@ def room_to_run(
             field="start_chainage_m",
         )
     sign = 1.0 if direction == "increasing" else -1.0
-    rear = start_chainage_m - sign * vehicle.d2
+    behind = -float(vehicle.wheel_offsets_m.min())
+    rear = start_chainage_m - sign * behind
     if not 0.0 <= rear <= length_m:
         raise ParameterError(
-            f"the rear axle would start off the track: start_chainage_m must leave {vehicle.d2} m "
-            "(the vehicle's d2) behind the body centre",
+            f"the rear axle would start off the track: start_chainage_m must leave {behind:g} m "
+            "(the vehicle's rearmost wheel) behind the body centre",
             field="start_chainage_m",
         )
-    lead = start_chainage_m + sign * vehicle.d1
+    lead = start_chainage_m + sign * float(vehicle.wheel_offsets_m.max())
     room = (length_m - end_margin_m - lead) if sign > 0 else (lead - end_margin_m)
     if room <= 0:
         raise ParameterError(
@@ -112,7 +114,8 @@ class SimulationResult:
     t : ndarray
         Time, s, starting at 0.
     x_body, x_front, x_rear : ndarray
-        Chainage of the body centre, front and rear axle, m.
+        Chainage of the body centre and of the front and rear measured point (the half
+        car's axles, a bogie vehicle's bogie centres), m.
     speed : ndarray
         Speed, m/s.
     accel : ndarray
@@ -120,15 +123,20 @@ class SimulationResult:
         of the centre of gravity: ``ü_s + sensor_x_m · θ̈_s``), m/s², positive up.
     pitch_rate : ndarray
         Body pitch rate, rad/s, positive nose-up.
-    q, qd, qdd : ndarray, shape (n, 4)
-        Vehicle DOFs ``[u_s (m), theta_s (rad), u_u1 (m), u_u2 (m)]`` (total, gravity
-        included) and their first and second time derivatives.
+    q, qd, qdd : ndarray, shape (n, n_dof)
+        Vehicle DOFs (the kind's; the half car's ``[u_s (m), theta_s (rad), u_u1 (m),
+        u_u2 (m)]``; always body bounce and pitch first), total (gravity included), and their
+        first and second time derivatives.
     y_front, y_rear : ndarray
-        True loaded rail level under the front and rear wheel, m, positive up.
+        True loaded rail level under the front and rear measured point (a bogie: the mean of
+        its two wheels' levels), m, positive up.
     contact_front, contact_rear : ndarray
-        Wheel-rail contact force, N, compression positive.
+        Contact force of the front and rear measured point (a bogie: both its wheels), N,
+        compression positive.
     rail_w : ndarray or None
         Rail deflection DOFs at every step, shape (n, n_nodes), m (only if requested).
+    x_wheels, y_wheels, contact_wheels : ndarray, shape (n_wheels, n)
+        Every wheel's chainage (m), loaded rail level (m) and contact force (N).
     """
 
     t: NDArray[np.float64]
@@ -149,6 +157,9 @@ class SimulationResult:
     direction: str
     rail_w: NDArray[np.float64] | None = None
     meta: dict[str, object] = field(default_factory=dict)
+    x_wheels: NDArray[np.float64] | None = None
+    y_wheels: NDArray[np.float64] | None = None
+    contact_wheels: NDArray[np.float64] | None = None
 
     @property
     def dt(self) -> float:
@@ -180,41 +191,42 @@ def _positions(
 
 
 def _static_state(
-    vehicle: VehicleParams, rail: RailMatrices, track: Track, x1: float, x2: float
+    vehicle: VehicleModel, rail: RailMatrices, track: Track, xw: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Static equilibrium of the coupled system with the wheels at ``x1``, ``x2``."""
+    """Static equilibrium of the coupled system with the wheels at ``xw`` (m)."""
     _, _, Kv = vehicle.matrices()
+    nv = vehicle.n_dof
     nr = rail.n_dof
     rows: list[NDArray[np.intp]] = []
     cols: list[NDArray[np.intp]] = []
     vals: list[NDArray[np.float64]] = []
     kr = rail.to_sparse(rail.K).tocoo()
-    rows.append(kr.row + 4)
-    cols.append(kr.col + 4)
+    rows.append(kr.row + nv)
+    cols.append(kr.col + nv)
     vals.append(kr.data)
-    iv, jv = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    iv, jv = np.meshgrid(np.arange(nv), np.arange(nv), indexing="ij")
     rows.append(iv.ravel())
     cols.append(jv.ravel())
     vals.append(Kv.ravel())
-    F = np.zeros(4 + nr)
-    F[:4] = -GRAVITY * np.array([vehicle.ms, 0.0, vehicle.mu1, vehicle.mu2])
-    for axle, x, kt in ((2, x1, vehicle.kt1), (3, x2, vehicle.kt2)):
+    F = np.zeros(nv + nr)
+    F[:nv] = vehicle.gravity_load()
+    for dof, x, kt in zip(vehicle.contact_dofs, xw, vehicle.contact_k, strict=True):
         d0, shape = rail.locate(np.array([x]))
-        dofs = 4 + d0[0] + np.arange(4)
+        dofs = nv + d0[0] + np.arange(4)
         nvec = shape[0]
         r = float(track.rail_irregularity(np.array([x]))[0])
         ii, jj = np.meshgrid(dofs, dofs, indexing="ij")
-        rows += [ii.ravel(), np.full(4, axle), dofs]
-        cols += [jj.ravel(), dofs, np.full(4, axle)]
+        rows += [ii.ravel(), np.full(4, dof), dofs]
+        cols += [jj.ravel(), dofs, np.full(4, dof)]
         vals += [kt * np.outer(nvec, nvec).ravel(), -kt * nvec, -kt * nvec]
-        F[axle] += kt * r
+        F[dof] += kt * r
         F[dofs] -= kt * nvec * r
     K = sp.coo_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-        shape=(4 + nr, 4 + nr),
+        shape=(nv + nr, nv + nr),
     )
     q = spla.spsolve(K.tocsc(), F)
-    return q[:4], q[4:]
+    return q[:nv], q[nv:]
 
 
 class _RailWindow:
@@ -297,7 +309,7 @@ class _RailWindow:
             cols, info = dpbtrs(self.chol, rhs, lower=0)
             if info != 0:  # pragma: no cover - LAPACK argument error
                 raise RuntimeError(f"dpbtrs failed with info={info}")
-            if len(self._green) > 8:
+            if len(self._green) > 16:
                 self._green.clear()
             self._green[first] = cols
         return cols
@@ -306,7 +318,7 @@ class _RailWindow:
 def simulate(
     track: Track,
     *,
-    vehicle: VehicleParams = TABLE1,
+    vehicle: VehicleModel = TABLE1,
     speed: Speed = 20.0,
     duration: float | None = None,
     start_chainage_m: float = 0.0,
@@ -323,8 +335,8 @@ def simulate(
     ----------
     track : Track
         The track: rail, support stiffness per support, irregularity.
-    vehicle : VehicleParams
-        The half-car (default: Table 1).
+    vehicle : VehicleModel
+        Any vehicle kind (:mod:`engine.vehicle_kinds`; default: the Table 1 half car).
     speed : float, callable or ndarray
         Speed, m/s: constant, a function of time ``v(t)`` (t in s), or one value per step.
     duration : float, optional
@@ -363,8 +375,10 @@ def simulate(
     (zero velocity and acceleration), so only the small transient of moving versus static
     load remains. Each step solves the coupled equations in acceleration form,
     ``(M + gamma dt C + beta dt² K(t)) a = F - C v~ - K(t) u~`` with the predictors
-    ``u~, v~``; the vehicle block is eliminated (4x4) and the rail block is the banded
-    factorisation plus a rank-2 Woodbury correction for the two contact springs.
+    ``u~, v~``; the vehicle block is eliminated (its own small matrix) and the rail block is
+    the banded factorisation plus a Woodbury correction of rank the number of wheels (each
+    wheel's force at its own position on the rail: a bogie's two wheels superpose their
+    deflection basins).
     """
     if window_m is not None and not (np.isfinite(window_m) and window_m >= 10.0):
         raise ParameterError(f"window_m must be >= 10 m or None, got {window_m}")
@@ -386,10 +400,10 @@ def simulate(
     n_steps = int(np.floor(duration / dt + 1e-9)) + 1
     v, s = _positions(speed, n_steps, dt)
     xb = start_chainage_m + sign * s
-    x1 = xb + sign * vehicle.d1
-    x2 = xb - sign * vehicle.d2
-    lo = min(x1.min(), x2.min())
-    hi = max(x1.max(), x2.max())
+    offsets = vehicle.wheel_offsets_m
+    n_w = offsets.size
+    xw = xb[None, :] + sign * offsets[:, None]  # (n_w, n): every wheel's chainage
+    lo, hi = float(xw.min()), float(xw.max())
     if lo < 0.0 or hi > L:
         raise ParameterError(
             f"an axle leaves the track: axles span {lo:.2f}..{hi:.2f} m, track is 0..{L:.2f} m "
@@ -398,91 +412,86 @@ def simulate(
 
     rail = assemble_rail(track)
     Mv, Cv, Kv = vehicle.matrices()
-    kt = np.array([vehicle.kt1, vehicle.kt2])
-    Fg = -GRAVITY * np.array([vehicle.ms, 0.0, vehicle.mu1, vehicle.mu2])
+    nv = vehicle.n_dof
+    cd = vehicle.contact_dofs
+    kt = vehicle.contact_k
+    Fg = vehicle.gravity_load()
 
     bdt2, gdt = nm.bdt2, nm.gdt
     Ar_band = rail.M + gdt * rail.C + bdt2 * rail.K
     Av = Mv + gdt * Cv + bdt2 * Kv
     Av_inv = np.linalg.inv(Av)
-    G = Av_inv[2:4, 2:4]
+    G = Av_inv[np.ix_(cd, cd)]
     Kt = np.diag(kt)
     S = bdt2 * Kt - bdt2**2 * Kt @ G @ Kt
-    Av_inv_ax_kt = bdt2 * Av_inv[:, 2:4] * kt  # (4, 2): A_v^-1 E Kt * beta dt²
+    Av_inv_ax_kt = bdt2 * Av_inv[:, cd] * kt  # (nv, n_w): A_v^-1 E Kt * beta dt²
 
-    e1g, sh1 = rail.locate(x1)
-    e2g, sh2 = rail.locate(x2)
-    r1 = track.rail_irregularity(x1)
-    r2 = track.rail_irregularity(x2)
+    located = [rail.locate(xw[k]) for k in range(n_w)]
+    eg = np.stack([e for e, _ in located])  # (n_w, n): first rail DOF of each wheel's element
+    sh = np.stack([h for _, h in located])  # (n_w, n, 4): its Hermite shape functions
+    rw = np.stack([track.rail_irregularity(xw[k]) for k in range(n_w)])
 
-    qv, w_full = _static_state(vehicle, rail, track, float(x1[0]), float(x2[0]))
-    qvd = np.zeros(4)
-    qvdd = np.zeros(4)
+    qv, w_full = _static_state(vehicle, rail, track, xw[:, 0])
+    qvd = np.zeros(nv)
+    qvdd = np.zeros(nv)
     win = _RailWindow(rail, Ar_band, window_m, w_full)
-    win.place(min(x1[0], x2[0]), max(x1[0], x2[0]))
+    win.place(float(xw[:, 0].min()), float(xw[:, 0].max()))
 
-    out_q = np.empty((n_steps, 4))
-    out_qd = np.empty((n_steps, 4))
-    out_qdd = np.empty((n_steps, 4))
-    y1 = np.empty(n_steps)
-    y2 = np.empty(n_steps)
+    out_q = np.empty((n_steps, nv))
+    out_qd = np.empty((n_steps, nv))
+    out_qdd = np.empty((n_steps, nv))
+    yw = np.empty((n_w, n_steps))
     rail_hist = np.zeros((n_steps, rail.n_nodes)) if store_rail else None
+    four = np.arange(4)
 
     def record(i: int, w: NDArray[np.float64], lo: int) -> None:
         out_q[i] = qv
         out_qd[i] = qvd
         out_qdd[i] = qvdd
-        a1, a2 = e1g[i] - lo, e2g[i] - lo
-        y1[i] = sh1[i] @ w[a1 : a1 + 4] + r1[i]
-        y2[i] = sh2[i] @ w[a2 : a2 + 4] + r2[i]
+        idx = (eg[:, i] - lo)[:, None] + four  # (n_w, 4)
+        yw[:, i] = np.einsum("kj,kj->k", sh[:, i], w[idx]) + rw[:, i]
         if rail_hist is not None:
             rail_hist[i, lo // 2 : lo // 2 + w.size // 2] = w[0::2]
 
     record(0, win.w, win.lo)
 
     c_disp, c_vel = nm.c_disp, nm.c_vel
-    eye2 = np.eye(2)
+    eye = np.eye(n_w)
+    x_min, x_max = xw.min(axis=0), xw.max(axis=0)
     for i in range(1, n_steps):
         lo = win.lo
-        if not win.covers(min(x1[i], x2[i]), max(x1[i], x2[i])):
-            win.place(min(x1[i], x2[i]), max(x1[i], x2[i]))
+        if not win.covers(x_min[i], x_max[i]):
+            win.place(x_min[i], x_max[i])
             lo = win.lo
         w, wd, wdd = win.w, win.wd, win.wdd
-        a1, a2 = int(e1g[i]) - lo, int(e2g[i]) - lo
-        n1, n2 = sh1[i], sh2[i]
+        first = eg[:, i] - lo
+        idx = first[:, None] + four  # (n_w, 4): the rail DOFs under each wheel
+        nk = sh[:, i]  # (n_w, 4): their Hermite shape functions
         # predictors
         ut = w + dt * wd + c_disp * wdd
         vt = wd + c_vel * wdd
         utv = qv + dt * qvd + c_disp * qvdd
         vtv = qvd + c_vel * qvdd
         # contact forces at the predictor, N
-        f1 = kt[0] * (n1 @ ut[a1 : a1 + 4] + r1[i] - utv[2])
-        f2 = kt[1] * (n2 @ ut[a2 : a2 + 4] + r2[i] - utv[3])
+        f = kt * ((nk * ut[idx]).sum(axis=1) + rw[:, i] - utv[cd])
         rhs_v = Fg - Cv @ vtv - Kv @ utv
-        rhs_v[2] += f1 + kt[0] * utv[2]
-        rhs_v[3] += f2 + kt[1] * utv[3]
+        rhs_v[cd] += f + kt * utv[cd]
         bv = Av_inv @ rhs_v
         # rail right-hand side: -K u~ - C v~ - contact (vehicle block eliminated)
         rhs = win.K @ ut
         rhs += win.c * vt
         np.negative(rhs, out=rhs)
-        rhs[a1 : a1 + 4] -= n1 * (f1 - bdt2 * kt[0] * bv[2])
-        rhs[a2 : a2 + 4] -= n2 * (f2 - bdt2 * kt[1] * bv[3])
+        load = nk * (f - bdt2 * kt * bv[cd])[:, None]
+        for k in range(n_w):  # wheels may share rail DOFs: add one by one
+            rhs[idx[k]] -= load[k]
         h, _ = dpbtrs(win.chol, rhs, lower=0, overwrite_b=1)
-        z1 = win.green(a1) @ n1
-        z2 = win.green(a2) @ n2
-        NtZ = np.array(
-            [
-                [n1 @ z1[a1 : a1 + 4], n1 @ z2[a1 : a1 + 4]],
-                [n2 @ z1[a2 : a2 + 4], n2 @ z2[a2 : a2 + 4]],
-            ]
-        )
-        Nth = np.array([n1 @ h[a1 : a1 + 4], n2 @ h[a2 : a2 + 4]])
-        p = np.linalg.solve(eye2 + NtZ @ S, Nth)
-        sp_ = S @ p
+        Z = np.stack([win.green(int(first[k])) @ nk[k] for k in range(n_w)], axis=1)
+        # NtZ[a, b]: rail level under wheel a per unit force at wheel b
+        NtZ = (nk[:, :, None] * Z[idx]).sum(axis=1)
+        Nth = (nk * h[idx]).sum(axis=1)
+        p = np.linalg.solve(eye + NtZ @ S, Nth)
         aw = h
-        aw -= z1 * sp_[0]
-        aw -= z2 * sp_[1]
+        aw -= Z @ (S @ p)
         av = bv + Av_inv_ax_kt @ p
         win.w = ut + bdt2 * aw
         win.wd = vt + gdt * aw
@@ -492,15 +501,17 @@ def simulate(
         qvdd = av
         record(i, win.w, lo)
 
-    cf1 = kt[0] * (y1 - out_q[:, 2])
-    cf2 = kt[1] * (y2 - out_q[:, 3])
+    cw = kt[:, None] * (yw - out_q[:, cd].T)
+    front, rear = (list(g) for g in vehicle.axle_wheels)
     t = np.arange(n_steps, dtype=np.float64) * dt
     return SimulationResult(
-        t=t, x_body=xb, x_front=x1, x_rear=x2, speed=v,
+        t=t, x_body=xb, x_front=xb + sign * vehicle.d1, x_rear=xb - sign * vehicle.d2, speed=v,
         accel=out_qdd[:, 0] + vehicle.sensor_x_m * out_qdd[:, 1], pitch_rate=out_qd[:, 1].copy(),
-        q=out_q, qd=out_qd, qdd=out_qdd, y_front=y1, y_rear=y2,
-        contact_front=cf1, contact_rear=cf2, start_chainage_m=float(start_chainage_m),
+        q=out_q, qd=out_qd, qdd=out_qdd, y_front=yw[front].mean(axis=0),
+        y_rear=yw[rear].mean(axis=0), contact_front=cw[front].sum(axis=0),
+        contact_rear=cw[rear].sum(axis=0), start_chainage_m=float(start_chainage_m),
         direction=direction, rail_w=rail_hist,
         meta={"vehicle": vehicle.to_dict(), "track": track.params.to_dict(),
               "gamma": gamma, "beta": beta, "dt": dt},
+        x_wheels=xw, y_wheels=yw, contact_wheels=cw,
     )  # fmt: skip

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from scipy.ndimage import map_coordinates, spline_filter1d
 
 from .errors import InversionError
-from .vehicle import VehicleParams
+from .vehicle import VehicleModel
 
 MODAL_COND_MAX = 1e8
 """Largest condition number of the state matrix's eigenvectors for which :func:`dof_response`
@@ -64,49 +64,51 @@ def _solve_by_bin(
 
 
 def dof_response(
-    vehicle: VehicleParams, omega: NDArray[np.float64], dofs: slice = slice(0, 4)
+    vehicle: VehicleModel, omega: NDArray[np.float64], dofs: slice | None = None
 ) -> NDArray[np.complex128]:
-    """Response of the vehicle's DOFs to the rail levels under its axles.
+    """Response of the vehicle's DOFs to the rail levels under its two measured points.
 
     Parameters
     ----------
-    vehicle : VehicleParams
-        The half-car.
+    vehicle : VehicleModel
+        Any vehicle kind (the half car; a bogie vehicle, whose measured points are its bogie
+        centres and whose input is each bogie's mean level).
     omega : ndarray, shape (m,)
         Angular frequencies, rad/s.
     dofs : slice, optional
-        The DOFs wanted (default all four; ``slice(2, 4)``: the axles).
+        The DOFs wanted (default all; the half car's ``slice(2, 4)``: the axles).
 
     Returns
     -------
-    X : ndarray, shape (m, 4, 2)
-        ``X[k] @ [Y1, Y2]``: ``[u_s (m), theta_s (rad), u_u1 (m), u_u2 (m)]`` (the rows of
-        ``dofs``) per unit rail level (m) under axle 1 and axle 2, i.e. ``Z⁻¹ E K_t`` with
-        ``Z = K + i w C - w² M``.
+    X : ndarray, shape (m, d, 2)
+        ``X[k] @ [Y1, Y2]``: the DOFs (the half car's ``[u_s (m), theta_s (rad), u_u1 (m),
+        u_u2 (m)]``; the rows of ``dofs``) per unit rail level (m) under measured point 1
+        and 2, i.e. ``Z⁻¹ F`` with ``Z = K + i w C - w² M`` and ``F`` the kind's
+        :meth:`~engine.vehicle.VehicleModel.axle_input`.
 
     Notes
     -----
-    Evaluated as a sum over the eight modes of the state-space form (one eigen-decomposition,
-    then ``m x 8`` divisions), not as ``m`` solves of ``Z``: the same function to rounding,
+    Evaluated as a sum over the 2n modes of the state-space form (one eigen-decomposition,
+    then ``m x 2n`` divisions), not as ``m`` solves of ``Z``: the same function to rounding,
     several times faster and lighter on the long spectra of hour-long runs. A vehicle whose
     modes are nearly defective (eigenvectors conditioned beyond :data:`MODAL_COND_MAX`) is
     solved frequency by frequency instead.
     """
     M, C, K = vehicle.matrices()
+    n = M.shape[0]
+    dofs = slice(0, n) if dofs is None else dofs
     w = np.asarray(omega, dtype=float)
-    F = np.zeros((4, 2))
-    F[2, 0] = vehicle.kt1
-    F[3, 1] = vehicle.kt2
+    F = vehicle.axle_input()
     Minv = np.linalg.inv(M)
-    A = np.block([[np.zeros((4, 4)), np.eye(4)], [-Minv @ K, -Minv @ C]])
-    B = np.vstack([np.zeros((4, 2)), Minv @ F])
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ C]])
+    B = np.vstack([np.zeros((n, 2)), Minv @ F])
     lam, V = np.linalg.eig(A)
     if np.linalg.cond(V) > MODAL_COND_MAX:
         return _solve_by_bin(M, C, K, F, w)[:, dofs, :]
-    W = np.linalg.solve(V, B.astype(np.complex128))  # (8, 2): each mode's share of the input
+    W = np.linalg.solve(V, B.astype(np.complex128))  # (2n, 2): each mode's share of the input
     Vq = V[dofs, :]  # (d, 8)
     # X[k, q, c] = sum_j R[k, j] Vq[q, j] W[j, c], R[k, j] = 1 / (i w_k - lam_j): one product
-    P = (Vq.T[:, :, None] * W[:, None, :]).reshape(lam.size, -1)  # (8, d * 2)
+    P = (Vq.T[:, :, None] * W[:, None, :]).reshape(lam.size, -1)  # (2n, d * 2)
     out = np.empty((w.size, Vq.shape[0], 2), dtype=np.complex128)
     flat = out.reshape(w.size, -1)
     for k0 in range(0, w.size, BINS_PER_BLOCK):
@@ -115,13 +117,13 @@ def dof_response(
     return out
 
 
-def vehicle_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
+def vehicle_response(vehicle: VehicleModel, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
     """Frequency response from rail levels to the measured signals.
 
     Parameters
     ----------
-    vehicle : VehicleParams
-        The half-car.
+    vehicle : VehicleModel
+        Any vehicle kind.
     omega : ndarray, shape (m,)
         Angular frequencies, rad/s.
 
@@ -133,7 +135,7 @@ def vehicle_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDAr
         unit rail level under axle 1 and axle 2.
     """
     w = np.asarray(omega, dtype=float)
-    X = dof_response(vehicle, w)
+    X = dof_response(vehicle, w, slice(0, 2))  # the body's bounce and pitch
     H = np.empty((w.size, 2, 2), dtype=complex)
     # the accelerometer sits sensor_x_m ahead of the CG: it also feels the pitch acceleration
     H[:, 0, :] = -(w[:, None] ** 2) * (X[:, 0, :] + vehicle.sensor_x_m * X[:, 1, :])
@@ -492,7 +494,7 @@ def spectral_inverse(
     accel: NDArray[np.float64],
     pitch_rate: NDArray[np.float64],
     dt: float,
-    vehicle: VehicleParams,
+    vehicle: VehicleModel,
     f_lo: float,
     f_hi: float,
     *,
@@ -511,8 +513,8 @@ def spectral_inverse(
         Body pitch rate, rad/s (any bias is ignored).
     dt : float
         Sample step, s.
-    vehicle : VehicleParams
-        The half-car.
+    vehicle : VehicleModel
+        Any vehicle kind.
     f_lo, f_hi : float
         Band kept, Hz.
     taper : float

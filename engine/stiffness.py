@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from scipy.linalg import solveh_banded
 
 from .beam import BANDWIDTH, element_matrices, hermite_shape
+from .errors import ParameterError
 from .spectral import band_window
 from .track import TrackParams
 
@@ -247,6 +248,7 @@ def fit_zone(
     *,
     taper: float = 0.3,
     refine_extent: bool = True,
+    wheel_offsets_m: tuple[float, ...] = (0.0,),
 ) -> ZoneFit:
     """Fit start, end and stiffness loss of one soft zone to the measured profile.
 
@@ -261,13 +263,18 @@ def fit_zone(
     params : TrackParams
         Nominal rail and support properties.
     load : float
-        Static wheel load the profile corresponds to, N.
+        Static load of each wheel of the measured point, N.
     lambda_min, lambda_max : float
         Wavelength band the measured profile was limited to, m.
     taper : float
         Relative width of that band's edges.
     refine_extent : bool
         Also move the zone's ends (support by support); otherwise only the loss is fitted.
+    wheel_offsets_m : tuple of float
+        The wheels of the measured point relative to it, m: ``(0,)`` for a half car's axle,
+        ``(+a/2, -a/2)`` for a bogie of wheelbase ``a``. Each carries ``load``; the profile
+        is the mean of the rail levels under them, each the superposition of every wheel's
+        deflection basin.
 
     Notes
     -----
@@ -276,7 +283,19 @@ def fit_zone(
     ``P b(x)^T (D^-1 I + F)^-1 b(x)`` with ``b_j(x) = f(x - x_j)`` and ``F_ij = f(x_i - x_j)``,
     ``f`` the nominal influence line (:class:`InfluenceLine`), evaluated in the eigenbasis
     of ``F`` (:func:`modal_dips`). Losses are scanned in batches.
+
+    With ``n`` wheels at ``x + o_k``, each of load ``P``, the mean level under them changes
+    by ``(1/n) sum_m sum_k P b(x + o_m)^T (...) b(x + o_k) = (P/n) s^T (...) s`` with
+    ``s(x) = sum_k b(x + o_k)``: the single-load formula with ``b`` replaced by ``s`` and the
+    load by ``P/n``.
     """
+    offsets = np.asarray(wheel_offsets_m, dtype=float)
+    if offsets.ndim != 1 or offsets.size == 0 or not np.all(np.isfinite(offsets)):
+        raise ParameterError(
+            f"wheel_offsets_m must be one or more finite offsets, m, got {wheel_offsets_m!r}",
+            field="wheel_offsets_m",
+        )
+    reach = float(np.max(np.abs(offsets)))
     step = float(grid[1] - grid[0])
     s = params.spacing
     span = lambda_max * (1 + taper) + 5.0
@@ -295,8 +314,10 @@ def fit_zone(
     sup_x = np.arange(j0, j1 + 1) * s
     # the change of level is b^T (...) b with b the influence of the candidate supports:
     # it has decayed to ~1e-7 of its peak 12 m away (exp(-beta x), beta ~ 1.3 /m)
-    near = (g >= sup_x[0] - 12.0) & (g <= sup_x[-1] + 12.0)
-    B = infl(g[near][None, :] - sup_x[:, None])  # (m, g near)
+    near = (g >= sup_x[0] - 12.0 - reach) & (g <= sup_x[-1] + 12.0 + reach)
+    B = np.zeros((sup_x.size, int(near.sum())))  # (m, g near): the wheels' summed influence
+    for o in offsets:
+        B += infl(g[near][None, :] + o - sup_x[:, None])
     Fss = infl(sup_x[None, :] - sup_x[:, None])
     fit_w = ok & (
         np.abs(g - 0.5 * (start_m + end_m)) <= 0.5 * (end_m - start_m) + 2 * lambda_min + 2
@@ -314,7 +335,7 @@ def fit_zone(
         mode: tuple[NDArray[np.float64], NDArray[np.float64]], losses: NDArray[np.float64]
     ) -> NDArray[np.float64]:
         """Band-passed modelled dips at the fitted columns, one row per loss, mm."""
-        return modal_dips(*mode, losses, kn, load)
+        return modal_dips(*mode, losses, kn, load / offsets.size)
 
     tried: dict[tuple[float, float], tuple[float, float]] = {}
 

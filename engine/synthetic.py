@@ -14,7 +14,7 @@ from .runlog import RunLog
 from .sensor import SensorModel, apply_sensor
 from .simulate import END_MARGIN_M, SimulationResult, room_to_run, simulate
 from .track import SoftZone, Track, TrackParams
-from .vehicle import TABLE1, VehicleParams
+from .vehicle import TABLE1, VehicleModel
 
 REALISTIC_SENSOR = SensorModel(
     accel_noise=0.005, gyro_noise=1e-4, accel_bias=0.02, gyro_bias=2e-4, digits=8
@@ -43,7 +43,7 @@ class SyntheticRun:
         Direction of travel.
     logged_start_chainage_m : float
         The start chainage a user would type (true one plus the odometer error), m.
-    vehicle : VehicleParams
+    vehicle : VehicleModel
         The simulated vehicle.
     irregularity : Profile or None
         The unloaded rail geometry of the track (m), if any.
@@ -56,7 +56,7 @@ class SyntheticRun:
     start_chainage_m: float
     direction: str
     logged_start_chainage_m: float = float("nan")
-    vehicle: VehicleParams = TABLE1
+    vehicle: VehicleModel = TABLE1
     irregularity: Profile | None = None
 
     def true_geometry(self, grid: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -178,7 +178,7 @@ def make_run(
     sensor: SensorModel | None = None,
     sim_rate_hz: float = 1000.0,
     seed: int = 0,
-    vehicle: VehicleParams = TABLE1,
+    vehicle: VehicleModel = TABLE1,
     params: TrackParams | None = None,
     end_margin_m: float = END_MARGIN_M,
     track_seed: int | None = None,
@@ -209,7 +209,7 @@ def make_run(
         Newmark 1 kHz output).
     seed : int
         Seed of the stiffness scatter and the sensor noise.
-    vehicle, params : VehicleParams, TrackParams
+    vehicle, params : VehicleModel, TrackParams
         Vehicle and track.
     end_margin_m : float
         Distance kept between the leading axle and the end of the track, m.

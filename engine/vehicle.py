@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +37,54 @@ def _param(
     """
     meta = {"unit": unit, "description": what, "kind": kind, "bounds": bounds}
     return field(default=default, metadata=meta)
+
+
+def check_fields(params: Any) -> None:
+    """Check and coerce every field of a vehicle dataclass made with :func:`_param`.
+
+    Each value becomes a float; :class:`ParameterError` (``field=<name>``) when it is not a
+    finite number of its kind or lies outside its physical bounds.
+    """
+    for f in fields(params):
+        unit, kind = f.metadata["unit"], f.metadata["kind"]
+        value = getattr(params, f.name)
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"vehicle parameter {f.name} must be a number in {unit}, got {value!r}",
+                field=f.name,
+            ) from None
+        object.__setattr__(params, f.name, value)
+        if not math.isfinite(value):
+            raise ParameterError(
+                f"vehicle parameter {f.name} must be finite, got {value}", field=f.name
+            )
+        if kind == "position":
+            if abs(value) > SENSOR_X_LIMIT_M:
+                raise ParameterError(
+                    f"vehicle parameter {f.name} must lie within ±{SENSOR_X_LIMIT_M:g} {unit} "
+                    f"of the body centre, got {value}",
+                    field=f.name,
+                )
+        elif kind == "nonnegative":
+            if value < 0:
+                raise ParameterError(
+                    f"vehicle parameter {f.name} ({f.metadata['description'].lower()}, "
+                    f"{unit}) must be >= 0, got {value}",
+                    field=f.name,
+                )
+        elif value <= 0:
+            raise ParameterError(
+                f"vehicle parameter {f.name} must be > 0 {unit}, got {value}", field=f.name
+            )
+        lo, hi = f.metadata["bounds"]
+        if kind != "position" and not lo <= value <= hi:
+            raise ParameterError(
+                f"vehicle parameter {f.name} ({f.metadata['description'].lower()}) must lie "
+                f"between {lo:g} and {hi:g} {unit}, got {value:g}",
+                field=f.name,
+            )
 
 
 @dataclass(frozen=True)
@@ -89,44 +137,20 @@ class VehicleParams:
         "position",
     )  # fmt: skip
 
+    kind: ClassVar[str] = "half_car"
+    rails: ClassVar[int] = 1
+    """Rails the parameters describe: the half car's are one rail's already."""
+
     def __post_init__(self) -> None:
-        for f in fields(self):
-            unit, kind = f.metadata["unit"], f.metadata["kind"]
-            value = getattr(self, f.name)
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ParameterError(
-                    f"vehicle parameter {f.name} must be a number in {unit}, got {value!r}"
-                ) from None
-            object.__setattr__(self, f.name, value)
-            if not math.isfinite(value):
-                raise ParameterError(f"vehicle parameter {f.name} must be finite, got {value}")
-            if kind == "position":
-                if abs(value) > SENSOR_X_LIMIT_M:
-                    raise ParameterError(
-                        f"vehicle parameter {f.name} must lie within ±{SENSOR_X_LIMIT_M:g} {unit} "
-                        f"of the body centre, got {value}"
-                    )
-            elif kind == "nonnegative":
-                if value < 0:
-                    raise ParameterError(
-                        f"vehicle parameter {f.name} ({f.metadata['description'].lower()}, "
-                        f"{unit}) must be >= 0, got {value}"
-                    )
-            elif value <= 0:
-                raise ParameterError(f"vehicle parameter {f.name} must be > 0 {unit}, got {value}")
-            lo, hi = f.metadata["bounds"]
-            if kind != "position" and not lo <= value <= hi:
-                raise ParameterError(
-                    f"vehicle parameter {f.name} ({f.metadata['description'].lower()}) must lie "
-                    f"between {lo:g} and {hi:g} {unit}, got {value:g}",
-                    field=f.name,
-                )
+        check_fields(self)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> VehicleParams:
         """Build from a mapping; unknown keys are an error, missing keys take Table 1 values."""
+        data = dict(data)
+        kind = data.pop("kind", cls.kind)
+        if kind != cls.kind:
+            raise ParameterError(f"vehicle kind must be {cls.kind!r}, got {kind!r}", field="kind")
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
         if unknown:
@@ -163,6 +187,53 @@ class VehicleParams:
         body2 = self.ms * g * self.d1 / (self.d1 + self.d2)
         return body1 + self.mu1 * g, body2 + self.mu2 * g
 
+    # -- the vehicle-kind interface (engine.vehicle_kinds): the half car's two "wheels" are
+    # its two axles, each alone at its measured point
+
+    @property
+    def n_dof(self) -> int:
+        """Number of degrees of freedom."""
+        return 4
+
+    @property
+    def contact_dofs(self) -> NDArray[np.intp]:
+        """DOF index of each wheel (axle)."""
+        return np.array([2, 3])
+
+    @property
+    def contact_k(self) -> NDArray[np.float64]:
+        """Contact stiffness of each wheel (axle), N/m."""
+        return np.array([self.kt1, self.kt2])
+
+    @property
+    def wheel_offsets_m(self) -> NDArray[np.float64]:
+        """Position of each wheel (axle) ahead of the body centre, m."""
+        return np.array([self.d1, -self.d2])
+
+    @property
+    def axle_wheels(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """The wheels making up the front and rear measured point."""
+        return (0,), (1,)
+
+    @property
+    def axle_wheel_offsets_m(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """Each wheel of a measured point relative to it, m."""
+        return (0.0,), (0.0,)
+
+    def gravity_load(self, g: float = GRAVITY) -> NDArray[np.float64]:
+        """Weight on each DOF, N (negative: down)."""
+        return -g * np.array([self.ms, 0.0, self.mu1, self.mu2])
+
+    def static_wheel_loads(self, g: float = GRAVITY) -> NDArray[np.float64]:
+        """Static contact force of each wheel (axle), N (compression > 0)."""
+        return np.array(self.static_axle_loads(g))
+
+    def axle_input(self) -> NDArray[np.float64]:
+        """Force on each DOF per unit rail level (m) under axle 1 and axle 2, N/m, (4, 2)."""
+        F = np.zeros((4, 2))
+        F[2, 0], F[3, 1] = self.kt1, self.kt2
+        return F
+
     def matrices(
         self,
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -189,6 +260,51 @@ class VehicleParams:
         K[2, 2] += self.kt1
         K[3, 3] += self.kt2
         return M, C, K
+
+
+class VehicleModel(Protocol):
+    """What every vehicle kind gives the forward model and the inversion (per rail, SI).
+
+    The DOFs start with the body's bounce (m) and pitch (rad, nose-up); each wheel is one
+    contact spring on one DOF; the inversion measures two points (the half car's axles, a
+    bogie vehicle's bogie centres), ``d1`` ahead of and ``d2`` behind the body centre, each
+    the mean of its wheels' levels.
+    """
+
+    kind: ClassVar[str]
+    rails: ClassVar[int]
+    """Rails the parameters (a payload, a whole-vehicle mass) describe; the model is one."""
+
+    @property
+    def d1(self) -> float: ...
+    @property
+    def d2(self) -> float: ...
+    @property
+    def ms(self) -> float: ...
+    @property
+    def sensor_x_m(self) -> float: ...
+    @property
+    def wheelbase(self) -> float: ...
+    @property
+    def n_dof(self) -> int: ...
+    @property
+    def contact_dofs(self) -> NDArray[np.intp]: ...
+    @property
+    def contact_k(self) -> NDArray[np.float64]: ...
+    @property
+    def wheel_offsets_m(self) -> NDArray[np.float64]: ...
+    @property
+    def axle_wheels(self) -> tuple[tuple[int, ...], tuple[int, ...]]: ...
+    @property
+    def axle_wheel_offsets_m(self) -> tuple[tuple[float, ...], tuple[float, ...]]: ...
+    def matrices(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
+    def gravity_load(self, g: float = GRAVITY) -> NDArray[np.float64]: ...
+    def static_wheel_loads(self, g: float = GRAVITY) -> NDArray[np.float64]: ...
+    def static_axle_loads(self, g: float = GRAVITY) -> tuple[float, float]: ...
+    def axle_input(self) -> NDArray[np.float64]: ...
+    def to_dict(self) -> dict[str, Any]: ...
 
 
 TABLE1 = VehicleParams()

@@ -28,10 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from .bogie import BogieParams
 from .errors import InversionError, ParameterError
 from .plausibility import WHEEL_LOAD_MAX_N, WHEEL_LOAD_MIN_N
 from .track import TrackParams
-from .vehicle import GRAVITY, VehicleParams
+from .vehicle import GRAVITY, VehicleModel, VehicleParams
 
 
 @dataclass(frozen=True)
@@ -165,6 +166,17 @@ def half_car_quantities(vp: VehicleParams) -> dict[str, float]:
     }
 
 
+def bogie_quantities(bp: BogieParams) -> dict[str, float]:
+    """The derived quantities of a bogie vehicle: those of its lumped half car (each bogie
+    one "axle" on its suspensions in series, :meth:`BogieParams.lumped_half_car`), with the
+    static wheel load per wheel (the lumped "axle" carries a bogie's two wheels)."""
+    q = half_car_quantities(bp.lumped_half_car())
+    wheels = bp.static_wheel_loads()
+    q["wheel_load_front_kn"] = float(wheels[0]) / 1e3
+    q["wheel_load_rear_kn"] = float(wheels[-1]) / 1e3
+    return q
+
+
 @dataclass(frozen=True)
 class VehicleKind:
     """How one kind of vehicle model is judged: its derived quantities (names of
@@ -187,6 +199,35 @@ KINDS: dict[str, VehicleKind] = {
             "deflection_rear_mm": ("ms", "ks2", "d1", "d2"),
             "wheel_load_front_kn": ("ms", "mu1", "d1", "d2"),
             "wheel_load_rear_kn": ("ms", "mu2", "d1", "d2"),
+        },
+    ),
+    "bogie": VehicleKind(
+        bogie_quantities,
+        {
+            "gyration_ratio": ("body_pitch_inertia_kgm2", "body_mass_kg", "bogie_half_spacing_m"),
+            "bounce_hz": ("body_mass_kg", "secondary_k_n_per_m", "primary_k_n_per_m"),
+            "pitch_hz": (
+                "body_pitch_inertia_kgm2",
+                "secondary_k_n_per_m",
+                "primary_k_n_per_m",
+                "bogie_half_spacing_m",
+            ),
+            "axle_hop_front_hz": (
+                "bogie_mass_kg",
+                "wheelset_mass_kg",
+                "primary_k_n_per_m",
+                "contact_k_n_per_m",
+            ),
+            "axle_hop_rear_hz": (
+                "bogie_mass_kg",
+                "wheelset_mass_kg",
+                "primary_k_n_per_m",
+                "contact_k_n_per_m",
+            ),
+            "deflection_front_mm": ("body_mass_kg", "secondary_k_n_per_m", "primary_k_n_per_m"),
+            "deflection_rear_mm": ("body_mass_kg", "secondary_k_n_per_m", "primary_k_n_per_m"),
+            "wheel_load_front_kn": ("body_mass_kg", "bogie_mass_kg", "wheelset_mass_kg"),
+            "wheel_load_rear_kn": ("body_mass_kg", "bogie_mass_kg", "wheelset_mass_kg"),
         },
     ),
 }
@@ -282,7 +323,7 @@ RESULT_MARGIN = 2.0
 """Factor between the bound a result is refused at and geometry plus deflection."""
 
 
-def result_bound_mm(vehicle: VehicleParams, track: TrackParams) -> float:
+def result_bound_mm(vehicle: VehicleModel, track: TrackParams) -> float:
     """Largest plausible deviation of a processed level from its baseline (or dip depth), mm.
 
     ``RESULT_MARGIN * (GEOMETRY_LIMIT_MM + w)``, with ``w`` the static deflection of the
@@ -291,7 +332,7 @@ def result_bound_mm(vehicle: VehicleParams, track: TrackParams) -> float:
     left in service plus no support failure short of a missing sleeper deflects further.
     About 67 mm for the Table 1 vehicle on the default track (w = 5.5 mm).
     """
-    load = DYNAMIC_FACTOR * max(vehicle.static_axle_loads())
+    load = DYNAMIC_FACTOR * float(max(vehicle.static_wheel_loads()))
     w_mm = 1e3 * track.winkler_deflection(load, 1.0 - SUPPORT_LOSS_LIMIT)
     return RESULT_MARGIN * (GEOMETRY_LIMIT_MM + w_mm)
 
@@ -304,7 +345,7 @@ def check_result(
     level_mm: Any,
     baseline_mm: Any,
     depths_mm: Any,
-    vehicle: VehicleParams,
+    vehicle: VehicleModel,
     track: TrackParams,
 ) -> None:
     """Refuse a processed run whose level or dips lie beyond :func:`result_bound_mm`.

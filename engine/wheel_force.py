@@ -16,21 +16,23 @@ import scipy.fft as sfft
 from numpy.typing import NDArray
 
 from .spectral import BINS_PER_BLOCK, FFT_WORKERS, BandSpectrum, dof_response
-from .vehicle import VehicleParams
+from .vehicle import VehicleModel
 
 
-def force_response(vehicle: VehicleParams, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
+def force_response(vehicle: VehicleModel, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
     """Dynamic contact force per unit rail level, N/m.
 
     ``G[k] @ [Y1, Y2] = [F1, F2]`` (shape (m, 2, 2), ``omega`` in rad/s): dynamic contact
-    force of the front and rear axle (N, compression positive) for unit rail level (m) under
-    axle 1 and axle 2, from the DOF response :func:`engine.spectral.dof_response`.
+    force of the front and rear measured point (the half car's axle, a bogie's two wheels
+    together; N, compression positive) for unit rail level (m) under point 1 and point 2,
+    from the DOF response :func:`engine.spectral.dof_response`: with ``F`` the kind's
+    :meth:`~engine.vehicle.VehicleModel.axle_input`, ``G = diag(sum F) - F^T X``.
     """
-    X = dof_response(vehicle, omega, slice(2, 4))  # the axles only
-    kt = np.array([vehicle.kt1, vehicle.kt2])
-    G = -kt[None, :, None] * X
-    G[:, 0, 0] += kt[0]
-    G[:, 1, 1] += kt[1]
+    F = vehicle.axle_input()
+    X = dof_response(vehicle, omega)
+    G = -np.einsum("dj,mdk->mjk", F, X)
+    G[:, 0, 0] += F[:, 0].sum()
+    G[:, 1, 1] += F[:, 1].sum()
     return G
 
 
@@ -38,7 +40,7 @@ def dynamic_wheel_forces(
     y_front: NDArray[np.float64],
     y_rear: NDArray[np.float64],
     dt: float,
-    vehicle: VehicleParams,
+    vehicle: VehicleModel,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Dynamic part of each axle's contact force from the rail levels under the axles.
 
@@ -49,8 +51,8 @@ def dynamic_wheel_forces(
         any constant offset is ignored).
     dt : float
         Sample step, s.
-    vehicle : VehicleParams
-        The half-car.
+    vehicle : VehicleModel
+        Any vehicle kind.
     Returns
     -------
     f_front, f_rear : ndarray
@@ -78,7 +80,7 @@ def dynamic_wheel_forces(
     return f1, f2
 
 
-def force_spectrum(band: BandSpectrum, vehicle: VehicleParams) -> BandSpectrum:
+def force_spectrum(band: BandSpectrum, vehicle: VehicleModel) -> BandSpectrum:
     """Dynamic contact force of each axle (N; compression positive, the static load not
     included) as a band spectrum, from the rail levels' band spectrum (m) of the spectral
     inverse: the force response at the band's bins only, without transforming the levels

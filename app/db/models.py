@@ -28,6 +28,7 @@ from sqlalchemy import (
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
 from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import Vehicle as Vehicle_
 
 from .base import Base, UTCDateTime, utcnow
 
@@ -100,12 +101,31 @@ class Vehicle(Base):
     d1: Mapped[float] = mapped_column(Float)  # m
     d2: Mapped[float] = mapped_column(Float)  # m
     sensor_x_m: Mapped[float] = mapped_column(Float, default=0.0)  # m, ahead of the body CG
+    # engine.vehicle_kinds kind; another kind's datasheet values live in kind_params (JSON,
+    # with "kind") and the columns above hold its lumped half car
+    kind: Mapped[str] = mapped_column(String(20), default="half_car", server_default="half_car")
+    kind_params: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
     version: Mapped[int] = mapped_column(Integer, default=1)  # current VehicleVersion.version
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
 
-    def params_dict(self) -> dict[str, float]:
-        """The engine's ``VehicleParams`` fields of this vehicle (SI)."""
+    def params_dict(self) -> dict[str, Any]:
+        """The engine's parameters of this vehicle (SI): the ``VehicleParams`` fields of a
+        half car, the kind's own (with ``kind``) otherwise (``engine.vehicle_kinds``)."""
+        if self.kind_params is not None and self.kind != "half_car":
+            return dict(self.kind_params)
         return {name: float(getattr(self, name)) for name in VEHICLE_PARAM_NAMES}
+
+    def set_params(self, params: Vehicle_) -> None:
+        """Store an engine vehicle of any kind in the columns (and ``kind_params``)."""
+        self.kind = params.kind
+        if isinstance(params, VehicleParams):
+            self.kind_params = None
+            columns = params
+        else:
+            self.kind_params = params.to_dict()
+            columns = params.lumped_half_car()
+        for name, value in columns.to_dict().items():
+            setattr(self, name, value)
 
 
 VERSION_SOURCES = ("created", "manual", "calibration", "restore")
@@ -126,7 +146,7 @@ class VehicleVersion(Base):
     id: Mapped[int] = mapped_column(primary_key=True)
     vehicle_id: Mapped[int] = mapped_column(ForeignKey("vehicles.id", ondelete="CASCADE"))
     version: Mapped[int] = mapped_column(Integer)
-    params: Mapped[dict[str, float]] = mapped_column(JSON)  # VehicleParams fields, SI
+    params: Mapped[dict[str, Any]] = mapped_column(JSON)  # the kind's fields (SI), see Vehicle
     source: Mapped[str] = mapped_column(String(20))  # one of VERSION_SOURCES
     calibration_id: Mapped[int | None] = mapped_column(Integer)
     created_by: Mapped[str | None] = mapped_column(String(200))  # API key name, "automatic"

@@ -1,15 +1,29 @@
-"""Vehicle schemas: the half-car parameter set (SI units, the engine's ``VehicleParams``)."""
+"""Vehicle schemas: the parameter set of each vehicle kind (SI units; the engine's
+``VehicleParams`` for the half car, ``BogieParams`` for a bogie vehicle)."""
 
 from __future__ import annotations
 
 import dataclasses
 from datetime import datetime
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    ValidatorFunctionWrapHandler,
+    create_model,
+    field_validator,
+    model_validator,
+)
 
+from engine.bogie import BogieParams
 from engine.calibration import DEFAULT_FIT, FITTABLE
-from engine.vehicle import PRESETS, SENSOR_X_LIMIT_M, VehicleParams
+from engine.vehicle import SENSOR_X_LIMIT_M, VehicleParams
+from engine.vehicle_kinds import KIND_PRESETS
 
 from .common import StrictModel, UrlName, closed_list
 
@@ -32,6 +46,11 @@ def _schema_field(f: dataclasses.Field[Any]) -> Any:
     return (float, field)
 
 
+def _kind_field(kind: str, default: bool) -> Any:
+    what = "Vehicle kind (engine.vehicle_kinds)"
+    return (Literal[kind], Field(kind if default else ..., description=what))
+
+
 # One model per idea: the schema is derived from the engine's dataclass (names, defaults,
 # units, ranges), so a new vehicle parameter appears in the API without being re-typed here.
 if TYPE_CHECKING:
@@ -39,16 +58,49 @@ if TYPE_CHECKING:
     class VehicleParamsSchema(StrictModel):
         """Half-car parameters (fields: those of ``engine.vehicle.VehicleParams``)."""
 
+    class BogieParamsSchema(StrictModel):
+        """Bogie-vehicle parameters (fields: those of ``engine.bogie.BogieParams``)."""
+
 else:
     VehicleParamsSchema = create_model(
         "VehicleParamsSchema",
         __base__=StrictModel,
         __doc__="Half-car parameters (SI); defaults are the paper's Table 1 vehicle.",
+        kind=_kind_field(VehicleParams.kind, default=True),
         **{f.name: _schema_field(f) for f in dataclasses.fields(VehicleParams)},
+    )
+    BogieParamsSchema = create_model(
+        "BogieParamsSchema",
+        __base__=StrictModel,
+        __doc__="Bogie-vehicle parameters as the datasheet gives them (whole vehicle, SI; "
+        "secondary per bogie side, primary per axle box, contact per wheel); defaults are "
+        "the passenger-coach preset.",
+        kind=_kind_field(BogieParams.kind, default=False),
+        **{f.name: _schema_field(f) for f in dataclasses.fields(BogieParams)},
     )
 
 
-PARAM_NAMES = tuple(VehicleParamsSchema.model_fields)
+def _kind_of(data: Any) -> str:
+    """The kind a parameter mapping (or model) is of; absent means the half car."""
+    if isinstance(data, dict):
+        kind = data.get("kind", VehicleParams.kind)
+    else:
+        kind = getattr(data, "kind", VehicleParams.kind)
+    return kind if kind in _KIND_TAGS else VehicleParams.kind
+
+
+_KIND_TAGS = (VehicleParams.kind, BogieParams.kind)
+
+AnyVehicleParams = Annotated[
+    Annotated[VehicleParamsSchema, Tag(VehicleParams.kind)]
+    | Annotated[BogieParamsSchema, Tag(BogieParams.kind)],
+    Discriminator(_kind_of),
+]
+"""The parameters of any vehicle kind, told apart by ``kind`` (default ``half_car``)."""
+
+PARAM_NAMES = tuple(
+    dict.fromkeys([*VehicleParamsSchema.model_fields, *BogieParamsSchema.model_fields])
+)
 
 BODY_MASS_BOUNDS: tuple[float, float] = next(
     f.metadata["bounds"] for f in dataclasses.fields(VehicleParams) if f.name == "ms"
@@ -64,10 +116,29 @@ class VehicleCreate(StrictModel):
     preset: str | None = Field(
         default=None,
         max_length=50,
-        description="Start from this engine preset; parameters given override",
-        json_schema_extra=closed_list(sorted(PRESETS)),
+        description="Start from this engine preset (any kind); parameters given override",
+        json_schema_extra=closed_list(sorted(KIND_PRESETS)),
     )
-    params: VehicleParamsSchema = Field(default_factory=VehicleParamsSchema)
+    params: AnyVehicleParams = Field(default_factory=VehicleParamsSchema)
+
+    @field_validator("params", mode="wrap")
+    @classmethod
+    def _untagged(cls, value: Any, handler: ValidatorFunctionWrapHandler) -> Any:
+        # a bad parameter is named params.<name> whatever the kind (pydantic puts the
+        # union's tag, e.g. params.bogie.<name>, in the location)
+        try:
+            return handler(value)
+        except ValidationError as exc:
+            errors: list[Any] = []
+            for e in exc.errors():
+                loc = tuple(e["loc"])
+                if loc and loc[0] in _KIND_TAGS:
+                    loc = loc[1:]
+                detail = {"type": e["type"], "loc": loc, "input": e.get("input")}
+                if "ctx" in e:
+                    detail["ctx"] = e["ctx"]
+                errors.append(detail)
+            raise ValidationError.from_exception_data(exc.title, errors) from None
 
     @model_validator(mode="before")
     @classmethod
@@ -95,10 +166,10 @@ class VehiclePublic(BaseModel):
     id: int
     name: str
     description: str | None
-    params: dict[str, float] = Field(
-        description="The half-car parameters as stored (names and units of "
-        "VehicleParamsSchema; vehicles made before the physical ranges were enforced are "
-        "shown as they are)"
+    params: dict[str, float | str] = Field(
+        description="The parameters as stored (names and units of VehicleParamsSchema for "
+        "a half car, of BogieParamsSchema with kind 'bogie' for a bogie vehicle; vehicles "
+        "made before the physical ranges were enforced are shown as they are)"
     )
     version: int = Field(description="Current parameter version (1 at registration)")
     created_at: datetime
@@ -152,7 +223,7 @@ class VehicleVersionPublic(BaseModel):
     model_config = ConfigDict(from_attributes=True)
 
     version: int
-    params: dict[str, float] = Field(description="VehicleParams fields, SI")
+    params: dict[str, float | str] = Field(description="The kind's parameters, SI")
     source: str = Field(description="created, manual, calibration or restore")
     calibration_id: int | None
     created_by: str | None = Field(description="API key name or 'automatic'")

@@ -80,6 +80,13 @@ def request_calibration(
     Conflict
         A calibration of this vehicle is already queued or running.
     """
+    if vehicle.kind != "half_car":
+        # the calibration's fittable quantities (I_s, k_s1, k_s2, ...) are the half car's
+        raise Invalid(
+            f"vehicle {vehicle.name!r} is a {vehicle.kind} vehicle; calibration fits half-car "
+            "parameters only (edit the vehicle's parameters instead)",
+            field="vehicle",
+        )
     _config(fit, load_kg)  # checked now, so a bad request changes nothing
     if load_kg is not None:
         # the body mass must make a vehicle with the rest (and lie in its own range)

@@ -15,7 +15,8 @@ Units: kg, N.
 from __future__ import annotations
 
 from engine.runlog import RunLog
-from engine.vehicle import GRAVITY, VehicleParams
+from engine.vehicle import GRAVITY
+from engine.vehicle_kinds import Vehicle as EngineVehicle
 
 from .errors import Invalid
 
@@ -38,27 +39,37 @@ def declared_wheel_load(
 
 
 def declared_body_mass(
-    vehicle: VehicleParams, payload_kg: float | None, static_wheel_load_n: float | None
+    vehicle: EngineVehicle, payload_kg: float | None, static_wheel_load_n: float | None
 ) -> float | None:
-    """The body mass a declared load gives, kg (None: nothing declared; not checked).
+    """The (per-rail) body mass a declared load gives, kg (None: nothing declared; not
+    checked).
 
-    A payload is carried on top of the registered body mass; two axles carry the body and
-    themselves: ``2 W = (ms + mu1 + mu2) g``.
+    A payload (on the whole vehicle, shared by the rails its parameters describe,
+    ``vehicle.rails``) is carried on top of the registered body mass; the ``n`` wheels of a
+    rail carry
+    the body and the rest of the vehicle's mass ``m_rest``: ``n W = (ms + m_rest) g`` (the
+    half car: ``2 W = (ms + mu1 + mu2) g``).
     """
     if payload_kg is not None:
-        return vehicle.ms + payload_kg
+        return vehicle.ms + payload_kg / vehicle.rails
     if static_wheel_load_n is not None:
-        return 2.0 * static_wheel_load_n / GRAVITY - vehicle.mu1 - vehicle.mu2
+        n = vehicle.contact_k.size
+        return n * static_wheel_load_n / GRAVITY - _rest_mass(vehicle)
     return None
 
 
+def _rest_mass(vehicle: EngineVehicle) -> float:
+    """Per-rail mass of everything but the body, kg."""
+    return float(-vehicle.gravity_load().sum() / GRAVITY - vehicle.ms)
+
+
 def loaded_vehicle(
-    vehicle: VehicleParams,
+    vehicle: EngineVehicle,
     payload_kg: float | None = None,
     static_wheel_load_n: float | None = None,
     *,
     field: str = "static_wheel_load_n",
-) -> VehicleParams:
+) -> EngineVehicle:
     """The vehicle as it ran: registered parameters with the declared load applied.
 
     ``field`` is the field named when the wheel load is refused (where it came from).
@@ -77,11 +88,12 @@ def loaded_vehicle(
     if ms is None:
         return vehicle
     if static_wheel_load_n is not None and ms <= 0.1 * vehicle.ms:
-        axles = 0.5 * (vehicle.mu1 + vehicle.mu2) * GRAVITY
+        axles = _rest_mass(vehicle) * GRAVITY / vehicle.contact_k.size
         raise Invalid(
             f"static_wheel_load_n {static_wheel_load_n:g} N is not plausible for this "
             f"vehicle: its axles alone weigh {axles:.0f} N per wheel and the body "
-            f"{0.5 * vehicle.ms * GRAVITY:.0f} N (give the mean static wheel load, N)",
+            f"{vehicle.ms * GRAVITY / vehicle.contact_k.size:.0f} N (give the mean static "
+            "wheel load, N)",
             field=field,
         )
     return vehicle.with_body_mass(ms)

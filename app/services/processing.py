@@ -19,7 +19,7 @@ from engine.pipeline import RunCheck, process_run
 from engine.results import ProcessResult
 from engine.runlog import RunLog
 from engine.track import TrackParams
-from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import Vehicle as EngineVehicle
 
 from .integrate import Separation, add_run_to_track
 from .profiles import fuse_axles, insert_profile
@@ -38,7 +38,7 @@ def invert(
     *,
     start_chainage_m: float | None,
     direction: str,
-    vehicle: VehicleParams,
+    vehicle: EngineVehicle,
     track: TrackParams,
     budget_s: float | None = None,
     checked: RunCheck | None = None,
@@ -67,11 +67,11 @@ class StartedInversion:
     are the same, and inverts again otherwise."""
 
     future: Future[Processed]
-    inputs: tuple[float | None, str, VehicleParams, TrackParams]
+    inputs: tuple[float | None, str, EngineVehicle, TrackParams]
     """``(start_chainage_m, direction, vehicle, track)``."""
 
     def matches(
-        self, start_chainage_m: float | None, direction: str, vehicle: VehicleParams,
+        self, start_chainage_m: float | None, direction: str, vehicle: EngineVehicle,
         track: TrackParams,
     ) -> bool:  # fmt: skip
         """Whether it inverts the log with these inputs."""
@@ -88,7 +88,7 @@ def start_inversion(
     *,
     start_chainage_m: float | None,
     direction: str,
-    vehicle: VehicleParams,
+    vehicle: EngineVehicle,
     track: TrackParams,
     budget_s: float | None,
     checked: RunCheck,

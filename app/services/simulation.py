@@ -17,7 +17,8 @@ from engine.sensor import SensorModel
 from engine.simulate import room_to_run
 from engine.synthetic import make_run
 from engine.track import SoftZone, TrackParams
-from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import Vehicle as EngineVehicle
+from engine.vehicle_kinds import vehicle_from_dict
 
 from .context import AppContext
 from .errors import Invalid
@@ -72,7 +73,7 @@ class Truth:
         }
 
 
-def _check_geometry(ctx: AppContext, spec: SimulationSpec, vp: VehicleParams) -> None:
+def _check_geometry(ctx: AppContext, spec: SimulationSpec, vp: EngineVehicle) -> None:
     for i, z in enumerate(spec.zones):
         if z.end_m > spec.length_m:
             raise Invalid(
@@ -104,7 +105,7 @@ def simulate_and_submit(ctx: AppContext, spec: SimulationSpec) -> tuple[int, boo
     """
     with ctx.db.session() as s:
         vehicle = resolve_vehicle(s, spec.vehicle, None)
-        vp = VehicleParams.from_dict(vehicle.params_dict())
+        vp = vehicle_from_dict(vehicle.params_dict())
         track = resolve_track(s, spec.track, None)
         tp = TrackParams.from_dict(track.params_dict()) if track is not None else TrackParams()
     _check_geometry(ctx, spec, vp)

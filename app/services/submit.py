@@ -30,7 +30,8 @@ from engine.errors import EngineError, LogFormatError
 from engine.pipeline import RunCheck, check_run
 from engine.runlog import RunLog
 from engine.track import TrackParams
-from engine.vehicle import PRESETS, VehicleParams
+from engine.vehicle_kinds import KIND_PRESETS, vehicle_from_dict
+from engine.vehicle_kinds import Vehicle as EngineVehicle
 
 from .calibration import maybe_auto_calibrate
 from .centerlines import load_centerline, place_by_gnss
@@ -179,14 +180,14 @@ def resolve_vehicle(session: Session, name: str | None, vehicle_id: int | None) 
         return v
     wanted = name or DEFAULT_VEHICLE
     v = session.scalar(select(Vehicle).where(Vehicle.name == wanted))
-    if v is None and wanted in PRESETS:
+    if v is None and wanted in KIND_PRESETS:
         # A preset's name is a vehicle everywhere: stored on first use, like table1.
         v = vehicle_from_preset(session, wanted)
     if v is None:
         # Only the engine's presets are named: the stored vehicles are listed by
         # GET /api/v1/vehicles to those who may read them, not in every error.
         raise Invalid(
-            f"vehicle {wanted!r} does not exist; the presets are {', '.join(sorted(PRESETS))} "
+            f"vehicle {wanted!r} does not exist; the presets are {', '.join(sorted(KIND_PRESETS))} "
             "(the stored vehicles: GET /api/v1/vehicles; a new one: POST /api/v1/vehicles)",
             field="vehicle",
         )
@@ -200,7 +201,7 @@ def vehicle_from_preset(session: Session, preset: str, name: str | None = None) 
     wanted = name or preset
     try:
         return create_vehicle(
-            session, wanted, f"Engine vehicle preset {preset!r}", PRESETS[preset].to_dict()
+            session, wanted, f"Engine vehicle preset {preset!r}", KIND_PRESETS[preset].to_dict()
         )
     except Conflict:
         found = session.scalar(select(Vehicle).where(Vehicle.name == wanted))
@@ -260,7 +261,7 @@ def _new_track_columns(given: dict[str, Any]) -> dict[str, Any]:
     return columns
 
 
-def _preflight(sub: Submission, vehicle: VehicleParams) -> RunCheck:
+def _preflight(sub: Submission, vehicle: EngineVehicle) -> RunCheck:
     # Everything that can be known about a log without inverting it (the engine's O(n)
     # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
     # queued run does not fail later for a reason the client could have been told now.
@@ -335,7 +336,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             sub.log, sub.payload_kg, sub.static_wheel_load_n
         )
         vp = loaded_vehicle(
-            VehicleParams.from_dict(vehicle.params_dict()), sub.payload_kg, wheel_load_n,
+            vehicle_from_dict(vehicle.params_dict()), sub.payload_kg, wheel_load_n,
             field=load_field,
         )  # fmt: skip
         vehicle_version = vehicle.version

@@ -19,7 +19,8 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Run, RunInput, SoftSpot, Vehicle, VehicleVersion
 from engine.errors import ParameterError
-from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import Vehicle as EngineVehicle
+from engine.vehicle_kinds import vehicle_from_dict
 from engine.vehicle_plausibility import check_vehicle, implausibilities, vehicle_quantities
 
 from .errors import Conflict, Invalid, NotFound
@@ -29,13 +30,13 @@ from .profiles import delete_profile
 T = TypeVar("T")
 
 
-def checked_params(params: dict[str, Any], field: str = "params") -> VehicleParams:
-    """The engine's vehicle from a parameter mapping, plausible as a whole
-    (:func:`engine.vehicle_plausibility.check_vehicle`); Invalid naming the parameter, or
-    the derived quantity out of range, otherwise."""
+def checked_params(params: dict[str, Any], field: str = "params") -> EngineVehicle:
+    """The engine's vehicle (of the mapping's ``kind``, default the half car) from a
+    parameter mapping, plausible as a whole (:func:`engine.vehicle_plausibility.check_vehicle`);
+    Invalid naming the parameter, or the derived quantity out of range, otherwise."""
     try:
-        vp = VehicleParams.from_dict(params)
-        check_vehicle(vp, field=field)
+        vp = vehicle_from_dict(params)
+        check_vehicle(vp, vp.kind, field=field)
     except ParameterError as exc:
         raise Invalid.from_engine(exc, field=field) from None
     return vp
@@ -52,7 +53,8 @@ def create_vehicle(
     vp = checked_params(params)
     if session.scalar(select(Vehicle.id).where(Vehicle.name == name)) is not None:
         raise Conflict(f"a vehicle named {name!r} already exists", field="name")
-    vehicle = Vehicle(name=name, description=description, version=1, **vp.to_dict())
+    vehicle = Vehicle(name=name, description=description, version=1)
+    vehicle.set_params(vp)
     session.add(vehicle)
     try:
         session.flush()
@@ -72,7 +74,7 @@ def create_vehicle(
 def new_version(
     session: Session,
     vehicle: Vehicle,
-    params: VehicleParams,
+    params: EngineVehicle,
     *,
     source: str,
     created_by: str | None = None,
@@ -87,8 +89,7 @@ def new_version(
     session.execute(select(Vehicle.id).where(Vehicle.id == vehicle.id).with_for_update())
     session.refresh(vehicle)
     version = vehicle.version + 1
-    for name, value in params.to_dict().items():
-        setattr(vehicle, name, value)
+    vehicle.set_params(params)
     vehicle.version = version
     session.add(
         VehicleVersion(
@@ -235,11 +236,11 @@ def preview_edit(session: Session, vehicle: Vehicle, changes: dict[str, Any]) ->
     if not changes:
         raise Invalid("give at least one parameter to change", field="params")
     try:
-        vp = VehicleParams.from_dict({**vehicle.params_dict(), **changes})
+        vp = vehicle_from_dict({**vehicle.params_dict(), **changes})
     except ParameterError as exc:
         raise Invalid.from_engine(exc, field="params") from None
     now, after = vehicle.params_dict(), vp.to_dict()
-    found = implausibilities(vp)
+    found = implausibilities(vp, vp.kind)
     return EditPreview(
         params=after,
         changes={k: (now[k], v) for k, v in after.items() if now.get(k) != v},
@@ -247,7 +248,7 @@ def preview_edit(session: Session, vehicle: Vehicle, changes: dict[str, Any]) ->
         runs_reprocessed=runs_to_reprocess(session, vehicle.id),
         plausible=not found,
         problems=[f.message for f in found],
-        quantities=vehicle_quantities(vp),
+        quantities=vehicle_quantities(vp, vp.kind),
     )
 
 

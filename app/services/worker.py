@@ -28,7 +28,7 @@ from app.db.models import Calibration, Run, RunInput
 from app.services.errors import engine_error_facts
 from engine.errors import EngineError
 from engine.track import TrackParams
-from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import vehicle_from_dict
 from engine.vehicle_plausibility import ImplausibleResult
 
 from .calibration import (
@@ -446,7 +446,7 @@ class Worker:
                 else s.scalar(select(RunInput.data).where(RunInput.run_id == run_id))
             )
             vp = loaded_vehicle(
-                VehicleParams.from_dict(run.vehicle.params_dict()), run.payload_kg,
+                vehicle_from_dict(run.vehicle.params_dict()), run.payload_kg,
                 run.static_wheel_load_n,
             )  # fmt: skip
             vehicle_version, vehicle_id = run.vehicle.version, run.vehicle_id

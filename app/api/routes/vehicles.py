@@ -4,7 +4,7 @@ health."""
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, Query
 from sqlalchemy import func, select
@@ -13,6 +13,8 @@ from app.api.convert import calibration_public, vehicle_public
 from app.api.deps import CalibrationId, CallerDep, CtxDep, SessionDep, caller_name
 from app.db.models import Vehicle
 from app.schemas.vehicles import (
+    AnyVehicleParams,
+    BogieParamsSchema,
     CalibrateRequest,
     CalibrationAccepted,
     CalibrationPublic,
@@ -32,7 +34,8 @@ from app.schemas.vehicles import (
 )
 from app.services import calibration, vehicles
 from app.services.errors import Invalid
-from engine.vehicle import PRESETS
+from engine.bogie import BogieParams
+from engine.vehicle_kinds import KIND_PRESETS
 
 from .lookup import get_vehicle
 
@@ -53,29 +56,37 @@ def list_vehicles(
 
 @router.post("", response_model=VehiclePublic, status_code=201)
 def create_vehicle(session: SessionDep, body: VehicleCreate, caller: CallerDep) -> VehiclePublic:
-    """Create a vehicle from its half-car parameters (SI), version 1, or from an engine preset
-    (``preset``: table1, heavy) with the parameters given overriding it; 409 if the name is
-    taken, 422 naming ``preset`` when there is no such preset."""
-    params = body.params.model_dump()
+    """Create a vehicle from its parameters (SI; a half car, or ``kind: bogie`` with the
+    whole-vehicle datasheet values), version 1, or from an engine preset (``preset``: table1,
+    heavy, passenger_coach, freight_wagon) with the parameters given overriding it; 409 if
+    the name is taken, 422 naming ``preset`` when there is no such preset."""
+    params: dict[str, Any] = body.params.model_dump()
     if body.preset is not None:
-        if body.preset not in PRESETS:
+        if body.preset not in KIND_PRESETS:
             raise Invalid(
                 f"unknown vehicle preset {body.preset!r}; expected one of "
-                f"{', '.join(sorted(PRESETS))}", field="preset",
+                f"{', '.join(sorted(KIND_PRESETS))}", field="preset",
             )  # fmt: skip
         given = body.params.model_fields_set
-        params = PRESETS[body.preset].to_dict() | {k: params[k] for k in given}
+        params = KIND_PRESETS[body.preset].to_dict() | {k: params[k] for k in given}
     vehicle = vehicles.create_vehicle(
         session, body.name, body.description, params, caller_name(session, caller)
     )
     return vehicle_public(vehicle)
 
 
-@router.get("/presets", response_model=dict[str, VehicleParamsSchema])
-def list_presets() -> dict[str, VehicleParamsSchema]:
-    """The engine's vehicle presets by name: usable as a vehicle name anywhere (uploads,
-    simulate), and as ``preset`` when creating a vehicle."""
-    return {name: VehicleParamsSchema(**p.to_dict()) for name, p in PRESETS.items()}
+@router.get("/presets", response_model=dict[str, AnyVehicleParams])
+def list_presets() -> dict[str, VehicleParamsSchema | BogieParamsSchema]:
+    """The engine's vehicle presets by name, of every kind: usable as a vehicle name anywhere
+    (uploads, simulate), and as ``preset`` when creating a vehicle."""
+    return {
+        name: (
+            BogieParamsSchema(**p.to_dict())
+            if p.kind == BogieParams.kind
+            else VehicleParamsSchema(**p.to_dict())
+        )
+        for name, p in KIND_PRESETS.items()
+    }
 
 
 @router.get("/{vehicle}", response_model=VehiclePublic)

@@ -1,0 +1,216 @@
+"""Accuracy on the peer's runs: bogie vehicles on a layered track made with ROSE (issue 32).
+
+Run: ``python benchmarks/accuracy_peer_bogie.py [--data DIR] [--vehicle bogie|lumped]``
+
+Each run of ``DIR`` (default ``$SHARED_DIR/data/peer-bogie``, ``/work/shared`` without it)
+is processed as a user would upload it: the CSV, its start chainage and direction, and the
+vehicle from its datasheet (``bogie``: the whole-vehicle values of the truth JSON as a
+:class:`engine.bogie.BogieParams`; ``lumped``: the README's lumped half car). Nothing of the
+truth but the vehicle, the start chainage and the direction enters the processing.
+
+Scored as the README's section 5 says: a zone is found when a reported soft spot overlaps it
+with both ends within 1.5 m; a false zone overlaps no true zone widened by 1.5 m; loss error
+in percentage points; the profile against the bogie-mean truth, band-passed 3-25 m and
+3-40 m (4th-order zero-phase Butterworth in wavenumber, 25 m dropped at each end).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+from numpy.typing import NDArray  # noqa: E402
+from scipy.signal import butter, sosfiltfilt  # noqa: E402
+
+from engine.bogie import BogieParams  # noqa: E402
+from engine.logio.parse import read_run_csv  # noqa: E402
+from engine.pipeline import process_run  # noqa: E402
+from engine.results import ProcessResult  # noqa: E402
+from engine.vehicle import VehicleParams  # noqa: E402
+from engine.vehicle_kinds import Vehicle  # noqa: E402
+
+TOL_M = 1.5
+"""Zone end tolerance, m (README section 5)."""
+
+
+def default_dir() -> Path:
+    return Path(os.environ.get("SHARED_DIR", "/work/shared")) / "data" / "peer-bogie"
+
+
+def bogie_from_truth(truth: dict) -> BogieParams:
+    """The vehicle as its datasheet gives it (whole vehicle), from the truth JSON."""
+    full = truth["vehicle"]["full_vehicle"]
+    per_rail = truth["vehicle"]["per_rail_model"]
+    return BogieParams(
+        body_mass_kg=full["body_mass_kg"],
+        body_pitch_inertia_kgm2=full["body_pitch_inertia_kgm2"],
+        bogie_mass_kg=full["bogie_frame_mass_kg_each"],
+        bogie_pitch_inertia_kgm2=full["bogie_frame_pitch_inertia_kgm2_each"],
+        wheelset_mass_kg=full["wheelset_mass_kg_each"],
+        bogie_half_spacing_m=0.5 * full["bogie_centre_distance_m"],
+        wheelbase_m=full["wheelbase_m"],
+        secondary_k_n_per_m=full["secondary_k_N_per_m_per_bogie_per_side"],
+        secondary_c_ns_per_m=full["secondary_c_Ns_per_m_per_bogie_per_side"],
+        primary_k_n_per_m=full["primary_k_N_per_m_per_axlebox"],
+        primary_c_ns_per_m=full["primary_c_Ns_per_m_per_axlebox"],
+        contact_k_n_per_m=per_rail["hertz_k_linearised_at_static_load_N_per_m"],
+    )
+
+
+def lumped_from_truth(truth: dict) -> VehicleParams:
+    """The README's lumped half car (each bogie one axle)."""
+    h = truth["half_car_lumped"]
+    keys = ("ms", "Is", "mu1", "mu2", "ks1", "ks2", "cs1", "cs2", "kt1", "kt2", "d1", "d2")
+    return VehicleParams(**{k: h[k] for k in keys})
+
+
+def butter_band(y: NDArray[np.float64], step: float, lo: float, hi: float) -> NDArray[np.float64]:
+    """Zero-phase 4th-order Butterworth band-pass in wavenumber (wavelengths lo..hi m)."""
+    nyq = 0.5 / step
+    sos = butter(4, [1.0 / hi / nyq, 1.0 / lo / nyq], btype="band", output="sos")
+    return np.asarray(sosfiltfilt(sos, y))
+
+
+def bogie_mean_truth(npz: dict, grid: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The bogie-mean truth level on ``grid`` (m), NaN where not both bogies passed."""
+    f = np.interp(grid, npz["x_front_bogie"], npz["level_front_bogie"], left=np.nan, right=np.nan)
+    r = np.interp(grid, npz["x_rear_bogie"], npz["level_rear_bogie"], left=np.nan, right=np.nan)
+    return 0.5 * (f + r)
+
+
+def profile_scores(res: ProcessResult, npz: dict) -> dict[str, float]:
+    """RMS difference, truth RMS, correlation and gain in the 3-25 and 3-40 m bands."""
+    x = res.chainage_m
+    step = float(x[1] - x[0])
+    truth = bogie_mean_truth(npz, x) * 1e3
+    ok = np.isfinite(truth) & np.isfinite(res.level_mm)
+    i0, i1 = np.flatnonzero(ok)[[0, -1]]
+    seg = slice(i0, i1 + 1)
+    out: dict[str, float] = {}
+    for lo, hi in ((3.0, 25.0), (3.0, 40.0)):
+        t = butter_band(truth[seg], step, lo, hi)
+        m = butter_band(res.level_mm[seg], step, lo, hi)
+        drop = int(round(25.0 / step))
+        t, m = t[drop:-drop], m[drop:-drop]
+        tag = f"{lo:g}-{hi:g}"
+        out[f"rms_diff_{tag}"] = float(np.sqrt(np.mean((m - t) ** 2)))
+        out[f"rms_truth_{tag}"] = float(np.sqrt(np.mean(t**2)))
+        out[f"corr_{tag}"] = float(np.corrcoef(m, t)[0, 1])
+        out[f"gain_{tag}"] = float(np.polyfit(t, m, 1)[0])
+    return out
+
+
+def zone_scores(res: ProcessResult, zones: list[dict]) -> dict[str, object]:
+    """Per true zone: the matching spot's ends and loss; and the false spots."""
+    rows = []
+    for z in zones:
+        hit = None
+        for s in res.soft_spots:
+            overlaps = s.start_m <= z["end_m"] and s.end_m >= z["start_m"]
+            if overlaps and (
+                hit is None or abs(s.start_m - z["start_m"]) < abs(hit.start_m - z["start_m"])
+            ):
+                hit = s
+        row = {"true": (z["start_m"], z["end_m"], 100 * z["stiffness_loss"])}
+        if hit is not None:
+            d0, d1 = hit.start_m - z["start_m"], hit.end_m - z["end_m"]
+            row |= {
+                "found": abs(d0) <= TOL_M and abs(d1) <= TOL_M,
+                "reported": (hit.start_m, hit.end_m, hit.stiffness_loss_pct),
+                "d_start": d0,
+                "d_end": d1,
+                "loss_err_pp": hit.stiffness_loss_pct - 100 * z["stiffness_loss"],
+            }
+        else:
+            row |= {"found": False}
+        rows.append(row)
+    false = [
+        (s.start_m, s.end_m)
+        for s in res.soft_spots
+        if not any(
+            s.start_m <= z["end_m"] + TOL_M and s.end_m >= z["start_m"] - TOL_M for z in zones
+        )
+    ]
+    return {"zones": rows, "false": false}
+
+
+def run_one(csv: Path, vehicle_kind: str) -> dict[str, object]:
+    truth = json.loads(csv.with_suffix(".truth.json").read_text())
+    npz = dict(np.load(csv.with_suffix(".truth.npz")))
+    log = read_run_csv(csv)
+    vehicle: Vehicle = (
+        bogie_from_truth(truth) if vehicle_kind == "bogie" else lumped_from_truth(truth)
+    )
+    t0 = time.perf_counter()
+    res = process_run(
+        log, start_chainage_m=truth["start_chainage_m"], direction=truth["direction"],
+        vehicle=vehicle,
+    )  # fmt: skip
+    elapsed = time.perf_counter() - t0
+    return {
+        "run": csv.stem,
+        "time_s": elapsed,
+        "geometry_smooth": bool(res.geometry_check.smooth),
+        **zone_scores(res, truth["zones"]),
+        **profile_scores(res, npz),
+    }
+
+
+def table(results: list[dict[str, object]], vehicle_kind: str) -> list[str]:
+    lines = [
+        f"Vehicle given: **{vehicle_kind}**.",
+        "",
+        "| run | zone (true) | reported | Δstart, Δend (m) | loss true → reported (Δ pp) | found |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        for z in r["zones"]:  # type: ignore[union-attr]
+            a, b, loss = z["true"]
+            if "reported" in z:
+                ra, rb, rl = z["reported"]
+                lines.append(
+                    f"| {r['run']} | {a:.1f}-{b:.1f} m, {loss:.0f} % | {ra:.1f}-{rb:.1f} m | "
+                    f"{z['d_start']:+.1f}, {z['d_end']:+.1f} | {loss:.0f} → {rl:.0f} % "
+                    f"({z['loss_err_pp']:+.1f}) | {'yes' if z['found'] else 'no'} |"
+                )
+            else:
+                lines.append(f"| {r['run']} | {a:.1f}-{b:.1f} m, {loss:.0f} % | — | — | — | no |")
+    lines += [
+        "",
+        "| run | false zones | rail judged smooth | profile 3-25 m: RMS diff / truth RMS, corr, "
+        "gain | 3-40 m: RMS diff / truth RMS, corr, gain | time, s |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        fz = ", ".join(f"{a:.1f}-{b:.1f}" for a, b in r["false"]) or "none"  # type: ignore[union-attr]
+        lines.append(
+            f"| {r['run']} | {fz} | {'yes' if r['geometry_smooth'] else 'no'} | "
+            f"{r['rms_diff_3-25']:.3f} / {r['rms_truth_3-25']:.3f} mm, {r['corr_3-25']:.3f}, "
+            f"{r['gain_3-25']:.2f} | {r['rms_diff_3-40']:.3f} / {r['rms_truth_3-40']:.3f} mm, "
+            f"{r['corr_3-40']:.3f}, {r['gain_3-40']:.2f} | {r['time_s']:.2f} |"
+        )
+    return lines
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=default_dir())
+    ap.add_argument("--vehicle", choices=("bogie", "lumped"), default="bogie")
+    ap.add_argument("--runs", nargs="*", default=None, help="run names (default: all)")
+    args = ap.parse_args()
+    csvs = sorted(args.data.glob("pub_*.csv"))
+    if args.runs:
+        csvs = [c for c in csvs if c.stem in args.runs]
+    results = [run_one(c, args.vehicle) for c in csvs]
+    print("\n".join(table(results, args.vehicle)))
+
+
+if __name__ == "__main__":
+    main()
