@@ -63,7 +63,7 @@ COMPILE_HINT = b"//# allFunctionsCalledOnLoad\n"
 """V8's explicit compile hint (chromium >= 136), put before plotly.js as served: V8 compiles
 all its functions while the script streams in, on a background thread, instead of lazily on
 the main thread during its evaluation and the first chart's draw, which a cold first visit
-waits for (docs/benchmarks.md, issue 14). Other browsers read a comment."""
+waits for (docs/benchmarks.md). Other browsers read a comment."""
 PLOTLY_SRC_META = '<meta name="plotly-src" content="/static/vendor/plotly.min.js">'
 """The line of ``static/index.html`` that tells the dashboard where plotly.js is; the page
 served at ``/`` names the versioned (immutable) URL there instead."""
@@ -145,7 +145,7 @@ def plotly_bundle(*candidates: Path) -> PlotlyBundle:
 
     Its load time is what a first visit waits for: chromium evaluates the full bundle in ~4 s
     on a loaded 2-core machine, the cartesian one in ~1 s and the dashboard's in ~0.5 s
-    (docs/benchmarks.md, issue 14)."""
+    (docs/benchmarks.md)."""
     version = plotly_js_version()
     for path, flavour in zip(candidates, BUNDLE_FLAVOURS, strict=True):
         found = bundle_version(path)

@@ -26,11 +26,11 @@ api_router = APIRouter(
 )
 api_router.include_router(runs.router)
 api_router.include_router(tracks.router)
-# Per-track aggregated profile, defect register, alerts, limits and report (issue 6).
+# Per-track aggregated profile, defect register, alerts, limits and report.
 api_router.include_router(track_intel.router)
-# Geometry vs stiffness: separated stiffness and reference surveys of a track (issue 10).
+# Geometry vs stiffness: separated stiffness and reference surveys of a track.
 api_router.include_router(stiffness.router)
-# Positions from GNSS: a track's centerline (issue 11).
+# Positions from GNSS: a track's centerline.
 api_router.include_router(centerlines.router)
 # Track quality in EN 13848 terms: D1/D2 sections, isolated defects, line speeds, GeoJSON.
 api_router.include_router(quality.router)

@@ -16,12 +16,12 @@ So while the service works (:func:`keep_freed_memory`) glibc serves blocks up to
 its heap (a column of an hour's log is 29 MB; the upload's 135 MB buffer stays a mapping of
 its own, returned when freed), does not trim it by itself and keeps one arena for every
 thread (what one thread frees another reuses), and pyarrow allocates from that heap too (its
-own mimalloc pool kept the CSV parser's columns apart and handed them back at once).
-Measured, three hour-long uploads to one server: peak 1.31-1.32 GB resident; with blocks up
-to 1 GB kept as well the uploads were ~0.3 s faster still but the peak reached 1.41-1.63 GB,
-past the 1.5 GB target. :class:`IdleRelease` hands
-the free pages back (``malloc_trim``) once nothing has been processed for a while. Where the C
-library is not glibc nothing is changed.
+own mimalloc pool would keep the CSV parser's columns apart and hand them back at once).
+64 MB and not more: keeping larger blocks as well would make uploads only slightly faster and
+take the peak resident memory of successive hour-long uploads past the 1.5 GB target
+(``benchmarks/bench_service.py``). :class:`IdleRelease` hands the free pages back
+(``malloc_trim``) once nothing has been processed for a while. Where the C library is not
+glibc nothing is changed.
 """
 
 from __future__ import annotations

@@ -238,13 +238,13 @@ class Run(Base):
     n_soft_spots: Mapped[int | None] = mapped_column(Integer)
     vehicle_version: Mapped[int | None] = mapped_column(Integer)  # produced the results
     processing_s: Mapped[float | None] = mapped_column(Float)
-    # Load (issue 10): what the client declared, the inversion's mean wheel force, and whether
+    # Load: what the client declared, the inversion's mean wheel force, and whether
     # the run's own stiffness-loss figures are valid (rail smooth at the noise level).
     payload_kg: Mapped[float | None] = mapped_column(Float)
     static_wheel_load_n: Mapped[float | None] = mapped_column(Float)
     mean_wheel_force_n: Mapped[float | None] = mapped_column(Float)
     single_pass_valid: Mapped[bool | None] = mapped_column(Boolean)
-    # GNSS placement (issue 11): engine.positioning.Placement.to_dict(); None when the run was
+    # GNSS placement: engine.positioning.Placement.to_dict(); None when the run was
     # placed by its start chainage.
     positioning: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     # What the run could see: engine.results.DetectionLimit.to_dict() (smallest detectable
@@ -369,7 +369,8 @@ class TrackRunLevels(Base):
     grid points ``chunk * CHUNK_POINTS ... + CHUNK_POINTS - 1`` (chainage = index x 0.25 m).
     Only runs that are the reference of their stretch or aligned to it have rows here: the
     aggregate of a chainage range is recomputed from these rows alone. ``force_n`` holds the
-    wheel force under that level the same way (N; NULL for runs stored before issue 10).
+    wheel force under that level the same way (N; NULL for runs stored before wheel forces were
+    kept).
     """
 
     __tablename__ = "track_run_levels"
@@ -510,7 +511,7 @@ class TrackStiffnessSpot(Base):
 
 
 class TrackCenterline(Base):
-    """A track's centerline (issue 11): WGS84 vertices and the chainage of each, for placing
+    """A track's centerline: WGS84 vertices and the chainage of each, for placing
     runs by their GNSS fixes and drawing the line in plan."""
 
     __tablename__ = "track_centerlines"

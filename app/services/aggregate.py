@@ -37,13 +37,12 @@ BATCH_CHUNKS = 40
 
 NEWEST_PASSES = 50
 """Runs per chunk that make its aggregate and its geometry/stiffness separation: the newest by
-recording time (then the newest stored). Every stored run used to re-read and recompute every
-earlier run over its stretch: on a 200 km line a 20 km run took 0.4 s to store after 100 runs
-and 2.6 s after 600 (``benchmarks/bench_year.py``), without end for a fleet that passes a
-kilometre ~40 times a day. Fifty passes of different loads are more than the separation
-needs, and the aggregate stays the track's present state, not its history; older runs'
-aligned levels stay stored (realignment, the register), and enter again when newer ones are
-deleted."""
+recording time (then the newest stored). Without a cap every stored run would re-read and
+recompute every earlier run over its stretch, a cost that grows without end for a fleet that
+passes a kilometre ~40 times a day (``benchmarks/bench_year.py``). Fifty passes of different
+loads are more than the separation needs, and the aggregate stays the track's present state,
+not its history; older runs' aligned levels stay stored (realignment, the register), and
+enter again when newer ones are deleted."""
 
 AGGREGATE_COLUMNS = ("level_mm", "spread_mm", "n_runs")
 """What a stored chunk of the aggregate holds per grid point (:func:`pack_chunk`)."""

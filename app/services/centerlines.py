@@ -1,4 +1,4 @@
-"""Track centerlines (issue 11): reading, storing, and placing runs by their GNSS fixes.
+"""Track centerlines: reading, storing, and placing runs by their GNSS fixes.
 
 A centerline is read by the engine (:mod:`engine.positioning`) from GeoJSON or CSV; its
 problems become :class:`Invalid` naming the vertex or line. Placing a run turns the engine's
