@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import re
 import sys
 import time
 from pathlib import Path
@@ -33,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
-from common import machine  # noqa: E402
+from common import machine, publish_section  # noqa: E402
 
 from engine.chainage import bandpass_distance  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
@@ -245,15 +244,7 @@ def main() -> None:
         "stiffness-loss figure.",
         END,
     ]
-    out = Path(ns.out)
-    text = out.read_text() if out.exists() else ""
-    block = "\n".join(section)
-    if START in text:
-        text = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: block, text, flags=re.S)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    out.write_text(text)
-    print(block)
+    publish_section(section, Path(ns.out))
 
 
 if __name__ == "__main__":

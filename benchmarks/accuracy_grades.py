@@ -20,7 +20,6 @@ a false zone overlaps no true zone. The detection limit is the run's own
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -30,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
-from common import machine  # noqa: E402
+from common import machine, publish_section  # noqa: E402
 
 from engine.chainage import bandpass_distance  # noqa: E402
 from engine.detect import robust_baseline  # noqa: E402
@@ -207,17 +206,7 @@ def main() -> None:
         *rows,
         END,
     ]
-    block = "\n".join(section)
-    print(block)
-    if ns.no_write:
-        return
-    out = Path(ns.out)
-    text = out.read_text() if out.exists() else ""
-    if START in text:
-        text = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: block, text, flags=re.S)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    out.write_text(text)
+    publish_section(section, None if ns.no_write else Path(ns.out))
 
 
 if __name__ == "__main__":

@@ -28,7 +28,6 @@ the worst over the zones found.
 from __future__ import annotations
 
 import argparse
-import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -38,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
-from common import machine  # noqa: E402
+from common import machine, publish_section  # noqa: E402
 
 from engine.accumulate import accumulate, detect_on_aggregate  # noqa: E402
 from engine.chainage import bandpass_distance  # noqa: E402
@@ -314,15 +313,7 @@ def main() -> None:
         f"{verdict(two_ok)} |",
         END,
     ]
-    out = Path(ns.out)
-    text = out.read_text() if out.exists() else ""
-    block = "\n".join(section)
-    if START in text:
-        text = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: block, text, flags=re.S)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    out.write_text(text)
-    print(block)
+    publish_section(section, Path(ns.out))
 
 
 if __name__ == "__main__":

@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import re
 import sys
 import time
 import warnings
@@ -37,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
-from common import machine  # noqa: E402
+from common import machine, publish_section  # noqa: E402
 
 from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import on_grid  # noqa: E402
@@ -215,15 +214,7 @@ def main() -> None:
                   "|---|---|---|---|"]  # fmt: skip
         lines += public_repeatability(Path(ns.public))
     lines.append(END)
-    block = "\n".join(lines)
-    print(block)
-    out = Path(ns.out)
-    text = out.read_text()
-    if START in text:
-        text = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: block, text, flags=re.S)
-    else:
-        text = text.rstrip() + "\n\n## Track quality (EN 13848)\n\n" + block + "\n"
-    out.write_text(text)
+    publish_section(lines, Path(ns.out), heading="## Track quality (EN 13848)\n\n")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,6 @@
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import tempfile
 import time
@@ -32,7 +31,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import machine  # noqa: E402
+from common import machine, median_p95  # noqa: E402
 from sqlalchemy import insert  # noqa: E402
 
 from app.db.migrate import upgrade  # noqa: E402
@@ -63,11 +62,6 @@ def make_levels(n_runs: int, length_m: float, seed: int = 0):
         level = geometry + bandpass_distance(force * comp, GRID_STEP_M, 3.0, 40.0)
         runs.append((force, level + rng.normal(0.0, 0.04, x.size)))
     return runs
-
-
-def stats(ms: list[float]) -> str:
-    q = statistics.quantiles(ms, n=20)
-    return f"median {statistics.median(ms):.1f} ms, p95 {q[18]:.1f} ms"
 
 
 def main() -> int:
@@ -127,7 +121,7 @@ def main() -> int:
                 t0 = time.perf_counter()
                 read_stiffness(s, track_id, float(a), float(a) + 2000.0)
                 ms.append(1e3 * (time.perf_counter() - t0))
-        print(f"read_stiffness, 2 km window: {stats(ms)}")
+        print(f"read_stiffness, 2 km window: {median_p95(ms)}")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             from starlette.testclient import TestClient
@@ -147,7 +141,7 @@ def main() -> int:
                 ms.append(1e3 * (time.perf_counter() - t0))
                 assert r.status_code == 200, r.text
             print(f"GET /tracks/{{id}}/stiffness, 2 km window (JSON, {r.json()['n']} points): "
-                  f"{stats(ms)}")  # fmt: skip
+                  f"{median_p95(ms)}")  # fmt: skip
     return 0
 
 

@@ -38,10 +38,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import machine  # noqa: E402
+from common import database_with_track, machine, median_p95  # noqa: E402
 
-from app.db.migrate import upgrade  # noqa: E402
-from app.db.models import Run, Track, Vehicle  # noqa: E402
+from app.db.models import Run  # noqa: E402
 from app.db.session import Database  # noqa: E402
 from app.services.processing import Processed, store_result  # noqa: E402
 from engine.results import ProcessResult, Quality, SoftSpot  # noqa: E402
@@ -123,10 +122,6 @@ def store_run(db: Database, track_id: int, vehicle_id: int, line: Line, k: int, 
         return run.id, float(run.chainage_offset_m), time.perf_counter() - t0
 
 
-def stats(ms: list[float]) -> str:
-    return f"median {statistics.median(ms):.1f} ms, p95 {float(np.percentile(ms, 95)):.1f} ms"
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=50)
@@ -140,17 +135,8 @@ def main() -> int:
     rng = np.random.default_rng(args.seed)
     with tempfile.TemporaryDirectory(prefix="bench-track-") as tmp:
         url = f"sqlite:///{Path(tmp) / 'trackprofile.db'}"
-        db = Database(url)
-        upgrade(db)
+        db, track_id, vehicle_id = database_with_track(url, "Bench line")
         line = Line(length, seed=args.seed)
-        with db.session() as s:
-            vehicle = s.query(Vehicle).order_by(Vehicle.id).first()
-            assert vehicle is not None
-            track = Track(name="Bench line", rail="UIC60", k_nominal=8e7, spacing=0.6,
-                          EI=6.4155e6, mass_per_m=60.21, c_support=5e4)  # fmt: skip
-            s.add(track)
-            s.commit()
-            track_id, vehicle_id = track.id, vehicle.id
         errors = rng.uniform(-5.0, 5.0, args.runs + 1)
         t_build = time.perf_counter()
         store_s, misfit = [], []
@@ -199,10 +185,10 @@ def main() -> int:
                 n_points.append(r.json()["n"])
             print(f"GET defects ({len(defects)} defects from "
                   f"{sum(d['runs_seen'] for d in defects)} sightings), {args.repeats} times: "
-                  f"{stats(reg_ms)} (target <= 200 ms)")  # fmt: skip
+                  f"{median_p95(reg_ms)} (target <= 200 ms)")  # fmt: skip
             pts = statistics.median(n_points)
             print(f"GET profile, {args.window_km:g} km window ({pts:.0f} points), "
-                  f"{args.repeats} times: {stats(prof_ms)} (target <= 200 ms)")  # fmt: skip
+                  f"{args.repeats} times: {median_p95(prof_ms)} (target <= 200 ms)")  # fmt: skip
             fn_reg, fn_prof = [], []
             with db.session() as s:
                 for _ in range(max(10, args.repeats // 4)):
@@ -213,8 +199,8 @@ def main() -> int:
                     t0 = time.perf_counter()
                     read_track_profile(s, track_id, a, a + win)
                     fn_prof.append(1000 * (time.perf_counter() - t0))
-            print(f"service functions alone: register {stats(fn_reg)}; profile window "
-                  f"{stats(fn_prof)}")  # fmt: skip
+            print(f"service functions alone: register {median_p95(fn_reg)}; profile window "
+                  f"{median_p95(fn_prof)}")  # fmt: skip
 
             k = args.runs
             run_id, _, dt = store_run(db, track_id, vehicle_id, line, k, k + 1, errors[k], rng)

@@ -42,11 +42,10 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_track import STEP_M, Line  # noqa: E402
-from common import machine  # noqa: E402
+from common import database_with_track, machine  # noqa: E402
 from sqlalchemy import text  # noqa: E402
 
-from app.db.migrate import upgrade  # noqa: E402
-from app.db.models import Run, RunSignals, Track, Vehicle  # noqa: E402
+from app.db.models import Run, RunSignals  # noqa: E402
 from app.db.session import Database  # noqa: E402
 from app.services.processing import Processed, store_result  # noqa: E402
 from app.services.retention import RetentionPolicy, sweep  # noqa: E402
@@ -249,16 +248,7 @@ def main() -> int:
     when = sorted(T0 + timedelta(days=float(d)) for d in rng.uniform(0.0, 365.0, n_runs))
     with tempfile.TemporaryDirectory(prefix="bench-year-") as tmp:
         url = args.database_url or f"sqlite:///{Path(tmp) / 'year.db'}"
-        db = Database(url)
-        upgrade(db)
-        with db.session() as s:
-            vehicle = s.query(Vehicle).order_by(Vehicle.id).first()
-            assert vehicle is not None
-            track = Track(name="Year line", rail="UIC60", k_nominal=8e7, spacing=0.6,
-                          EI=6.4155e6, mass_per_m=60.21, c_support=5e4)  # fmt: skip
-            s.add(track)
-            s.commit()
-            track_id, vehicle_id = track.id, vehicle.id
+        db, track_id, vehicle_id = database_with_track(url, "Year line")
         size0 = db_bytes(db)
         settings = Settings(data_dir=Path(tmp), database_url=url, start_worker=False,
                             run_migrations=False)  # fmt: skip

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import platform
+import re
+import statistics
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -27,6 +29,49 @@ def machine() -> str:
     return (
         f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}"
     )
+
+
+def median_p95(ms: list[float]) -> str:
+    """Median and 95th percentile (linear interpolation) of latencies in ms, for a report line."""
+    return f"median {statistics.median(ms):.1f} ms, p95 {float(np.percentile(ms, 95)):.1f} ms"
+
+
+def publish_section(lines: list[str], out: Path | None, heading: str = "") -> None:
+    """Print a Markdown section and put it into the file ``out`` (None: print only).
+
+    ``lines``' first and last line are the markers that delimit the section in the file: what
+    stands between them there is replaced, else the section is appended (after ``heading``,
+    when given, as the section is new to the file)."""
+    block = "\n".join(lines)
+    print(block)
+    if out is None:
+        return
+    start, end = lines[0], lines[-1]
+    text = out.read_text() if out.exists() else ""
+    if start in text:
+        text = re.sub(re.escape(start) + ".*?" + re.escape(end), lambda _: block, text, flags=re.S)
+    else:
+        text = text.rstrip("\n") + "\n\n" + heading + block + "\n"
+    out.write_text(text)
+
+
+def database_with_track(url: str, track_name: str) -> tuple[Any, int, int]:
+    """A migrated service database at ``url`` with one UIC60 track named ``track_name``
+    added: the database, the track's id and the id of its first (seeded) vehicle."""
+    from app.db.migrate import upgrade
+    from app.db.models import Track, Vehicle
+    from app.db.session import Database
+
+    db = Database(url)
+    upgrade(db)
+    with db.session() as s:
+        vehicle = s.query(Vehicle).order_by(Vehicle.id).first()
+        assert vehicle is not None
+        track = Track(name=track_name, rail="UIC60", k_nominal=8e7, spacing=0.6,
+                      EI=6.4155e6, mass_per_m=60.21, c_support=5e4)  # fmt: skip
+        s.add(track)
+        s.commit()
+        return db, track.id, vehicle.id
 
 
 def best_of(fn: Callable[[], Any], repeat: int = 3) -> tuple[float, Any]:
