@@ -6,6 +6,9 @@ only know the standard library can still catch it.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
+from typing import Any
+
 
 class EngineError(ValueError):
     """Base class of every input error raised by the engine."""
@@ -23,6 +26,15 @@ class ParameterError(EngineError):
     def __init__(self, message: str, *, field: str | None = None):
         super().__init__(message)
         self.field = field
+
+
+def reject_unknown_keys(data: Mapping[str, Any], known: Iterable[str], what: str) -> None:
+    """Raise :class:`ParameterError` naming the keys of ``data`` not among ``known`` (the
+    message lists those, as ``unknown <what>(s) [...]; expected some of [...]``)."""
+    known = set(known)
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ParameterError(f"unknown {what}(s) {unknown}; expected some of {sorted(known)}")
 
 
 class LogFormatError(EngineError):

@@ -121,12 +121,14 @@ def _noise(log: RunLog) -> tuple[float, float]:
     )
 
 
-def spectral(m: MethodInput) -> Inversion:
-    """Frequency-domain inversion of the vehicle's transfer functions (the default)."""
+def _from_band(
+    m: MethodInput, *, wiener: bool = False, axle_delay_s: NDArray[np.float64] | None = None
+) -> Inversion:
+    """The spectral inversion (:func:`spectral_inverse`, its Wiener weighting when asked)."""
     log = m.log
     inv = spectral_inverse(
         log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
-        taper=m.taper,
+        taper=m.taper, wiener=wiener, axle_delay_s=axle_delay_s,
     )  # fmt: skip
     # the levels where the axles pass the grid points, straight from the band spectrum
     # (no full-rate transform of an hour's samples), then band-passed in distance as above
@@ -135,6 +137,11 @@ def spectral(m: MethodInput) -> Inversion:
         None, None, m.bandpass(front), m.bandpass(rear), inv.noise_accel, inv.noise_gyro,
         inv.band,
     )  # fmt: skip
+
+
+def spectral(m: MethodInput) -> Inversion:
+    """Frequency-domain inversion of the vehicle's transfer functions (the default)."""
+    return _from_band(m)
 
 
 def _axle_delays(m: MethodInput, most: int = 64) -> NDArray[np.float64]:
@@ -150,16 +157,7 @@ def _axle_delays(m: MethodInput, most: int = 64) -> NDArray[np.float64]:
 def wiener(m: MethodInput) -> Inversion:
     """The spectral inversion with each bin weighted by the log's own signal-to-noise ratio:
     the measured sensor noise against the levels' measured power spectrum (Wiener)."""
-    log = m.log
-    inv = spectral_inverse(
-        log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
-        taper=m.taper, wiener=True, axle_delay_s=_axle_delays(m),
-    )  # fmt: skip
-    front, rear = inv.band.at_times(m.axle_times) * 1e3
-    return Inversion(
-        None, None, m.bandpass(front), m.bandpass(rear), inv.noise_accel, inv.noise_gyro,
-        inv.band,
-    )  # fmt: skip
+    return _from_band(m, wiener=True, axle_delay_s=_axle_delays(m))
 
 
 def _half_car(m: MethodInput, method: str) -> VehicleParams:

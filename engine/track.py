@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ParameterError
+from .errors import ParameterError, reject_unknown_keys
 
 UIC60_E = 210e9
 """Young's modulus of rail steel, Pa."""
@@ -131,12 +131,7 @@ class TrackParams:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrackParams:
         """Build from a mapping; unknown keys are an error, missing keys take defaults."""
-        known = set(cls.__dataclass_fields__)
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ParameterError(
-                f"unknown track parameter(s) {unknown}; expected some of {sorted(known)}"
-            )
+        reject_unknown_keys(data, cls.__dataclass_fields__, "track parameter")
         return cls(**data)
 
     def to_dict(self) -> dict[str, float]:

@@ -14,7 +14,7 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import ParameterError
+from .errors import ParameterError, reject_unknown_keys
 
 GRAVITY = 9.81
 """Acceleration of gravity used by the model, m/s²."""
@@ -151,12 +151,7 @@ class VehicleParams:
         kind = data.pop("kind", cls.kind)
         if kind != cls.kind:
             raise ParameterError(f"vehicle kind must be {cls.kind!r}, got {kind!r}", field="kind")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ParameterError(
-                f"unknown vehicle parameter(s) {unknown}; expected some of {sorted(known)}"
-            )
+        reject_unknown_keys(data, (f.name for f in fields(cls)), "vehicle parameter")
         return cls(**data)
 
     def to_dict(self) -> dict[str, float]:

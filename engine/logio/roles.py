@@ -45,6 +45,20 @@ def _units(table: Mapping[str, Iterable[str]]) -> dict[str, str]:
     return {spelling: unit for unit, spellings in table.items() for spelling in spellings}
 
 
+def _wgs84_role(key: str, label: str, aliases: str, examples: str) -> _Role:
+    """A GNSS coordinate's role: WGS84 degrees, whatever the coordinate."""
+    return _Role(
+        key=key,
+        label=label,
+        canonical=f"{key}_deg",
+        aliases=frozenset(_words(aliases)),
+        units=_units({"deg": _words("deg degs degree degrees")}),
+        unsupported=frozenset(_words("rad rads radian radians mdeg udeg e7 deg7 semicircles")),
+        factors={"deg": 1.0},
+        examples=examples,
+    )
+
+
 _ROLES: dict[str, _Role] = {
     "time": _Role(
         key="time",
@@ -154,34 +168,18 @@ _ROLES: dict[str, _Role] = {
         factors={"N": 1.0, "kN": 1e3, "t": 1e3 * GRAVITY},
         examples="wheel_load_kn, static_wheel_load_n, load_weigh_kn",
     ),
-    "lat": _Role(
-        key="lat",
-        label="latitude",
-        canonical="lat_deg",
-        aliases=frozenset(
-            _words(
-                "lat latitude gps_lat gnss_lat lat_wgs84 latitude_wgs84 gps_latitude "
-                "gnss_latitude pos_lat position_lat"
-            )
-        ),  # fmt: skip
-        units=_units({"deg": _words("deg degs degree degrees")}),
-        unsupported=frozenset(_words("rad rads radian radians mdeg udeg e7 deg7 semicircles")),
-        factors={"deg": 1.0},
+    "lat": _wgs84_role(
+        "lat",
+        "latitude",
+        "lat latitude gps_lat gnss_lat lat_wgs84 latitude_wgs84 gps_latitude gnss_latitude "
+        "pos_lat position_lat",
         examples="lat, latitude, gps_lat, gnss_lat, lat_deg",
     ),
-    "lon": _Role(
-        key="lon",
-        label="longitude",
-        canonical="lon_deg",
-        aliases=frozenset(
-            _words(
-                "lon lng long longitude gps_lon gps_lng gnss_lon gnss_lng lon_wgs84 "
-                "longitude_wgs84 gps_longitude gnss_longitude pos_lon position_lon"
-            )
-        ),  # fmt: skip
-        units=_units({"deg": _words("deg degs degree degrees")}),
-        unsupported=frozenset(_words("rad rads radian radians mdeg udeg e7 deg7 semicircles")),
-        factors={"deg": 1.0},
+    "lon": _wgs84_role(
+        "lon",
+        "longitude",
+        "lon lng long longitude gps_lon gps_lng gnss_lon gnss_lng lon_wgs84 longitude_wgs84 "
+        "gps_longitude gnss_longitude pos_lon position_lon",
         examples="lon, lng, longitude, gps_lon, gnss_lon, lon_deg",
     ),
 }

@@ -236,17 +236,23 @@ def _mean_lon(lon: NDArray[np.float64]) -> float:
     return math.degrees(math.atan2(float(np.mean(np.sin(r))), float(np.mean(np.cos(r)))))
 
 
+def _check_finite(values: NDArray[np.float64], name: str, kind: str, unit: str, field: str) -> None:
+    """Raise for the first vertex whose ``name`` (one ``kind`` of value, in ``unit``) is not
+    a finite number."""
+    bad = ~np.isfinite(values)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise CenterlineError(
+            f"vertex {i + 1} has {name} {values[i]}: every {kind} must be a finite number of "
+            f"{unit}",
+            field=field,
+            row=i + 1,
+        )
+
+
 def _check_degrees(lon: NDArray[np.float64], lat: NDArray[np.float64]) -> None:
     for name, a in (("longitude", lon), ("latitude", lat)):
-        bad = ~np.isfinite(a)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise CenterlineError(
-                f"vertex {i + 1} has {name} {a[i]}: every coordinate must be a finite number "
-                "of degrees",
-                field="coordinates",
-                row=i + 1,
-            )
+        _check_finite(a, name, "coordinate", "degrees", "coordinates")
     bad_lat = np.abs(lat) > 90.0
     bad_lon = np.abs(lon) > 180.0
     if bad_lat.any() or bad_lon.any():
@@ -293,15 +299,7 @@ def _check_vertices(
             "a line needs at least two",
             field="coordinates",
         )
-    bad = ~np.isfinite(ch)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise CenterlineError(
-            f"vertex {i + 1} has chainage {ch[i]}: every chainage must be a finite number of "
-            "metres",
-            field="chainage_m",
-            row=i + 1,
-        )
+    _check_finite(ch, "chainage", "chainage", "metres", "chainage_m")
     step = np.diff(ch)
     if np.any(step <= 0):
         i = int(np.flatnonzero(step <= 0)[0])
