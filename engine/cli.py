@@ -78,6 +78,30 @@ def _add_track(p: argparse.ArgumentParser) -> None:
         )
 
 
+def _add_direction(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--direction",
+        choices=["increasing", "decreasing"],
+        default="increasing",
+        help="direction of travel along chainage (default increasing)",
+    )
+
+
+def _add_run(p: argparse.ArgumentParser) -> None:
+    """The run log to read and where it starts."""
+    p.add_argument("run", help="run CSV")
+    p.add_argument(
+        "--start-chainage", type=float, default=None, help="body-centre chainage at start, m"
+    )
+    _add_direction(p)
+
+
+def _add_band(p: argparse.ArgumentParser) -> None:
+    """The wavelength band of the levels."""
+    p.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
+    p.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")
+
+
 def _add_columns(p: argparse.ArgumentParser) -> None:
     # one option per CsvOptions field, choices from the reader's own unit lists
     g = p.add_argument_group(
@@ -320,12 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument(
         "--duration", type=float, default=None, help="duration, s (default: to the track end)"
     )
-    s.add_argument(
-        "--direction",
-        choices=["increasing", "decreasing"],
-        default="increasing",
-        help="direction of travel along chainage (default increasing)",
-    )
+    _add_direction(s)
     s.add_argument(
         "--zone",
         action="append",
@@ -392,7 +411,7 @@ def build_parser() -> argparse.ArgumentParser:
         "front_chainage_m, front_level_mm, rear_chainage_m, rear_level_mm (mm relative to the "
         "first sample, positive up).",
     )
-    inv.add_argument("run", help="run CSV")
+    _add_run(inv)
     inv.add_argument(
         "--method",
         choices=["spectral", "filtered-direct", "direct"],
@@ -401,19 +420,9 @@ def build_parser() -> argparse.ArgumentParser:
         "spectral: band-limited inversion (default); filtered-direct: band-passed inputs "
         "then dissipative direct integration",
     )
-    inv.add_argument(
-        "--start-chainage", type=float, default=None, help="body-centre chainage at start, m"
-    )
-    inv.add_argument(
-        "--direction",
-        choices=["increasing", "decreasing"],
-        default="increasing",
-        help="direction of travel along chainage (default increasing)",
-    )
     inv.add_argument("--gamma", type=float, default=0.5, help="Newmark gamma (direct)")
     inv.add_argument("--beta", type=float, default=0.25, help="Newmark beta (direct)")
-    inv.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
-    inv.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")
+    _add_band(inv)
     inv.add_argument("--out", required=True, help="output levels CSV")
     _add_columns(inv)
     _add_vehicle(inv)
@@ -426,24 +435,14 @@ def build_parser() -> argparse.ArgumentParser:
         "estimate stiffness loss. Writes DIR/profile.csv (chainage_m,level_mm), "
         "DIR/soft_spots.json and DIR/quality.json.",
     )
-    pr.add_argument("run", help="run CSV")
-    pr.add_argument(
-        "--start-chainage", type=float, default=None, help="body-centre chainage at start, m"
-    )
-    pr.add_argument(
-        "--direction",
-        choices=["increasing", "decreasing"],
-        default="increasing",
-        help="direction of travel along chainage (default increasing)",
-    )
+    _add_run(pr)
     pr.add_argument(
         "--method",
         choices=list(METHODS),
         default="spectral",
         help="inversion method (default spectral; see docs/method.md)",
     )
-    pr.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
-    pr.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")
+    _add_band(pr)
     pr.add_argument("--grid-step", type=float, default=GRID_STEP_M, help="chainage grid step, m")
     d = DetectionConfig()
     pr.add_argument(
