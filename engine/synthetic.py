@@ -190,10 +190,8 @@ def make_run(
 
     Parameters
     ----------
-    length : float
-        Track length, m.
-    zones : sequence of SoftZone
-        Soft zones.
+    length, zones : float, sequence of SoftZone
+        Track length (m) and its soft zones, as for :func:`make_track`.
     speed : float or (float, float)
         Constant speed, or start and end speed of a linear ramp, m/s.
     start_chainage_m : float

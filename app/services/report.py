@@ -8,7 +8,7 @@ Every piece of user text (track, run, vehicle and file names, descriptions) goes
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from html import escape
@@ -113,6 +113,16 @@ def _nice_step(span: float, target: int) -> float:
     return 10 * mag
 
 
+def _ticks(lo: float, hi: float, target: int) -> Iterator[float]:
+    """An axis's tick values from ``lo`` to ``hi``: about ``target`` of them, a round step
+    apart."""
+    step = _nice_step(hi - lo, target)
+    v = math.ceil(lo / step) * step
+    while v <= hi:
+        yield v
+        v += step
+
+
 def _marker(shape: str, x: float, y: float, r: float, fill: str, stroke: str) -> str:
     if shape == "triangle":
         pts = f"{x:.1f},{y - r:.1f} {x + r:.1f},{y + r * 0.8:.1f} {x - r:.1f},{y + r * 0.8:.1f}"
@@ -205,16 +215,13 @@ def chainage_map_svg(
         for s in segments:
             pts = " ".join(f"{sx(c[k]):.1f},{sy(lv[k]):.1f}" for k in s)
             out.append(f'<polyline points="{pts}" fill="none" stroke="#1d4ed8" stroke-width="1"/>')
-        step = _nice_step(y1 - y0, 4)
-        v = math.ceil(y0 / step) * step
-        while v <= y1:
+        for v in _ticks(y0, y1, 4):
             y = sy(v)
             out.append(
                 f'<line x1="{ml - 4}" y1="{y:.1f}" x2="{ml + pw}" y2="{y:.1f}" stroke="#e2e8f0"/>'
                 f'<text x="{ml - 6}" y="{y + 4:.1f}" font-size="11" text-anchor="end">'
                 f"{v:g}</text>"
             )
-            v += step
         out.append(
             f'<text x="14" y="{mt + prof_h / 2:.0f}" font-size="12" text-anchor="middle" '
             f'transform="rotate(-90 14 {mt + prof_h / 2:.0f})">Level (mm)</text>'
@@ -254,15 +261,12 @@ def chainage_map_svg(
     # chainage axis
     ya = mt + prof_h + strip_h
     out.append(f'<line x1="{ml}" y1="{ya}" x2="{ml + pw}" y2="{ya}" stroke="#475569"/>')
-    step = _nice_step(x1 - x0, 8)
-    v = math.ceil(x0 / step) * step
-    while v <= x1:
+    for v in _ticks(x0, x1, 8):
         x = sx(v)
         out.append(
             f'<line x1="{x:.1f}" y1="{ya}" x2="{x:.1f}" y2="{ya + 5}" stroke="#475569"/>'
             f'<text x="{x:.1f}" y="{ya + 18}" font-size="11" text-anchor="middle">{v:g}</text>'
         )
-        v += step
     out.append(
         f'<text x="{ml + pw / 2:.0f}" y="{ya + 36}" font-size="12" text-anchor="middle">'
         "Chainage (m, aligned)</text></svg>"
