@@ -1,4 +1,4 @@
-"""Accuracy of the inversion methods, side by side (issue 3). Writes docs/accuracy.md.
+"""Accuracy of the inversion methods, side by side. Writes docs/accuracy.md.
 
 Run: ``python benchmarks/accuracy.py [--out docs/accuracy.md]``
 

@@ -1,4 +1,4 @@
-"""Accuracy of the geometry/stiffness separation (issue 10). Updates docs/accuracy.md.
+"""Accuracy of the geometry/stiffness separation. Updates docs/accuracy.md.
 
 Run: ``python benchmarks/accuracy_geometry.py [--tracks 2] [--out docs/accuracy.md]``
 (about 3 minutes per track on 2 cores).

@@ -1,4 +1,4 @@
-"""Accuracy on the peer's runs: bogie vehicles on a layered track made with ROSE (issue 32).
+"""Accuracy on the peer's runs: bogie vehicles on a layered track made with ROSE.
 
 Run: ``python benchmarks/accuracy_peer_bogie.py [--data DIR] [--vehicle bogie|lumped]``
 

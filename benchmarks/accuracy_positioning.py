@@ -1,4 +1,4 @@
-"""Accuracy of GNSS placement (issue 11): chainage error of runs placed by their fixes.
+"""Accuracy of GNSS placement: chainage error of runs placed by their fixes.
 
 Run: ``python benchmarks/accuracy_positioning.py`` (prints a Markdown table for
 docs/accuracy.md; about 20 s).
@@ -8,7 +8,7 @@ of 1 200 m radius, straight; line chainage from 11 900 m), odometer 0.6 % long, 
 For each noise case, 100 seeds; the figure is each run's largest |fitted - true| chainage
 over the whole run (end to end), m.
 
-Second table (issue 28): the lateral tolerance (``LATERAL_TOLERANCE_M``, 3 m) on the same
+Second table: the lateral tolerance (``LATERAL_TOLERANCE_M``, 3 m) on the same
 short runs, the hardest case (a 33 s run sees one value of a bias wandering over 30 s): how
 often a run on its own track is refused as beside the line, and how often a run on a
 neighbouring track is placed, with the median reported lateral offset.

@@ -1,4 +1,4 @@
-"""Engine speed benchmarks (issues 2 and 3). Run: ``python benchmarks/bench_engine.py``.
+"""Engine speed benchmarks. Run: ``python benchmarks/bench_engine.py``.
 
 1. Forward simulation of a 1 km track at 30 m/s, 1 kHz (~32 000 steps).
 2. Direct inverse of a 1-hour 1 kHz log (3.6 M samples), vectorised vs per-sample loop.

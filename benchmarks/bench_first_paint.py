@@ -1,4 +1,4 @@
-"""Where a cold first visit's chart time goes (issue 14): run and track page in Debian chromium.
+"""Where a cold first visit's chart time goes: run and track page in Debian chromium.
 
 For each repetition a fresh browser context (empty cache) opens the run page of the example
 run (``examples/example_run.csv.gz``) and waits for its profile chart, then another fresh

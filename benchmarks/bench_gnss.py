@@ -1,4 +1,4 @@
-"""A 20-minute 1 kHz log with a GNSS fix on every row through the service (issue 28).
+"""A 20-minute 1 kHz log with a GNSS fix on every row through the service.
 
     python benchmarks/bench_gnss.py [--before REV] [--rounds 2] [--port 8013]
 

@@ -1,9 +1,9 @@
-"""Placing a run by its GNSS fixes (issue 11): a 1-hour run with 36 000 fixes on a 100 km,
+"""Placing a run by its GNSS fixes: a 1-hour run with 36 000 fixes on a 100 km,
 10 000-vertex centerline. Target: <= 1 s.
 
 Run: ``python benchmarks/bench_positioning.py [--before REV]``
 
-Second part (issue 28): the same hour logged at 1 kHz with a fix on *every row* (3.6 M fixes,
+Second part: the same hour logged at 1 kHz with a fix on *every row* (3.6 M fixes,
 each with noise of its own), placed as the service does (:func:`place_run`, then the fitted
 chainage of every row). Target: <= 1 s with bounded memory. Each case runs in a fresh process
 (wall time, CPU time, and the resident memory the placement adds at its peak, sampled every

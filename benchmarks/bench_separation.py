@@ -1,4 +1,4 @@
-"""Separation benchmark (issue 10): geometry vs stiffness over 50 runs of 10 km.
+"""Separation benchmark: geometry vs stiffness over 50 runs of 10 km.
 
     python benchmarks/bench_separation.py [--runs 50] [--length-km 10] [--repeats 3]
 
