@@ -72,18 +72,7 @@ class SecurityHeadersMiddleware:
             if started:
                 raise
             log.exception("unhandled error on %s %s", scope.get("method"), path)
-            payload = json.dumps({"detail": internal_error_detail()}).encode()
-            await tracking_send(
-                {
-                    "type": "http.response.start",
-                    "status": 500,
-                    "headers": [
-                        (b"content-type", b"application/json"),
-                        (b"content-length", str(len(payload)).encode()),
-                    ],
-                }
-            )
-            await send({"type": "http.response.body", "body": payload})
+            await _send_error(tracking_send, 500, internal_error_detail())
 
 
 class BodySizeLimitMiddleware:
@@ -196,18 +185,19 @@ def _content_length(scope: Scope) -> int | None:
     return None
 
 
-async def _send_413(send: Send, limit: int) -> None:
-    body: dict[str, Any] = {"detail": too_large_detail(limit)}
-    payload = json.dumps(body).encode()
-    await send(
-        {
-            "type": "http.response.start",
-            "status": 413,
-            "headers": [
-                (b"content-type", b"application/json"),
-                (b"content-length", str(len(payload)).encode()),
-                (b"connection", b"close"),
-            ],
-        }
-    )
+async def _send_error(send: Send, status: int, detail: Any, *, close: bool = False) -> None:
+    """Answer ``{"detail": detail}`` as JSON with ``status``; ``close``: and close the
+    connection (the rest of the request is not read)."""
+    payload = json.dumps({"detail": detail}).encode()
+    headers = [
+        (b"content-type", b"application/json"),
+        (b"content-length", str(len(payload)).encode()),
+    ]
+    if close:
+        headers.append((b"connection", b"close"))
+    await send({"type": "http.response.start", "status": status, "headers": headers})
     await send({"type": "http.response.body", "body": payload})
+
+
+async def _send_413(send: Send, limit: int) -> None:
+    await _send_error(send, 413, too_large_detail(limit), close=True)
