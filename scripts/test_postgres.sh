@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The API tests again, on PostgreSQL: starts a throwaway server (Debian's postgresql package,
 # installed with apt-get when missing; see scripts/pg_server.sh) on a free local port, runs
-# tests/api against it (each test gets its own database, TEST_DATABASE_URL), then stops it.
-#   bash scripts/test_postgres.sh [pytest arguments]      (default: tests/api)
+# tests/services and tests/api against it (each test gets its own database,
+# TEST_DATABASE_URL), then stops it.
+#   bash scripts/test_postgres.sh [pytest arguments]      (default: tests/services tests/api)
 # scripts/test.sh calls it after the main run when it is given no arguments.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -37,6 +38,6 @@ if ! url="$(bash scripts/pg_server.sh start "$dir" "$port")"; then
     "or root/sudo to install it): the PostgreSQL pass is skipped" >&2
   exit 0
 fi
-echo "== pytest tests/api on PostgreSQL (${url})"
-if [ "$#" -eq 0 ]; then set -- tests/api; fi
+echo "== pytest tests/services tests/api on PostgreSQL (${url})"
+if [ "$#" -eq 0 ]; then set -- tests/services tests/api; fi
 TEST_DATABASE_URL="$url" python -m pytest "$@"

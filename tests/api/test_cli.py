@@ -8,9 +8,9 @@ import io
 import pytest
 
 from api.api_support import assert_zones_match
-from api.conftest import database_url_for, uses_postgres
 from app.cli import main
 from app.core.config import get_settings
+from support.app_fixtures import database_url_for, uses_postgres
 
 
 @pytest.fixture

@@ -28,9 +28,9 @@ from engine.logio import write_run_csv
 from engine.synthetic import REALISTIC_SENSOR, SyntheticRun, make_run, make_track
 from engine.track import SoftZone
 from engine.vehicle import PRESETS
+from support.app_fixtures import make_settings
 
 from .api_support import upload
-from .conftest import make_settings
 
 pytestmark = pytest.mark.slow
 

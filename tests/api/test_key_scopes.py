@@ -12,7 +12,6 @@ import pytest
 from api.api_support import sql, upload
 from app.cli import main as cli_main
 from app.core.config import get_settings
-from app.core.scopes import parse_scopes, required_scope
 
 
 def _key(monkeypatch, settings, name: str, *args: str) -> str:
@@ -32,31 +31,6 @@ def _missing(r, scope: str) -> None:
     detail = r.json()["detail"]
     assert detail["kind"] == "MissingScope" and detail["scope"] == scope
     assert repr(scope) in detail["message"]
-
-
-@pytest.mark.parametrize(
-    ("method", "path", "scope"),
-    [
-        ("GET", "/api/v1/runs/1", "read"),
-        ("POST", "/api/v1/runs", "write"),
-        ("PUT", "/api/v1/tracks/L/limits", "write"),
-        ("POST", "/api/v1/vehicles", "write"),
-        ("DELETE", "/api/v1/runs/1", "admin"),
-        ("DELETE", "/api/v1/tracks/L/surveys/3", "admin"),
-        ("PATCH", "/api/v1/vehicles/car", "admin"),
-        ("POST", "/api/v1/vehicles/car/calibrate", "admin"),
-        ("PUT", "/api/v1/tracks/L/centerline", "admin"),  # one rule for storing and deleting
-        ("DELETE", "/api/v1/tracks/L/centerline", "admin"),
-    ],
-)
-def test_each_request_needs_its_scope(method, path, scope) -> None:
-    assert required_scope(method, path) == scope
-
-
-def test_unknown_scopes_are_refused() -> None:
-    assert parse_scopes("write, read") == {"read", "write"}
-    with pytest.raises(ValueError, match="unknown scope 'root'"):
-        parse_scopes("read,root")
 
 
 def test_scoped_keys_do_what_their_scopes_allow(start_app, settings, monkeypatch, synthetic_run):

@@ -23,9 +23,9 @@ from engine.logio import write_run_csv
 from engine.sensor import sensor_for_grade
 from engine.synthetic import SyntheticRun, make_run, make_track, to_runlog
 from engine.track import SoftZone
+from support.app_fixtures import make_settings
 
 from .api_support import upload
-from .conftest import make_settings
 
 RATE = 500.0
 ZONES = (SoftZone(90, 96, 0.5), SoftZone(170, 174, 0.45), SoftZone(240, 248, 0.4))

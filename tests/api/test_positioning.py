@@ -24,6 +24,7 @@ from engine.detect import robust_baseline
 from engine.logio import write_run_csv
 from engine.synthetic import REALISTIC_SENSOR, SyntheticRun, make_run, to_runlog
 from engine.track import SoftZone
+from support.app_fixtures import make_settings
 from support.gnss import (
     LINE_START_CHAINAGE_M,
     RUN_OFFSET_M,
@@ -36,7 +37,6 @@ from support.gnss import (
 )
 
 from .api_support import assert_zones_match, row_counts, upload
-from .conftest import make_settings
 
 OFF = LINE_START_CHAINAGE_M + RUN_OFFSET_M  # simulated position 0 on the line's chainage
 ZONES = (SoftZone(300, 306, 0.5), SoftZone(640, 645, 0.4))

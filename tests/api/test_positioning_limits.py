@@ -20,6 +20,7 @@ from starlette.testclient import TestClient
 from app.main import create_app
 from engine.positioning import LATERAL_TOLERANCE_M
 from engine.synthetic import SyntheticRun, make_run
+from support.app_fixtures import make_settings
 from support.gnss import (
     LINE_START_CHAINAGE_M,
     RUN_OFFSET_M,
@@ -32,7 +33,6 @@ from support.gnss import (
 )
 
 from .api_support import row_counts, upload
-from .conftest import make_settings
 
 OFF = LINE_START_CHAINAGE_M + RUN_OFFSET_M
 GEOJSON = "application/geo+json"

@@ -26,9 +26,9 @@ from engine.positioning.centerline import Centerline
 from engine.synthetic import REALISTIC_SENSOR, make_run, make_track
 from engine.track_quality import BANDS
 from engine.vehicle import PRESETS
+from support.app_fixtures import make_settings
 
 from .api_support import upload
-from .conftest import make_settings
 
 pytestmark = pytest.mark.slow
 

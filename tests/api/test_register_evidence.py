@@ -17,9 +17,9 @@ import pytest
 from starlette.testclient import TestClient
 
 from app.main import create_app
+from support.app_fixtures import make_settings
 
 from .api_support import upload
-from .conftest import make_settings
 
 pytestmark = pytest.mark.slow
 

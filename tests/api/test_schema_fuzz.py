@@ -39,13 +39,13 @@ from typing import Any
 import httpx
 import pytest
 
-from api.conftest import make_settings
 from api.live_server import LiveServer
 from app.core.config import Settings
 from app.core.security import generate_key, hash_key, key_prefix
 from app.db.models import ApiKey
 from app.db.session import Database
 from app.main import create_app
+from support.app_fixtures import make_settings
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")

@@ -12,11 +12,11 @@ from contextlib import contextmanager
 import pytest
 
 from api.api_support import is_sqlite
-from api.conftest import make_settings
 from app.core.security import generate_key, hash_key, key_prefix
 from app.db import session as db_session
 from app.db.models import ApiKey
 from app.main import create_app
+from support.app_fixtures import make_settings
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")

@@ -12,8 +12,7 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 
 from api.api_support import db_file, is_sqlite, row_counts, sql, stored_points, upload
-from app.core.config import Settings
-from app.db.migrate import alembic_config, current_revision, upgrade
+from app.db.migrate import alembic_config, current_revision
 from app.db.models import Run, RunProfileBlock
 from app.db.session import Database
 
@@ -62,65 +61,6 @@ def test_the_migrations_build_the_models_schema(start_app, settings) -> None:
     with db.engine.connect() as conn:
         context = MigrationContext.configure(conn, opts={"compare_type": True})
         assert compare_metadata(context, Base.metadata) == []
-    db.dispose()
-
-
-def test_migrations_downgrade_and_upgrade(tmp_path) -> None:
-    """The migrations can be undone and redone (a broken downgrade would block rollbacks)."""
-    from alembic import command
-
-    db = Database(f"sqlite:///{tmp_path / 'm.db'}")
-    upgrade(db)
-    cfg = alembic_config()
-    with db.engine.begin() as conn:
-        cfg.attributes["connection"] = conn
-        command.downgrade(cfg, "base")
-    assert current_revision(db) is None
-    upgrade(db)
-    assert current_revision(db) is not None
-    db.dispose()
-
-
-@pytest.mark.sqlite_only
-def test_processes_starting_together_take_turns_to_migrate(tmp_path, monkeypatch) -> None:
-    """Two upgrades of one new SQLite file at once (two app processes starting together):
-    the second looks at the schema only after the first has committed, so both succeed. The
-    lock's release is slowed down here: were it released before the commit, the second would
-    find no tables yet and fail on creating them ('table tracks already exists')."""
-    import fcntl
-    import threading
-    import time
-    import types
-
-    import app.db.migrate as migrate
-
-    def slow_unlock(fh, op):  # noqa: ANN001, ANN202
-        fcntl.flock(fh, op)
-        if op == fcntl.LOCK_UN:
-            time.sleep(0.5)
-
-    monkeypatch.setattr(migrate, "fcntl", types.SimpleNamespace(
-        flock=slow_unlock, LOCK_EX=fcntl.LOCK_EX, LOCK_UN=fcntl.LOCK_UN))  # fmt: skip
-    url = f"sqlite:///{tmp_path / 'together.db'}"
-    errors: list[BaseException] = []
-
-    def start() -> None:
-        db = Database(url)
-        try:
-            upgrade(db)
-        except BaseException as exc:  # noqa: BLE001 - reported below
-            errors.append(exc)
-        finally:
-            db.dispose()
-
-    threads = [threading.Thread(target=start) for _ in range(2)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(60)
-    assert not errors, errors
-    db = Database(url)
-    assert current_revision(db) is not None
     db.dispose()
 
 
@@ -226,27 +166,6 @@ def test_stored_profile_keeps_levels_to_the_stated_resolution(client, settings, 
         assert np.abs(got[ok] - want[ok]).max() <= tol * (1 + 1e-9), name
 
 
-def test_database_location_from_environment(monkeypatch, tmp_path) -> None:
-    """DATABASE_URL selects the database; otherwise it is trackprofile.db under
-    TRACKPROFILE_DATA_DIR (default ./data)."""
-    monkeypatch.delenv("DATABASE_URL", raising=False)
-    monkeypatch.setenv("TRACKPROFILE_DATA_DIR", str(tmp_path / "d"))
-    assert Settings().sqlalchemy_url == f"sqlite:///{tmp_path / 'd' / 'trackprofile.db'}"
-    monkeypatch.setenv("DATABASE_URL", "sqlite:////srv/x.db")
-    assert Settings().sqlalchemy_url == "sqlite:////srv/x.db"
-    monkeypatch.delenv("TRACKPROFILE_DATA_DIR")
-    monkeypatch.delenv("DATABASE_URL")
-    assert Settings().sqlalchemy_url.endswith("/data/trackprofile.db")
-
-
-def test_new_database_directory_is_created(tmp_path) -> None:
-    """A data directory that does not exist yet is created with the database."""
-    db = Database(f"sqlite:///{tmp_path / 'new' / 'deeper' / 't.db'}")
-    upgrade(db)
-    assert (tmp_path / "new" / "deeper" / "t.db").is_file()
-    db.dispose()
-
-
 def test_deleting_a_track_with_runs_is_prevented_by_the_database(client, settings) -> None:
     """Foreign keys are enforced: a track with runs cannot be removed underneath them."""
     r = client.post("/api/v1/simulate", json={"track": "fk", "length_m": 120, "zones": [],
@@ -262,23 +181,3 @@ def test_deleting_a_track_with_runs_is_prevented_by_the_database(client, setting
         with pytest.raises(IntegrityError):
             sql(settings, "DELETE FROM tracks WHERE name='fk'")
     assert row_counts(settings)["tracks"] == 1
-
-
-def test_a_block_decodes_any_subset_of_its_columns_exactly() -> None:
-    """Decoding only some columns (a window read of the level needs two of seven) gives those
-    columns exactly as the full decode does, gaps (NaN) included, in the order asked."""
-    from app.services.packing import decode_block, encode_block
-
-    rng = np.random.default_rng(3)
-    scales = (1e-4, 1e-4, 1.0)
-    cols = [rng.normal(0, 2, 4001), rng.normal(0, 2, 4001), rng.normal(9e4, 3e3, 4001)]
-    cols[1][100:140] = np.nan
-    cols[2][-5:] = np.nan
-    blob = encode_block(cols, scales)
-    full = decode_block(blob, scales)
-    assert [np.isnan(c).sum() for c in full] == [0, 40, 5]
-    for which in ([0], [1], [2], [2, 0], [1, 2]):
-        part = decode_block(blob, scales, which)
-        assert len(part) == len(which)
-        for got, j in zip(part, which, strict=True):
-            np.testing.assert_array_equal(got, full[j])

@@ -31,9 +31,9 @@ from app.services.integrate import add_run_to_track
 from engine.logio import write_run_csv
 from engine.synthetic import REALISTIC_SENSOR, make_run
 from engine.track import SoftZone
+from support.app_fixtures import make_settings
 
 from .api_support import upload
-from .conftest import make_settings
 
 SENSOR = dataclasses.replace(REALISTIC_SENSOR, sample_rate_hz=1000.0)
 T0 = datetime(2026, 1, 5, 7, 30, tzinfo=UTC)

@@ -18,8 +18,7 @@ from app.services.window import Window
 from engine.errors import LogFormatError
 from engine.sensor import SensorModel
 from engine.track import SoftZone
-
-from .conftest import database_url_for, make_settings
+from support.app_fixtures import database_url_for, make_settings
 
 
 def _ctx(tmp_path: Path) -> AppContext:

@@ -29,8 +29,7 @@ from app.services.stiffness import (
     separable_intervals,
 )
 from engine.register import Defect
-
-from .conftest import database_url_for
+from support.app_fixtures import database_url_for
 
 
 def reference_intervals(x: np.ndarray, sep: np.ndarray) -> list[tuple[float, float]]:

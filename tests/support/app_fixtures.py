@@ -1,4 +1,4 @@
-"""Fixtures of the API tests: the real app on a real SQLite file in a temporary directory.
+"""Fixtures of the service and HTTP tests: the real app on a real database per test.
 
 Every test gets its own database; the app is built with ``create_app(settings)`` and driven
 through Starlette's httpx-based test client, which runs the app's lifespan (migrations, the
