@@ -38,6 +38,7 @@ from app.db.models import (
 from engine.errors import ParameterError
 from engine.pipeline import ProcessConfig
 from engine.quality_limits import (
+    LEVELS,
     LineSpeed,
     QualityLimits,
     check_line_speeds,
@@ -294,6 +295,25 @@ def track_quality(
     limits, limits_set = load_quality_limits(session, track.id)
     speeds = load_line_speeds(session, track.id)
     lv = _read_levels(session, track.id, window)
+    answer = _answer_head(track, section_m, limits, limits_set)
+    if lv is None:
+        answer["notes"].append("no aligned run over this track yet")
+        return answer
+    q = _Analysis(lv, limits, speeds, window)
+    answer["sections"] = _sections(q, section_m)
+    answer["defects"] = _defects(q)
+    answer["repeatability"] = _repeatability(lv)
+    answer["observability"] = _observability(session, lv.vehicle_speeds)
+    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, section_m, q.bounds)
+    if traces:
+        answer["traces"] = _traces(q)
+    return answer
+
+
+def _answer_head(
+    track: Track, section_m: float, limits: QualityLimits, limits_set: datetime | None
+) -> dict[str, Any]:
+    """The answer's fixed part: filters, D2's band, limits' provenance; no results yet."""
     d2_band = [BANDS["D2"].lambda_min_m, min(BANDS["D2"].lambda_max_m, PRODUCT_BAND_MAX_M)]
     answer: dict[str, Any] = {
         "track_id": track.id,
@@ -323,104 +343,135 @@ def track_quality(
             f"the stored levels hold wavelengths up to {PRODUCT_BAND_MAX_M:g} m: D2 covers "
             f"{d2_band[0]:g}-{d2_band[1]:g} m of its 25-70 m and understates a recording car's D2"
         )
-    if lv is None:
-        answer["notes"].append("no aligned run over this track yet")
-        return answer
-    x = lv.chainage_m
-    filt = {name: _band(b, lv.level_mm) for name, b in BANDS.items()}
-    stats = section_statistics(x, filt, section_m, min_coverage=MIN_SECTION_COVERAGE)
-    by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
+    return answer
 
-    def pass_levels(band: str) -> dict[int, NDArray[np.float64]]:
-        # each pass filtered once per band, in recording order
-        if band not in by_band:
+
+class _Analysis:
+    """The track's level filtered to each band once, the passes' filtered levels on demand,
+    and the window's bounds (m): what the sections, defects and traces share."""
+
+    def __init__(
+        self, lv: _Levels, limits: QualityLimits, speeds: tuple[LineSpeed, ...], window: Window
+    ) -> None:
+        self.lv, self.limits, self.speeds = lv, limits, speeds
+        self.x = lv.chainage_m
+        self.filt = {name: _band(b, lv.level_mm) for name, b in BANDS.items()}
+        self.lo = -math.inf if window.from_m is None else window.from_m
+        self.hi = math.inf if window.to_m is None else window.to_m
+        self._by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return self.lo, self.hi
+
+    def pass_levels(self, band: str) -> dict[int, NDArray[np.float64]]:
+        """Each pass filtered to ``band`` (once), in recording order."""
+        if band not in self._by_band:
             b = BANDS[band]
-            by_band[band] = {r: _band(b, lv.passes[r]) for r in lv.ordered_runs}
-        return by_band[band]
+            lv = self.lv
+            self._by_band[band] = {r: _band(b, lv.passes[r]) for r in lv.ordered_runs}
+        return self._by_band[band]
 
-    pass_filt = pass_levels("D1")
+
+def _sections(q: _Analysis, section_m: float) -> list[dict[str, Any]]:
+    """The sections overlapping the window that have a level, as answered."""
+    stats = section_statistics(q.x, q.filt, section_m, min_coverage=MIN_SECTION_COVERAGE)
     now = utcnow()
-    lo = -math.inf if window.from_m is None else window.from_m
-    hi = math.inf if window.to_m is None else window.to_m
+    out = []
     for st in stats:
-        if st.end_m <= lo or st.start_m > hi:
+        if st.end_m <= q.lo or st.start_m > q.hi:
             continue
-        m = (x >= st.start_m) & (x < st.end_m)
-        covered = m & np.isfinite(lv.level_mm)
+        m = (q.x >= st.start_m) & (q.x < st.end_m)
+        covered = m & np.isfinite(q.lv.level_mm)
         if not covered.any():
             continue
-        share_unloaded = float(lv.unloaded[covered].mean())
-        basis = (
-            "unloaded"
-            if share_unloaded >= 0.95
-            else "loaded"
-            if share_unloaded <= 0.05
-            else "mixed"
-        )
         over = [
-            rid for rid in lv.ordered_runs
-            if np.isfinite(lv.passes[rid][m]).mean() >= MIN_SECTION_COVERAGE
+            rid for rid in q.lv.ordered_runs
+            if np.isfinite(q.lv.passes[rid][m]).mean() >= MIN_SECTION_COVERAGE
         ]  # fmt: skip
-        times = [t for r in over if (t := lv.recorded.get(r)) is not None]
+        times = [t for r in over if (t := q.lv.recorded.get(r)) is not None]
         last = max(times) if times else None
-        mid = 0.5 * (st.start_m + st.end_m)
-        speed = speed_at(speeds, mid)
+        speed = speed_at(q.speeds, 0.5 * (st.start_m + st.end_m))
         d1 = st.sd_mm["D1"]
+        pass_filt = q.pass_levels("D1")
         rep = (
             repeatability([pass_filt[r][m] for r in over], pairs="successive")
             if len(over) >= 2
             else None
         )
-        cls = limits.quality_class(d1, speed)
-        trend = None
-        if cls is not None and cls != "E" and len(over) >= 3:
-            per_pass = [
-                (t, float(np.nanstd(pass_filt[r][m])))
-                for r in over
-                if (t := lv.recorded.get(r)) is not None
-            ]
-            bounds = limits.class_sd_mm[speed_class(speed)]
-            nxt = "ABCDE"["ABCD".index(cls) + 1]
-            crossing = predict_crossing([t for t, _ in per_pass], [v for _, v in per_pass],
-                                        bounds["ABCD".index(cls)])  # fmt: skip
-            trend = _crossing_dict((nxt, crossing))
-        answer["sections"].append({
+        cls = q.limits.quality_class(d1, speed)
+        out.append({
             "start_m": st.start_m, "end_m": st.end_m,
             "d1_sd_mm": _f(d1), "d2_sd_mm": _f(st.sd_mm["D2"]),
             "coverage": _f(st.coverage, 2), "n_passes": len(over),
             "last_pass": _iso(last),
             "days_since_last_pass": None if last is None else _f(_days(now - last), 1),
             "repeatability_d1_mm": None if rep is None else _f(rep.r95_mm),
-            "speed_kmh": speed, "quality_class": cls, "basis": basis,
-            "next_class": trend,
+            "speed_kmh": speed, "quality_class": cls,
+            "basis": _basis(float(q.lv.unloaded[covered].mean())),
+            "next_class": _next_class(q, m, over, cls, speed),
         })  # fmt: skip
+    return out
+
+
+def _basis(share_unloaded: float) -> str:
+    if share_unloaded >= 0.95:
+        return "unloaded"
+    return "loaded" if share_unloaded <= 0.05 else "mixed"
+
+
+def _next_class(
+    q: _Analysis, m: NDArray[np.bool_], over: list[int], cls: str | None, speed: float | None
+) -> dict[str, Any] | None:
+    """When the section's D1 SD, trended over its passes, reaches the next class's bound."""
+    if cls is None or cls == "E" or len(over) < 3:
+        return None
+    pass_filt = q.pass_levels("D1")
+    per_pass = [
+        (t, float(np.nanstd(pass_filt[r][m])))
+        for r in over
+        if (t := q.lv.recorded.get(r)) is not None
+    ]
+    bounds = q.limits.class_sd_mm[speed_class(speed)]
+    i = "ABCD".index(cls)
+    crossing = predict_crossing([t for t, _ in per_pass], [v for _, v in per_pass], bounds[i])
+    return _crossing_dict(("ABCDE"[i + 1], crossing))
+
+
+def _defects(q: _Analysis) -> list[dict[str, Any]]:
+    """The isolated defects peaking in the window, most urgent then largest first."""
+    out = []
     for name in BANDS:
-        for d in isolated_defects(x, filt[name], name, limits, speeds):
-            if not (lo <= d.peak_m <= hi):
+        for d in isolated_defects(q.x, q.filt[name], name, q.limits, q.speeds):
+            if not (q.lo <= d.peak_m <= q.hi):
                 continue
-            i = int(round(d.peak_m / GRID_STEP_M)) - lv.i0
-            basis = "unloaded" if lv.unloaded[i] else "loaded"
-            answer["defects"].append(_defect_dict(d, basis, limits, lv, x, pass_levels(name)))
-    answer["defects"].sort(key=lambda d: (("immediate", "intervention", "alert").index(d["level"]),
-                                          -abs(d["value_mm"])))  # fmt: skip
+            i = int(round(d.peak_m / GRID_STEP_M)) - q.lv.i0
+            basis = "unloaded" if q.lv.unloaded[i] else "loaded"
+            out.append(_defect_dict(d, basis, q.limits, q.lv, q.pass_levels(name)))
+    out.sort(key=lambda d: (LEVELS.index(d["level"]), -abs(d["value_mm"])))
+    return out
+
+
+def _repeatability(lv: _Levels) -> dict[str, Any]:
     rep_passes = [_band(REPEATABILITY_BAND, lv.passes[r]) for r in lv.ordered_runs]
     rep = repeatability(rep_passes, pairs="successive")
-    answer["repeatability"] = {
+    return {
         "band_m": [REPEATABILITY_BAND.lambda_min_m, REPEATABILITY_BAND.lambda_max_m],
         "r95_mm": _f(rep.r95_mm), "n_pairs": rep.n_pairs, "n_points": rep.n_points,
         "note": "loaded levels of successive passes (each run's own, before the separation)",
     }  # fmt: skip
-    answer["observability"] = _observability(session, lv.vehicle_speeds)
-    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, section_m, (lo, hi))
-    if traces:
-        step = int(round(1.0 / GRID_STEP_M))
-        keep = np.flatnonzero(np.isfinite(lv.level_mm) & (x >= lo) & (x <= hi))[::step]
-        answer["traces"] = {
-            "chainage_m": [round(float(v), 2) for v in x[keep]],
-            "d1_mm": [_f(float(v)) for v in filt["D1"][keep]],
-            "d2_mm": [_f(float(v)) for v in filt["D2"][keep]],
-        }
-    return answer
+
+
+def _traces(q: _Analysis) -> dict[str, list[Any]]:
+    """The D1/D2 levels every metre over the window."""
+    step = int(round(1.0 / GRID_STEP_M))
+    x = q.x
+    keep = np.flatnonzero(np.isfinite(q.lv.level_mm) & (x >= q.lo) & (x <= q.hi))[::step]
+    return {
+        "chainage_m": [round(float(v), 2) for v in x[keep]],
+        "d1_mm": [_f(float(v)) for v in q.filt["D1"][keep]],
+        "d2_mm": [_f(float(v)) for v in q.filt["D2"][keep]],
+    }
 
 
 def _defect_dict(
@@ -428,7 +479,6 @@ def _defect_dict(
     basis: str,
     limits: QualityLimits,
     lv: _Levels,
-    x: NDArray[np.float64],
     filtered: dict[int, NDArray[np.float64]],
 ) -> dict[str, Any]:
     band = d.band
