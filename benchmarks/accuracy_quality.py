@@ -11,7 +11,9 @@ through the realistic sensor (500 Hz), logged start chainages off by up to +-1.5
 processed from its logged start, the passes aligned and separated (``engine.separation``); the
 quality level is the separated unloaded geometry where separable, else the passes' median
 loaded level (the service's rule). Two processing bands: the product's (3-40 m, what the
-service stores) and one reaching D2's 70 m (3-100 m).
+service stores) and one reaching D2's 70 m (3-100 m); then the service's rule with both: the
+separation and D1 on the 3-40 m band, D2 from the passes' median loaded level of the 3-100 m
+band (``engine.track_quality.band_levels``).
 
 Scores per 200 m section against the true unloaded geometry through the same filters
 (sections more than 40 m from a track end): SD error of D1 and D2; D1 peaks of the truth of
@@ -48,7 +50,9 @@ from engine.synthetic import REALISTIC_SENSOR, make_run, make_track  # noqa: E40
 from engine.track import SoftZone  # noqa: E402
 from engine.track_quality import (  # noqa: E402
     BANDS,
+    LONG_LEVEL_LAMBDA_MAX_M,
     BandFilter,
+    band_levels,
     repeatability,
     section_statistics,
     trim_ends,
@@ -62,7 +66,8 @@ STEP = 0.25
 LENGTH_M = 1000.0
 EDGE_M = 40.0
 LIMITS = QualityLimits(isolated_mm={"D1": ((1.5, 2.0, 2.5),) * 5, "D2": ((None, None, None),) * 5})
-BANDS_PROCESSED = {"product 3-40 m": 40.0, "3-100 m": 100.0}
+BANDS_PROCESSED = {"product 3-40 m": 40.0, "3-100 m": LONG_LEVEL_LAMBDA_MAX_M}
+D2_OWN = "3-40 m, D2 from the loaded 3-100 m level (engine.track_quality.BAND_LEVEL)"
 
 
 def quality_level(passes, lam_max: float):
@@ -94,22 +99,48 @@ def score_track(seed: int) -> dict[str, dict[str, list[float]]]:
                        seed=100 * seed + i, start_chainage_m=12.0, start_error_m=err)  # fmt: skip
         runs.append(syn)
     out: dict[str, dict[str, list[float]]] = {}
+    made = {}
     for label, lam in BANDS_PROCESSED.items():
         cfg = ProcessConfig(lambda_max_m=lam)
         res = [process_run(s.log, start_chainage_m=s.logged_start_chainage_m, vehicle=s.vehicle,
                            config=cfg) for s in runs]  # fmt: skip
         passes = [pass_from_result(r, label=str(i)) for i, r in enumerate(res)]
-        grid, level, unloaded, levels = quality_level(passes, lam)
-        frame = float(np.mean([s.logged_start_chainage_m - s.start_chainage_m for s in runs]))
+        made[label] = quality_level(passes, lam)
+    frame = float(np.mean([s.logged_start_chainage_m - s.start_chainage_m for s in runs]))
+    for label, lam in BANDS_PROCESSED.items():
+        grid, level, unloaded, levels = made[label]
         truth = runs[0].true_geometry(grid - frame)
         out[label] = compare(grid, level, truth, levels, lam)
         out[label]["unloaded_share"] = [float(unloaded[np.isfinite(level)].mean())]
+    # the service's rule: D1 from the product band's level (separated where separable), D2
+    # from the passes' loaded level of a band of its own, the separation left at 3-40 m
+    grid, level, unloaded, levels = made["product 3-40 m"]
+    g_long, _, _, levels_long = made["3-100 m"]
+    long = long_wave_level(grid, g_long, levels_long)
+    truth = runs[0].true_geometry(grid - frame)
+    out[D2_OWN] = compare(grid, level, truth, levels, 40.0, long_mm=long)
+    out[D2_OWN]["unloaded_share"] = [float(unloaded[np.isfinite(level)].mean())]
     return out
 
 
-def compare(grid, level, truth, levels, lam_max: float) -> dict[str, list[float]]:
-    est = {n: b.apply(level, STEP) for n, b in BANDS.items()}
-    ref = {n: b.apply(np.where(np.isfinite(level), truth, np.nan), STEP) for n, b in BANDS.items()}
+def long_wave_level(grid, grid_long, levels_long):
+    """The passes' median loaded level of the long band, on ``grid``."""
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(levels_long, axis=0)
+    ok = np.isfinite(med)
+    out = np.interp(grid, grid_long[ok], med[ok], left=np.nan, right=np.nan)
+    # no value across a gap of the long level
+    gap = np.interp(grid, grid_long, (~ok).astype(float), left=1.0, right=1.0) > 0
+    return np.where(gap, np.nan, out)
+
+
+def compare(grid, level, truth, levels, lam_max: float, long_mm=None) -> dict[str, list[float]]:
+    given = {"quality": level} | ({} if long_mm is None else {"long": long_mm})
+    est, used = band_levels(given, STEP)
+    # the truth through the same filters over the same coverage as each band's level
+    ref = {n: b.apply(np.where(np.isfinite(given[used[n]]), truth, np.nan), STEP)
+           for n, b in BANDS.items()}  # fmt: skip
     covered = grid[np.isfinite(level)]
     lo, hi = covered[0] + EDGE_M, covered[-1] - EDGE_M
     se, sr = section_statistics(grid, est, 200.0), section_statistics(grid, ref, 200.0)
@@ -191,7 +222,7 @@ def main() -> None:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     flips: list[str] = []
-    for label in BANDS_PROCESSED:
+    for label in (*BANDS_PROCESSED, D2_OWN):
         agg: dict[str, list[float]] = {}
         for r in results:
             for k, v in r[label].items():

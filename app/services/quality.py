@@ -38,7 +38,9 @@ from app.db.models import (
 from engine.errors import ParameterError
 from engine.pipeline import ProcessConfig
 from engine.quality_limits import (
+    DEFAULTS_SOURCE,
     LEVELS,
+    IsolatedDefect,
     LineSpeed,
     QualityLimits,
     check_line_speeds,
@@ -46,10 +48,14 @@ from engine.quality_limits import (
     next_limit,
     speed_at,
     speed_class,
+    unverified_defaults,
 )
 from engine.track_quality import (
     BANDS,
+    END_TRIM_M,
+    LONG_LEVEL_LAMBDA_MAX_M,
     BandFilter,
+    band_levels,
     observability,
     predict_crossing,
     repeatability,
@@ -164,7 +170,7 @@ class _Levels:
         return (self.i0 + np.arange(self.level_mm.size, dtype=np.float64)) * GRID_STEP_M
 
 
-def _read_levels(session: Session, track_id: int, window: Window) -> _Levels | None:
+def read_levels(session: Session, track_id: int, window: Window) -> _Levels | None:
     stored = aggregate_chunk_range(session, track_id)
     if stored is None:
         return None
@@ -294,12 +300,12 @@ def track_quality(
         raise Invalid(f"section_m {section_m:g} m not in 10..10000 m", field="section_m")
     limits, limits_set = load_quality_limits(session, track.id)
     speeds = load_line_speeds(session, track.id)
-    lv = _read_levels(session, track.id, window)
+    lv = read_levels(session, track.id, window)
     answer = _answer_head(track, section_m, limits, limits_set)
     if lv is None:
         answer["notes"].append("no aligned run over this track yet")
         return answer
-    q = _Analysis(lv, limits, speeds, window)
+    q = Analysis(lv, limits, speeds, window)
     answer["sections"] = _sections(q, section_m)
     answer["defects"] = _defects(q)
     answer["repeatability"] = _repeatability(lv)
@@ -332,6 +338,8 @@ def _answer_head(
         "d2_band_m": d2_band,
         "notes": [],
         "limits_default": limits_set is None,
+        "unverified_limits": list(unverified_defaults(limits)),
+        "limits_source": DEFAULTS_SOURCE if unverified_defaults(limits) else None,
         "sections": [],
         "defects": [],
         "repeatability": None,
@@ -341,12 +349,18 @@ def _answer_head(
     if d2_band[1] < BANDS["D2"].lambda_max_m:
         answer["notes"].append(
             f"the stored levels hold wavelengths up to {PRODUCT_BAND_MAX_M:g} m: D2 covers "
-            f"{d2_band[0]:g}-{d2_band[1]:g} m of its 25-70 m and understates a recording car's D2"
+            f"{d2_band[0]:g}-{d2_band[1]:g} m of its 25-70 m and understates a recording car's D2 "
+            f"(its own level, the passes' loaded level of a band reaching "
+            f"{LONG_LEVEL_LAMBDA_MAX_M:g} m, is not stored yet)"
+        )
+    if answer["unverified_limits"]:
+        answer["notes"].append(
+            "limits not verified against EN 13848-5/-6: " + ", ".join(answer["unverified_limits"])
         )
     return answer
 
 
-class _Analysis:
+class Analysis:
     """The track's level filtered to each band once, the passes' filtered levels on demand,
     and the window's bounds (m): what the sections, defects and traces share."""
 
@@ -355,7 +369,8 @@ class _Analysis:
     ) -> None:
         self.lv, self.limits, self.speeds = lv, limits, speeds
         self.x = lv.chainage_m
-        self.filt = {name: _band(b, lv.level_mm) for name, b in BANDS.items()}
+        # only the quality level is stored: D2 falls back to it (the answer's d2_band_m)
+        self.filt = band_levels({"quality": lv.level_mm}, GRID_STEP_M, trim_m=END_TRIM_M)[0]
         self.lo = -math.inf if window.from_m is None else window.from_m
         self.hi = math.inf if window.to_m is None else window.to_m
         self._by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
@@ -373,7 +388,7 @@ class _Analysis:
         return self._by_band[band]
 
 
-def _sections(q: _Analysis, section_m: float) -> list[dict[str, Any]]:
+def _sections(q: Analysis, section_m: float) -> list[dict[str, Any]]:
     """The sections overlapping the window that have a level, as answered."""
     stats = section_statistics(q.x, q.filt, section_m, min_coverage=MIN_SECTION_COVERAGE)
     now = utcnow()
@@ -421,7 +436,7 @@ def _basis(share_unloaded: float) -> str:
 
 
 def _next_class(
-    q: _Analysis, m: NDArray[np.bool_], over: list[int], cls: str | None, speed: float | None
+    q: Analysis, m: NDArray[np.bool_], over: list[int], cls: str | None, speed: float | None
 ) -> dict[str, Any] | None:
     """When the section's D1 SD, trended over its passes, reaches the next class's bound."""
     if cls is None or cls == "E" or len(over) < 3:
@@ -438,7 +453,7 @@ def _next_class(
     return _crossing_dict(("ABCDE"[i + 1], crossing))
 
 
-def _defects(q: _Analysis) -> list[dict[str, Any]]:
+def _defects(q: Analysis) -> list[dict[str, Any]]:
     """The isolated defects peaking in the window, most urgent then largest first."""
     out = []
     for name in BANDS:
@@ -462,7 +477,7 @@ def _repeatability(lv: _Levels) -> dict[str, Any]:
     }  # fmt: skip
 
 
-def _traces(q: _Analysis) -> dict[str, list[Any]]:
+def _traces(q: Analysis) -> dict[str, list[Any]]:
     """The D1/D2 levels every metre over the window."""
     step = int(round(1.0 / GRID_STEP_M))
     x = q.x
@@ -475,7 +490,7 @@ def _traces(q: _Analysis) -> dict[str, list[Any]]:
 
 
 def _defect_dict(
-    d: Any,
+    d: IsolatedDefect,
     basis: str,
     limits: QualityLimits,
     lv: _Levels,
@@ -483,28 +498,43 @@ def _defect_dict(
 ) -> dict[str, Any]:
     band = d.band
     triple = limits.limits_at(band, d.speed_kmh)
-    out: dict[str, Any] = {
+    return {
         "peak_m": round(d.peak_m, 2), "start_m": round(d.start_m, 2), "end_m": round(d.end_m, 2),
         "band": band, "value_mm": _f(d.value_mm), "level": d.level, "speed_kmh": d.speed_kmh,
         "limits_mm": {"alert": triple[0], "intervention": triple[1], "immediate": triple[2]},
-        "basis": basis, "next_limit": None,
+        "basis": basis, "next_limit": defect_next_limit(d, limits, lv, filtered),
     }  # fmt: skip
-    nxt = next_limit(d.value_mm, triple)
-    if nxt is None:
-        return out
-    i = int(round(d.peak_m / GRID_STEP_M)) - lv.i0
+
+
+def pass_values(
+    lv: _Levels, peak_m: float, filtered: dict[int, NDArray[np.float64]]
+) -> list[tuple[int, datetime, float]]:
+    """Each pass's value of a defect peaking at ``peak_m``: ``(run id, recorded, largest
+    |level| within PEAK_MATCH_M of the peak, mm)``, passes in recording order."""
+    i = int(round(peak_m / GRID_STEP_M)) - lv.i0
     k = int(round(PEAK_MATCH_M / GRID_STEP_M))
     near = slice(max(0, i - k), i + k + 1)
-    series = []
+    out = []
     for rid, p in filtered.items():
         when = lv.recorded.get(rid)
         v = p[near]
         if when is not None and np.isfinite(v).any():
-            series.append((when, float(np.nanmax(np.abs(v)))))
-    if len(series) >= 3:
-        crossing = predict_crossing([t for t, _ in series], [v for _, v in series], nxt[1])
-        out["next_limit"] = _crossing_dict((nxt[0], crossing))
+            out.append((rid, when, float(np.nanmax(np.abs(v)))))
     return out
+
+
+def defect_next_limit(
+    d: IsolatedDefect, limits: QualityLimits, lv: _Levels, filtered: dict[int, NDArray[np.float64]]
+) -> dict[str, Any] | None:
+    """When the defect's passes, trended, reach the next level it has not reached (3 passes)."""
+    nxt = next_limit(d.value_mm, limits.limits_at(d.band, d.speed_kmh))
+    if nxt is None:
+        return None
+    series = pass_values(lv, d.peak_m, filtered)
+    if len(series) < 3:
+        return None
+    crossing = predict_crossing([t for _, t, _ in series], [v for _, _, v in series], nxt[1])
+    return _crossing_dict((nxt[0], crossing))
 
 
 def _survey_comparison(

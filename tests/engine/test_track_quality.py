@@ -9,9 +9,17 @@ import numpy as np
 import pytest
 
 from engine.errors import ParameterError
-from engine.quality_limits import LineSpeed, QualityLimits, check_line_speeds, isolated_defects
+from engine.quality_limits import (
+    DEFAULT_ISOLATED_MM,
+    LineSpeed,
+    QualityLimits,
+    check_line_speeds,
+    isolated_defects,
+    unverified_defaults,
+)
 from engine.track_quality import (
     BANDS,
+    band_levels,
     observability,
     predict_crossing,
     repeatability,
@@ -206,3 +214,37 @@ def test_trim_ends_blanks_each_stretch_ends() -> None:
     t = trim_ends(v, 0.25, 25.0)
     assert np.isnan(t[:100]).all() and np.isfinite(t[100:300]).all() and np.isnan(t[300:510]).all()
     assert np.isfinite(t[510:750]).all() and np.isnan(t[750:]).all()
+
+
+def test_d2_is_filtered_from_its_own_long_level() -> None:
+    """D1 comes from the quality level, D2 from the long level when one is given (a 50 m wave
+    only the long level holds shows at its full amplitude in D2, not in D1); without a long
+    level D2 falls back to the quality level and says so; the quality level is required."""
+    x = np.arange(0.0, 1000.0, STEP)
+    short = 1.0 * np.sin(2 * np.pi * x / 10.0)
+    long = short + 2.0 * np.sin(2 * np.pi * x / 50.0)
+    inner = (x > 200) & (x < 800)
+    filt, used = band_levels({"quality": short, "long": long}, STEP)
+    assert used == {"D1": "quality", "D2": "long"}
+    assert np.max(np.abs(filt["D2"][inner])) == pytest.approx(2.0, rel=0.03)
+    assert np.max(np.abs(filt["D1"][inner])) == pytest.approx(1.0, rel=0.03)
+    alone, used = band_levels({"quality": short}, STEP, trim_m=25.0)
+    assert used["D2"] == "quality" and np.max(np.abs(alone["D2"][inner])) < 0.05
+    assert np.isnan(alone["D1"][: int(25.0 / STEP)]).all()  # the trimmed end
+    with pytest.raises(ParameterError) as e:
+        band_levels({"long": long}, STEP)
+    assert e.value.field == "levels"
+
+
+def test_unverified_defaults_are_named_until_replaced() -> None:
+    """Every default table is flagged; a track's own D1 table is not; restating a default
+    (same figures) keeps it flagged."""
+    assert unverified_defaults(QualityLimits()) == (
+        "isolated_mm.D1", "isolated_mm.D2", "class_sd_mm",
+    )  # fmt: skip
+    own = QualityLimits.from_dict({"isolated_mm": {"D1": [[1.5, 2.0, 2.5]] * 5}})
+    assert unverified_defaults(own) == ("isolated_mm.D2", "class_sd_mm")
+    same = QualityLimits.from_dict(
+        {"isolated_mm": {"D1": [list(t) for t in DEFAULT_ISOLATED_MM["D1"]]}}
+    )
+    assert "isolated_mm.D1" in unverified_defaults(same)
