@@ -212,7 +212,9 @@ def main() -> None:
     results = [score_track(3301 + 29 * k) for k in range(ns.tracks)]
     lines = [
         START,
-        f"Measured by `python benchmarks/accuracy_quality.py --tracks {ns.tracks}` "
+        f"Measured by `python benchmarks/accuracy_quality.py --tracks {ns.tracks}"
+        + (f" --public {ns.public}" if ns.public else "")
+        + "` "
         f"({time.perf_counter() - t0:.0f} s; {machine()}); {ns.tracks} unseen 1000 m tracks, "
         "2 coach + 2 heavy runs each; sections 200 m, more than 40 m from the ends.",
         "",
