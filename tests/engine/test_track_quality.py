@@ -17,6 +17,7 @@ from engine.quality_limits import (
     isolated_defects,
     unverified_defaults,
 )
+from engine.register import Observation, build_register
 from engine.track_quality import (
     BANDS,
     band_levels,
@@ -248,3 +249,22 @@ def test_unverified_defaults_are_named_until_replaced() -> None:
         {"isolated_mm": {"D1": [list(t) for t in DEFAULT_ISOLATED_MM["D1"]]}}
     )
     assert "isolated_mm.D1" in unverified_defaults(same)
+
+
+def test_register_judges_isolated_sightings_by_their_own_level() -> None:
+    """A defect of isolated-level sightings takes the level its latest sighting carries (the
+    speed-class limits'), not the register's depth limits (which 5 mm would exceed), and
+    ``level_since`` is the first sighting at that level or worse; a soft-spot sighting at the
+    same depth is still judged by the depth limits."""
+    t0 = datetime(2026, 1, 1, tzinfo=UTC)
+    seen = [
+        Observation(i, t0 + timedelta(days=30 * i), 100.0, 104.0, 102.0, v, None,
+                    source="isolated", level=lv)
+        for i, (v, lv) in enumerate(((4.0, None), (5.0, "alert"), (5.5, "alert")))
+    ]  # fmt: skip
+    (d,) = build_register(seen)
+    assert d.source == "isolated" and d.level == "alert" and d.priority == 3
+    assert d.level_since == t0 + timedelta(days=30)
+    assert d.trend_mm_per_month > 0 and d.status == "worsening"
+    (soft,) = build_register([Observation(9, t0, 100.0, 104.0, 102.0, 5.0, None)])
+    assert soft.level == "immediate"  # 5 mm over the default 0.40 mm depth limit
