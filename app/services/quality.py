@@ -13,6 +13,7 @@ Units: chainage m (aligned), levels mm, speeds km/h, time UTC.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import defaultdict
 from dataclasses import dataclass
@@ -170,7 +171,11 @@ class _Levels:
         return (self.i0 + np.arange(self.level_mm.size, dtype=np.float64)) * GRID_STEP_M
 
 
-def read_levels(session: Session, track_id: int, window: Window) -> _Levels | None:
+def read_levels(
+    session: Session, track_id: int, window: Window, *, passes: bool = True
+) -> _Levels | None:
+    """The analysed level over ``window`` plus a chunk either side, and (``passes``) the passes
+    over it (else none: :func:`with_passes` adds them)."""
     stored = aggregate_chunk_range(session, track_id)
     if stored is None:
         return None
@@ -194,6 +199,15 @@ def read_levels(session: Session, track_id: int, window: Window) -> _Levels | No
         ok = (idx >= 0) & (idx < n) & np.isfinite(geo) & np.asarray(sep.columns["separable"])
         level[idx[ok]] = geo[ok]
         unloaded[idx[ok]] = True
+    lv = _Levels(i0, level, unloaded, {}, {}, {})
+    return with_passes(session, track_id, lv) if passes else lv
+
+
+def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
+    """``lv`` with the passes over its stretch: each chunk's newest aligned runs."""
+    n = lv.level_mm.size
+    c_lo = lv.i0 // CHUNK_POINTS
+    c_hi = c_lo + n // CHUNK_POINTS - 1
     passes: dict[int, NDArray[np.float64]] = {}
     t = TrackRunLevels.__table__
     keys = newest_runs(track_id, c_lo, c_hi)
@@ -216,7 +230,7 @@ def read_levels(session: Session, track_id: int, window: Window) -> _Levels | No
         ):  # fmt: skip
             recorded[int(rid)] = when or created
             speeds[int(vid)].append(0.5 * (float(v_lo) + float(v_hi)))
-    return _Levels(i0, level, unloaded, passes, recorded, dict(speeds))
+    return dataclasses.replace(lv, passes=passes, recorded=recorded, vehicle_speeds=dict(speeds))
 
 
 def _observability(

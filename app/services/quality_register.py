@@ -40,6 +40,7 @@ from .quality import (
     load_quality_limits,
     pass_values,
     read_levels,
+    with_passes,
 )
 from .window import Window
 
@@ -69,9 +70,21 @@ def isolated_register(
     for c_a in range(stored[0], stored[1] + 1, BATCH_CHUNKS):
         c_b = min(stored[1], c_a + BATCH_CHUNKS - 1)
         inside = Window(c_a * step, (c_b + 1) * step - GRID_STEP_M)
-        lv = read_levels(session, track_id, inside)
+        # the level first, the passes only where it shows a defect: most stretches have none
+        lv = read_levels(session, track_id, inside, passes=False)
         if lv is None:
             continue
+        q = Analysis(lv, limits, speeds, inside)
+        found_here = {
+            band: [
+                d for d in isolated_defects(q.x, q.filt[band], band, limits, speeds)
+                if q.lo <= d.peak_m <= q.hi
+            ]
+            for band in BANDS
+        }  # fmt: skip
+        if not any(found_here.values()):
+            continue
+        lv = with_passes(session, track_id, lv)
         q = Analysis(lv, limits, speeds, inside)
         new = [r for r in lv.passes if r not in loads]
         loads |= dict(
@@ -80,11 +93,7 @@ def isolated_register(
                 .where(Run.id.in_(new))
             ).all()
         )  # fmt: skip
-        for band in BANDS:
-            here = [
-                d for d in isolated_defects(q.x, q.filt[band], band, limits, speeds)
-                if q.lo <= d.peak_m <= q.hi
-            ]  # fmt: skip
+        for band, here in found_here.items():
             filtered = q.pass_levels(band) if here else {}
             for d in here:
                 found[band].append((d, defect_next_limit(d, limits, lv, filtered)))
