@@ -111,10 +111,12 @@ DEFAULT_ISOLATED_MM: dict[str, tuple[Triple, ...]] = {
            (6.0, 10.0, None)),
 }  # fmt: skip
 """Isolated-defect limits, mean to peak (mm), per band and speed class: (alert, intervention,
-immediate action). EN 13848-5:2017 gives the immediate-action limits and ranges for the alert
-and intervention limits; these are the lower ends of those ranges as recalled for the
-product, not copied from the standard (docs/method.md): an infrastructure manager sets its own
-per track. D2 limits apply above 160 km/h only."""
+immediate action). **Unverified**: EN 13848-5:2017 gives the immediate-action limits and
+ranges for the alert and intervention limits by speed, but its tables could not be found in
+any source open to the product (docs/method.md lists what was searched); these figures were
+written from memory and are flagged as such in every answer that uses them
+(:func:`unverified_defaults`). An infrastructure manager sets its own per track. D2 limits
+apply above 160 km/h only."""
 
 DEFAULT_CLASS_SD_MM: tuple[tuple[float, float, float, float], ...] = (
     (1.2, 1.8, 2.5, 3.2),
@@ -123,9 +125,17 @@ DEFAULT_CLASS_SD_MM: tuple[tuple[float, float, float, float], ...] = (
     (0.6, 0.9, 1.3, 1.8),
     (0.5, 0.8, 1.1, 1.5),
 )
-"""Upper SD of D1 per 200 m (mm) of classes A-D per speed class (E beyond D). Product defaults
-ordered with speed like EN 13848-6's classes; the standard's values were not available to the
-product, so they are to be set per track (docs/method.md)."""
+"""Upper SD of D1 per 200 m (mm) of classes A-D per speed class (E beyond D). **Unverified
+placeholders**: EN 13848-6 names classes A-E, but its class bounds could not be found in any
+source open to the product (docs/method.md); these are ordered with speed like its classes and
+are flagged in every answer that uses them (:func:`unverified_defaults`)."""
+
+DEFAULTS_SOURCE = (
+    "product defaults written from memory, not checked against EN 13848-5:2017 (isolated "
+    "defects) or EN 13848-6 (classes): their tables were not found in any source open to the "
+    "product; set the track's own limits (PUT /tracks/{t}/quality-limits)"
+)
+"""What the defaults rest on, as answered next to :func:`unverified_defaults`."""
 
 
 @dataclass(frozen=True)
@@ -221,6 +231,20 @@ class QualityLimits:
                 raise ParameterError("class_sd_mm must be a list of rows", field="class_sd_mm")
             kw["class_sd_mm"] = tuple(tuple(t) for t in cls_sd)
         return cls(**kw)  # type: ignore[arg-type]
+
+
+def unverified_defaults(limits: QualityLimits) -> tuple[str, ...]:
+    """The parts of ``limits`` that are the product's unverified defaults
+    (``isolated_mm.D1``, ``isolated_mm.D2``, ``class_sd_mm``): a table equal to its default is
+    one, whether it was left out or restated."""
+    out = [
+        f"isolated_mm.{band}"
+        for band, rows in limits.isolated_mm.items()
+        if DEFAULT_ISOLATED_MM.get(band) == tuple(tuple(t) for t in rows)
+    ]
+    if tuple(tuple(t) for t in limits.class_sd_mm) == DEFAULT_CLASS_SD_MM:
+        out.append("class_sd_mm")
+    return tuple(out)
 
 
 # ------------------------------------------------------------------------- isolated defects

@@ -88,12 +88,16 @@ class Source:
 
     label: str
     rank: int
+    own_level: bool = False
+    """Its sightings carry the level they reached by limits of their own (``Observation
+    .level``), not the register's depth and loss limits."""
 
 
 SOURCES: dict[str, Source] = {
     "separated": Source("separated", 0),
     "aggregate": Source("aggregate", 1),
     "pass": Source("single pass", 2),
+    "isolated": Source("isolated level defect", 3, own_level=True),
 }
 """The kinds of sighting the register accepts (``Observation.source``)."""
 
@@ -135,6 +139,9 @@ class Observation:
         The passes behind it; empty for a single run's sighting (the run itself).
     loss_lo_pct, loss_hi_pct : float or None
         Band of the loss, % (None when the source gives none).
+    level : str or None
+        For a source judged by its own limits (``Source.own_level``): the level this sighting
+        reached, one of :data:`LEVELS`, or None below them.
     """
 
     run_id: int
@@ -148,6 +155,7 @@ class Observation:
     support: tuple[Support, ...] = ()
     loss_lo_pct: float | None = None
     loss_hi_pct: float | None = None
+    level: str | None = None
 
     def __post_init__(self) -> None:
         if self.source not in SOURCES:
@@ -256,6 +264,9 @@ class Defect:
     stiffness_loss_hi_pct: float | None = None
     evidence: tuple[Evidence, ...] = ()
     history: list[Observation] = field(default_factory=list)
+    next_limit: dict[str, object] | None = None
+    """When the defect is predicted to reach its next level, with an interval (JSON-ready;
+    None where its source gives no prediction)."""
 
     @property
     def evidence_text(self) -> str:
@@ -427,12 +438,18 @@ def _defect(
         status = "worsening"
     else:
         status = "stable"
-    level = lim.level(latest.depth_mm, latest_loss)
+
+    def judge(o: Observation) -> str | None:
+        if SOURCES[main].own_level:
+            return o.level
+        return lim.level(o.depth_mm, o.stiffness_loss_pct)
+
+    level = judge(latest)
     level_since = None
     if level is not None:
         rank = LEVELS.index(level)
         for o in hist:
-            lv = lim.level(o.depth_mm, o.stiffness_loss_pct)
+            lv = judge(o)
             if lv is not None and LEVELS.index(lv) <= rank:
                 level_since = o.recorded_at
                 break

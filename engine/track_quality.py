@@ -178,6 +178,53 @@ BANDS: dict[str, BandFilter] = {
 """EN 13848-1's wavelength ranges of longitudinal level, by name."""
 
 
+LONG_LEVEL_LAMBDA_MAX_M = 100.0
+"""Longest wavelength of the loaded level D2 is filtered from, m: D2's 70 m with room for the
+inversion band's taper. The stiffness separation keeps its own 40 m band: widened to 100 m it
+holds the geometry within its limit at 41 % of the points instead of 83 % (docs/accuracy.md)."""
+
+BAND_LEVEL: dict[str, str] = {"D1": "quality", "D2": "long"}
+"""Which level each band is filtered from. ``quality``: the separated unloaded geometry where
+separable, else the loaded level (3-40 m); ``long``: the passes' loaded level of a band
+reaching :data:`LONG_LEVEL_LAMBDA_MAX_M` (25-70 m waves are the rail's long-wave geometry; the
+deflection under the wheel varies over a few metres and adds little there: D2 SD per 200 m
+within 0.015 mm of the truth's, measured: docs/accuracy.md)."""
+
+
+def band_levels(
+    levels: dict[str, NDArray[np.float64]], step_m: float, *, trim_m: float = 0.0
+) -> tuple[dict[str, NDArray[np.float64]], dict[str, str]]:
+    """Each band of :data:`BANDS` filtered from its level (:data:`BAND_LEVEL`), mm.
+
+    Parameters
+    ----------
+    levels : dict
+        Level name (``quality``, ``long``) -> level on one regular grid, mm (NaN = none).
+        ``quality`` is required; a band whose own level is missing is filtered from it.
+    step_m : float
+        Grid step, m.
+    trim_m : float
+        Stretch at each end of a coverage left without a value (:func:`trim_ends`), m.
+
+    Returns
+    -------
+    filtered : dict
+        Band name -> filtered level, mm.
+    used : dict
+        Band name -> the level it was filtered from.
+    """
+    if "quality" not in levels:
+        raise ParameterError("levels: the 'quality' level is required", field="levels")
+    filtered, used = {}, {}
+    for name, band in BANDS.items():
+        src = BAND_LEVEL.get(name, "quality")
+        src = src if src in levels else "quality"
+        out = band.apply(levels[src], step_m)
+        filtered[name] = trim_ends(out, step_m, trim_m) if trim_m > 0 else out
+        used[name] = src
+    return filtered, used
+
+
 def get_band(name: str) -> BandFilter:
     """The band filter registered as ``name``; ParameterError listing the known ones."""
     try:

@@ -310,8 +310,10 @@ def check_vehicle(vp: Any, kind: str = "half_car", *, field: str | None = "param
 
 
 GEOMETRY_LIMIT_MM = 28.0
-"""Largest isolated longitudinal-level defect a track in service is left with, mm (the
-EN 13848-5 immediate-action limit for D1 at up to 80 km/h, mean to peak)."""
+"""Largest isolated longitudinal-level defect a track in service is left with, mm: the
+EN 13848-5 immediate-action limit for D1 at up to 80 km/h, mean to peak, **as recalled, not
+verified** (the standard's tables were not found in any source open to the product). The bound
+built on it carries a factor 2 (``RESULT_MARGIN``), so a limit a few mm off moves it little."""
 
 SUPPORT_LOSS_LIMIT = 0.9
 """Largest support-stiffness loss allowed for in the deflection bound (fraction)."""

@@ -74,6 +74,14 @@ class QualityPublic(BaseModel):
     d2_band_m: list[float] = Field(description="Wavelengths D2 actually covers here, m")
     notes: list[str]
     limits_default: bool
+    unverified_limits: list[str] = Field(
+        default_factory=list,
+        description="Limit tables in use that are the product's defaults, not verified "
+        "against EN 13848-5/-6 (isolated_mm.D1, isolated_mm.D2, class_sd_mm)",
+    )
+    limits_source: str | None = Field(
+        default=None, description="What the unverified defaults rest on (null: none in use)"
+    )
     sections: list[QualitySectionPublic]
     defects: list[QualityDefectPublic]
     repeatability: dict[str, Any] | None

@@ -7,7 +7,7 @@ Chainage in m (aligned), levels and depths in mm, stiffness loss in %, trends pe
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Literal, get_args
+from typing import Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -44,7 +44,7 @@ class TrackProfileAggregatePublic(BaseModel):
     n_runs: list[int] = Field(description="Aligned runs in the point's median")
 
 
-SightingSource = Literal["pass", "separated", "aggregate"]
+SightingSource = Literal["pass", "separated", "aggregate", "isolated"]
 """The kinds of sighting (``engine.register.SOURCES``; checked at import)."""
 if set(get_args(SightingSource)) != set(SOURCES):  # pragma: no cover - a developer's slip
     raise RuntimeError("SightingSource must list engine.register.SOURCES")
@@ -63,7 +63,10 @@ class DefectObservationPublic(BaseModel):
     peak_m: float
     depth_mm: float
     stiffness_loss_pct: float | None
-    source: SightingSource = Field(description="pass (one run), separated, aggregate")
+    source: SightingSource = Field(
+        description="pass (one run), separated, aggregate, isolated (one pass's EN 13848 level "
+        "at an isolated defect)"
+    )
     passes: list[str] = Field(description="The passes behind it: 'run 12', 'survey 3'")
     loss_lo_pct: float | None = Field(description="Band of the loss, % (separated)")
     loss_hi_pct: float | None = None
@@ -105,7 +108,8 @@ class DefectPublic(BaseModel):
     peak_m: float = Field(description="Deepest point, m (median)")
     source: SightingSource = Field(
         description="The kind of evidence its figures come from (the most trusted present: "
-        "separated, then aggregate, then pass)"
+        "separated, then aggregate, then pass); isolated: a D1/D2 level over the speed-class "
+        "limits (depth_mm its mean-to-peak value, level by those limits)"
     )
     depth_mm: float = Field(
         description="Depth in the latest sighting, mm; for a separated spot the dip the "
@@ -140,6 +144,11 @@ class DefectPublic(BaseModel):
         default=None,
         description="Why no stiffness loss is given (one wheel load cannot tell geometry "
         "from stiffness here)",
+    )
+    next_limit: dict[str, Any] | None = Field(
+        default=None,
+        description="isolated: when the defect's passes, trended, reach its next level "
+        "(level, limit_mm, date, earliest, latest, reached, slope_mm_per_year); else null",
     )
 
 

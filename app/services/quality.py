@@ -13,6 +13,7 @@ Units: chainage m (aligned), levels mm, speeds km/h, time UTC.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import defaultdict
 from dataclasses import dataclass
@@ -38,6 +39,9 @@ from app.db.models import (
 from engine.errors import ParameterError
 from engine.pipeline import ProcessConfig
 from engine.quality_limits import (
+    DEFAULTS_SOURCE,
+    LEVELS,
+    IsolatedDefect,
     LineSpeed,
     QualityLimits,
     check_line_speeds,
@@ -45,10 +49,14 @@ from engine.quality_limits import (
     next_limit,
     speed_at,
     speed_class,
+    unverified_defaults,
 )
 from engine.track_quality import (
     BANDS,
+    END_TRIM_M,
+    LONG_LEVEL_LAMBDA_MAX_M,
     BandFilter,
+    band_levels,
     observability,
     predict_crossing,
     repeatability,
@@ -163,7 +171,11 @@ class _Levels:
         return (self.i0 + np.arange(self.level_mm.size, dtype=np.float64)) * GRID_STEP_M
 
 
-def _read_levels(session: Session, track_id: int, window: Window) -> _Levels | None:
+def read_levels(
+    session: Session, track_id: int, window: Window, *, passes: bool = True
+) -> _Levels | None:
+    """The analysed level over ``window`` plus a chunk either side, and (``passes``) the passes
+    over it (else none: :func:`with_passes` adds them)."""
     stored = aggregate_chunk_range(session, track_id)
     if stored is None:
         return None
@@ -187,6 +199,15 @@ def _read_levels(session: Session, track_id: int, window: Window) -> _Levels | N
         ok = (idx >= 0) & (idx < n) & np.isfinite(geo) & np.asarray(sep.columns["separable"])
         level[idx[ok]] = geo[ok]
         unloaded[idx[ok]] = True
+    lv = _Levels(i0, level, unloaded, {}, {}, {})
+    return with_passes(session, track_id, lv) if passes else lv
+
+
+def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
+    """``lv`` with the passes over its stretch: each chunk's newest aligned runs."""
+    n = lv.level_mm.size
+    c_lo = lv.i0 // CHUNK_POINTS
+    c_hi = c_lo + n // CHUNK_POINTS - 1
     passes: dict[int, NDArray[np.float64]] = {}
     t = TrackRunLevels.__table__
     keys = newest_runs(track_id, c_lo, c_hi)
@@ -209,7 +230,7 @@ def _read_levels(session: Session, track_id: int, window: Window) -> _Levels | N
         ):  # fmt: skip
             recorded[int(rid)] = when or created
             speeds[int(vid)].append(0.5 * (float(v_lo) + float(v_hi)))
-    return _Levels(i0, level, unloaded, passes, recorded, dict(speeds))
+    return dataclasses.replace(lv, passes=passes, recorded=recorded, vehicle_speeds=dict(speeds))
 
 
 def _observability(
@@ -293,7 +314,26 @@ def track_quality(
         raise Invalid(f"section_m {section_m:g} m not in 10..10000 m", field="section_m")
     limits, limits_set = load_quality_limits(session, track.id)
     speeds = load_line_speeds(session, track.id)
-    lv = _read_levels(session, track.id, window)
+    lv = read_levels(session, track.id, window)
+    answer = _answer_head(track, section_m, limits, limits_set)
+    if lv is None:
+        answer["notes"].append("no aligned run over this track yet")
+        return answer
+    q = Analysis(lv, limits, speeds, window)
+    answer["sections"] = _sections(q, section_m)
+    answer["defects"] = _defects(q)
+    answer["repeatability"] = _repeatability(lv)
+    answer["observability"] = _observability(session, lv.vehicle_speeds)
+    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, section_m, q.bounds)
+    if traces:
+        answer["traces"] = _traces(q)
+    return answer
+
+
+def _answer_head(
+    track: Track, section_m: float, limits: QualityLimits, limits_set: datetime | None
+) -> dict[str, Any]:
+    """The answer's fixed part: filters, D2's band, limits' provenance; no results yet."""
     d2_band = [BANDS["D2"].lambda_min_m, min(BANDS["D2"].lambda_max_m, PRODUCT_BAND_MAX_M)]
     answer: dict[str, Any] = {
         "track_id": track.id,
@@ -312,6 +352,8 @@ def track_quality(
         "d2_band_m": d2_band,
         "notes": [],
         "limits_default": limits_set is None,
+        "unverified_limits": list(unverified_defaults(limits)),
+        "limits_source": DEFAULTS_SOURCE if unverified_defaults(limits) else None,
         "sections": [],
         "defects": [],
         "repeatability": None,
@@ -321,140 +363,192 @@ def track_quality(
     if d2_band[1] < BANDS["D2"].lambda_max_m:
         answer["notes"].append(
             f"the stored levels hold wavelengths up to {PRODUCT_BAND_MAX_M:g} m: D2 covers "
-            f"{d2_band[0]:g}-{d2_band[1]:g} m of its 25-70 m and understates a recording car's D2"
+            f"{d2_band[0]:g}-{d2_band[1]:g} m of its 25-70 m and understates a recording car's D2 "
+            f"(its own level, the passes' loaded level of a band reaching "
+            f"{LONG_LEVEL_LAMBDA_MAX_M:g} m, is not stored yet)"
         )
-    if lv is None:
-        answer["notes"].append("no aligned run over this track yet")
-        return answer
-    x = lv.chainage_m
-    filt = {name: _band(b, lv.level_mm) for name, b in BANDS.items()}
-    stats = section_statistics(x, filt, section_m, min_coverage=MIN_SECTION_COVERAGE)
-    by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
+    if answer["unverified_limits"]:
+        answer["notes"].append(
+            "limits not verified against EN 13848-5/-6: " + ", ".join(answer["unverified_limits"])
+        )
+    return answer
 
-    def pass_levels(band: str) -> dict[int, NDArray[np.float64]]:
-        # each pass filtered once per band, in recording order
-        if band not in by_band:
+
+class Analysis:
+    """The track's level filtered to each band once, the passes' filtered levels on demand,
+    and the window's bounds (m): what the sections, defects and traces share."""
+
+    def __init__(
+        self, lv: _Levels, limits: QualityLimits, speeds: tuple[LineSpeed, ...], window: Window
+    ) -> None:
+        self.lv, self.limits, self.speeds = lv, limits, speeds
+        self.x = lv.chainage_m
+        # only the quality level is stored: D2 falls back to it (the answer's d2_band_m)
+        self.filt = band_levels({"quality": lv.level_mm}, GRID_STEP_M, trim_m=END_TRIM_M)[0]
+        self.lo = -math.inf if window.from_m is None else window.from_m
+        self.hi = math.inf if window.to_m is None else window.to_m
+        self._by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return self.lo, self.hi
+
+    def pass_levels(self, band: str) -> dict[int, NDArray[np.float64]]:
+        """Each pass filtered to ``band`` (once), in recording order."""
+        if band not in self._by_band:
             b = BANDS[band]
-            by_band[band] = {r: _band(b, lv.passes[r]) for r in lv.ordered_runs}
-        return by_band[band]
+            lv = self.lv
+            self._by_band[band] = {r: _band(b, lv.passes[r]) for r in lv.ordered_runs}
+        return self._by_band[band]
 
-    pass_filt = pass_levels("D1")
+
+def _sections(q: Analysis, section_m: float) -> list[dict[str, Any]]:
+    """The sections overlapping the window that have a level, as answered."""
+    stats = section_statistics(q.x, q.filt, section_m, min_coverage=MIN_SECTION_COVERAGE)
     now = utcnow()
-    lo = -math.inf if window.from_m is None else window.from_m
-    hi = math.inf if window.to_m is None else window.to_m
+    out = []
     for st in stats:
-        if st.end_m <= lo or st.start_m > hi:
+        if st.end_m <= q.lo or st.start_m > q.hi:
             continue
-        m = (x >= st.start_m) & (x < st.end_m)
-        covered = m & np.isfinite(lv.level_mm)
+        m = (q.x >= st.start_m) & (q.x < st.end_m)
+        covered = m & np.isfinite(q.lv.level_mm)
         if not covered.any():
             continue
-        share_unloaded = float(lv.unloaded[covered].mean())
-        basis = (
-            "unloaded"
-            if share_unloaded >= 0.95
-            else "loaded"
-            if share_unloaded <= 0.05
-            else "mixed"
-        )
         over = [
-            rid for rid in lv.ordered_runs
-            if np.isfinite(lv.passes[rid][m]).mean() >= MIN_SECTION_COVERAGE
+            rid for rid in q.lv.ordered_runs
+            if np.isfinite(q.lv.passes[rid][m]).mean() >= MIN_SECTION_COVERAGE
         ]  # fmt: skip
-        times = [t for r in over if (t := lv.recorded.get(r)) is not None]
+        times = [t for r in over if (t := q.lv.recorded.get(r)) is not None]
         last = max(times) if times else None
-        mid = 0.5 * (st.start_m + st.end_m)
-        speed = speed_at(speeds, mid)
+        speed = speed_at(q.speeds, 0.5 * (st.start_m + st.end_m))
         d1 = st.sd_mm["D1"]
+        pass_filt = q.pass_levels("D1")
         rep = (
             repeatability([pass_filt[r][m] for r in over], pairs="successive")
             if len(over) >= 2
             else None
         )
-        cls = limits.quality_class(d1, speed)
-        trend = None
-        if cls is not None and cls != "E" and len(over) >= 3:
-            per_pass = [
-                (t, float(np.nanstd(pass_filt[r][m])))
-                for r in over
-                if (t := lv.recorded.get(r)) is not None
-            ]
-            bounds = limits.class_sd_mm[speed_class(speed)]
-            nxt = "ABCDE"["ABCD".index(cls) + 1]
-            crossing = predict_crossing([t for t, _ in per_pass], [v for _, v in per_pass],
-                                        bounds["ABCD".index(cls)])  # fmt: skip
-            trend = _crossing_dict((nxt, crossing))
-        answer["sections"].append({
+        cls = q.limits.quality_class(d1, speed)
+        out.append({
             "start_m": st.start_m, "end_m": st.end_m,
             "d1_sd_mm": _f(d1), "d2_sd_mm": _f(st.sd_mm["D2"]),
             "coverage": _f(st.coverage, 2), "n_passes": len(over),
             "last_pass": _iso(last),
             "days_since_last_pass": None if last is None else _f(_days(now - last), 1),
             "repeatability_d1_mm": None if rep is None else _f(rep.r95_mm),
-            "speed_kmh": speed, "quality_class": cls, "basis": basis,
-            "next_class": trend,
+            "speed_kmh": speed, "quality_class": cls,
+            "basis": _basis(float(q.lv.unloaded[covered].mean())),
+            "next_class": _next_class(q, m, over, cls, speed),
         })  # fmt: skip
+    return out
+
+
+def _basis(share_unloaded: float) -> str:
+    if share_unloaded >= 0.95:
+        return "unloaded"
+    return "loaded" if share_unloaded <= 0.05 else "mixed"
+
+
+def _next_class(
+    q: Analysis, m: NDArray[np.bool_], over: list[int], cls: str | None, speed: float | None
+) -> dict[str, Any] | None:
+    """When the section's D1 SD, trended over its passes, reaches the next class's bound."""
+    if cls is None or cls == "E" or len(over) < 3:
+        return None
+    pass_filt = q.pass_levels("D1")
+    per_pass = [
+        (t, float(np.nanstd(pass_filt[r][m])))
+        for r in over
+        if (t := q.lv.recorded.get(r)) is not None
+    ]
+    bounds = q.limits.class_sd_mm[speed_class(speed)]
+    i = "ABCD".index(cls)
+    crossing = predict_crossing([t for t, _ in per_pass], [v for _, v in per_pass], bounds[i])
+    return _crossing_dict(("ABCDE"[i + 1], crossing))
+
+
+def _defects(q: Analysis) -> list[dict[str, Any]]:
+    """The isolated defects peaking in the window, most urgent then largest first."""
+    out = []
     for name in BANDS:
-        for d in isolated_defects(x, filt[name], name, limits, speeds):
-            if not (lo <= d.peak_m <= hi):
+        for d in isolated_defects(q.x, q.filt[name], name, q.limits, q.speeds):
+            if not (q.lo <= d.peak_m <= q.hi):
                 continue
-            i = int(round(d.peak_m / GRID_STEP_M)) - lv.i0
-            basis = "unloaded" if lv.unloaded[i] else "loaded"
-            answer["defects"].append(_defect_dict(d, basis, limits, lv, x, pass_levels(name)))
-    answer["defects"].sort(key=lambda d: (("immediate", "intervention", "alert").index(d["level"]),
-                                          -abs(d["value_mm"])))  # fmt: skip
+            i = int(round(d.peak_m / GRID_STEP_M)) - q.lv.i0
+            basis = "unloaded" if q.lv.unloaded[i] else "loaded"
+            out.append(_defect_dict(d, basis, q.limits, q.lv, q.pass_levels(name)))
+    out.sort(key=lambda d: (LEVELS.index(d["level"]), -abs(d["value_mm"])))
+    return out
+
+
+def _repeatability(lv: _Levels) -> dict[str, Any]:
     rep_passes = [_band(REPEATABILITY_BAND, lv.passes[r]) for r in lv.ordered_runs]
     rep = repeatability(rep_passes, pairs="successive")
-    answer["repeatability"] = {
+    return {
         "band_m": [REPEATABILITY_BAND.lambda_min_m, REPEATABILITY_BAND.lambda_max_m],
         "r95_mm": _f(rep.r95_mm), "n_pairs": rep.n_pairs, "n_points": rep.n_points,
         "note": "loaded levels of successive passes (each run's own, before the separation)",
     }  # fmt: skip
-    answer["observability"] = _observability(session, lv.vehicle_speeds)
-    answer["survey_comparison"] = _survey_comparison(session, track.id, lv, section_m, (lo, hi))
-    if traces:
-        step = int(round(1.0 / GRID_STEP_M))
-        keep = np.flatnonzero(np.isfinite(lv.level_mm) & (x >= lo) & (x <= hi))[::step]
-        answer["traces"] = {
-            "chainage_m": [round(float(v), 2) for v in x[keep]],
-            "d1_mm": [_f(float(v)) for v in filt["D1"][keep]],
-            "d2_mm": [_f(float(v)) for v in filt["D2"][keep]],
-        }
-    return answer
+
+
+def _traces(q: Analysis) -> dict[str, list[Any]]:
+    """The D1/D2 levels every metre over the window."""
+    step = int(round(1.0 / GRID_STEP_M))
+    x = q.x
+    keep = np.flatnonzero(np.isfinite(q.lv.level_mm) & (x >= q.lo) & (x <= q.hi))[::step]
+    return {
+        "chainage_m": [round(float(v), 2) for v in x[keep]],
+        "d1_mm": [_f(float(v)) for v in q.filt["D1"][keep]],
+        "d2_mm": [_f(float(v)) for v in q.filt["D2"][keep]],
+    }
 
 
 def _defect_dict(
-    d: Any,
+    d: IsolatedDefect,
     basis: str,
     limits: QualityLimits,
     lv: _Levels,
-    x: NDArray[np.float64],
     filtered: dict[int, NDArray[np.float64]],
 ) -> dict[str, Any]:
     band = d.band
     triple = limits.limits_at(band, d.speed_kmh)
-    out: dict[str, Any] = {
+    return {
         "peak_m": round(d.peak_m, 2), "start_m": round(d.start_m, 2), "end_m": round(d.end_m, 2),
         "band": band, "value_mm": _f(d.value_mm), "level": d.level, "speed_kmh": d.speed_kmh,
         "limits_mm": {"alert": triple[0], "intervention": triple[1], "immediate": triple[2]},
-        "basis": basis, "next_limit": None,
+        "basis": basis, "next_limit": defect_next_limit(d, limits, lv, filtered),
     }  # fmt: skip
-    nxt = next_limit(d.value_mm, triple)
-    if nxt is None:
-        return out
-    i = int(round(d.peak_m / GRID_STEP_M)) - lv.i0
+
+
+def pass_values(
+    lv: _Levels, peak_m: float, filtered: dict[int, NDArray[np.float64]]
+) -> list[tuple[int, datetime, float]]:
+    """Each pass's value of a defect peaking at ``peak_m``: ``(run id, recorded, largest
+    |level| within PEAK_MATCH_M of the peak, mm)``, passes in recording order."""
+    i = int(round(peak_m / GRID_STEP_M)) - lv.i0
     k = int(round(PEAK_MATCH_M / GRID_STEP_M))
     near = slice(max(0, i - k), i + k + 1)
-    series = []
+    out = []
     for rid, p in filtered.items():
         when = lv.recorded.get(rid)
         v = p[near]
         if when is not None and np.isfinite(v).any():
-            series.append((when, float(np.nanmax(np.abs(v)))))
-    if len(series) >= 3:
-        crossing = predict_crossing([t for t, _ in series], [v for _, v in series], nxt[1])
-        out["next_limit"] = _crossing_dict((nxt[0], crossing))
+            out.append((rid, when, float(np.nanmax(np.abs(v)))))
     return out
+
+
+def defect_next_limit(
+    d: IsolatedDefect, limits: QualityLimits, lv: _Levels, filtered: dict[int, NDArray[np.float64]]
+) -> dict[str, Any] | None:
+    """When the defect's passes, trended, reach the next level it has not reached (3 passes)."""
+    nxt = next_limit(d.value_mm, limits.limits_at(d.band, d.speed_kmh))
+    if nxt is None:
+        return None
+    series = pass_values(lv, d.peak_m, filtered)
+    if len(series) < 3:
+        return None
+    crossing = predict_crossing([t for _, t, _ in series], [v for _, _, v in series], nxt[1])
+    return _crossing_dict((nxt[0], crossing))
 
 
 def _survey_comparison(

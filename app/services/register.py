@@ -38,6 +38,7 @@ from engine.separation import SeparationConfig
 
 from .aggregate import CHUNK_POINTS, _batches, aggregate_chunk_range, newest_levels
 from .alignment import GRID_STEP_M, MERGED_STATUSES
+from .quality_register import isolated_register
 from .stiffness import NOT_SEPARABLE, separable_intervals
 
 LOAD_RATIO = SeparationConfig().min_load_ratio
@@ -259,9 +260,12 @@ def track_register(session: Session, track_id: int, limits: Limits | None = None
     if limits is None:
         limits, _ = load_limits(session, track_id)
     observations, coverage = track_observations(session, track_id)
-    return build_register(
-        observations, coverage, limits=limits, config=RegisterConfig(load_ratio=LOAD_RATIO)
-    )
+    config = RegisterConfig(load_ratio=LOAD_RATIO)
+    defects = build_register(observations, coverage, limits=limits, config=config)
+    # isolated level defects are a register of their own limits, kept apart from soft spots
+    defects += isolated_register(session, track_id, coverage, config)
+    defects.sort(key=lambda d: (d.priority, -d.depth_mm, d.start_m))
+    return defects
 
 
 def stiffness_notes(
@@ -287,6 +291,8 @@ def stiffness_notes(
     for d in defects:
         if d.source == "separated":
             out.append(("separated", None))
+        elif d.source == "isolated":
+            out.append((None, None))  # a level defect: no stiffness is claimed
         elif d.stiffness_loss_pct is not None:
             out.append(("single pass", None))
         elif separable(d):

@@ -36,7 +36,11 @@ def quality_section(q: dict[str, Any]) -> str:
         f"({q['d2_band_m'][0]:g}–{q['d2_band_m'][1]:g} m) by zero-phase Butterworth filters; "
         f"SD per {q['section_m']:g} m section; isolated defects mean to peak against the "
         "limits of the line speed's class"
-        + (" (product defaults: set the track's own)" if q["limits_default"] else "")
+        + (
+            " (product defaults, not verified against EN 13848-5/-6: set the track's own)"
+            if q["unverified_limits"]
+            else ""
+        )
         + ".</p>"
     )
     for note in q["notes"]:

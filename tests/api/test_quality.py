@@ -92,6 +92,9 @@ def test_quality_sections_follow_the_truth(world: dict[str, Any]) -> None:
         assert s["quality_class"] in "ABCDE"
         assert s["repeatability_d1_mm"] is not None and s["repeatability_d1_mm"] < 0.5
     assert q["d2_band_m"] == [25.0, 40.0] and q["notes"]  # the stored band is said, not hidden
+    # the default limit tables are unverified against the standard, and the answer says so
+    assert q["unverified_limits"] == ["isolated_mm.D1", "isolated_mm.D2", "class_sd_mm"]
+    assert "EN 13848-5" in q["limits_source"]
     assert q["repeatability"]["r95_mm"] < 0.5
     (obs,) = q["observability"]  # one vehicle: the coach, its axles 8.26 m apart
     assert obs["vehicle"] == "table1" and obs["bounce_nulls_m"] == [16.52, 5.51, 3.3]
@@ -122,6 +125,7 @@ def test_limits_and_line_speeds_drive_defects_and_classes(world: dict[str, Any])
     worse = c.put(f"{base}/quality-limits", json={"isolated_mm": {"D1": [[3.0, 2.0, 4.0]] * 5}})
     assert worse.status_code == 422 and worse.json()["detail"]["field"].startswith("isolated_mm")
     q = c.get(f"{base}/quality").json()
+    assert "isolated_mm.D1" not in q["unverified_limits"]  # the track's own table
     d1 = [d for d in q["defects"] if d["band"] == "D1"]
     assert d1, "no D1 peak reached 1.5 mm on a German low-disturbance track"
     for d in d1:
@@ -138,6 +142,39 @@ def test_limits_and_line_speeds_drive_defects_and_classes(world: dict[str, Any])
     lines = csv.text.splitlines()
     assert lines[0].startswith("start_m,end_m,d1_sd_mm,d2_sd_mm,n_passes")
     assert len([ln for ln in lines if ln.count(",") >= 7]) >= len(q["sections"]) + len(q["defects"])
+
+
+def test_isolated_defects_are_register_defects(world: dict[str, Any]) -> None:
+    """With the track's low D1 limits (set above), each isolated D1 defect of the quality answer
+    is a defect of the register (source isolated, id D1-...) at its peak: one sighting per pass,
+    depth its largest |D1| within 0.3 mm of the answer's value, level from the speed-class
+    limits of that depth, a trend, and the predicted date of the next level where one is left.
+    No stiffness claim is attached; the soft-spot defects are still there, apart."""
+    c = world["client"]
+    base = f"/api/v1/tracks/{TRACK}"
+    q = c.get(f"{base}/quality").json()
+    assert q["defects"], "the limits set by the previous test leave no D1 defect"
+    r = c.get(f"{base}/defects", params={"include": "history"})
+    assert r.status_code == 200, r.text
+    reg = [d for d in r.json() if d["source"] == "isolated"]
+    assert all(d["id"].startswith(("D1-", "D2-")) for d in reg)
+    for want in (d for d in q["defects"] if d["band"] == "D1"):
+        (got,) = [
+            d for d in reg if d["id"].startswith("D1-") and abs(d["peak_m"] - want["peak_m"]) < 0.5
+        ]
+        assert abs(got["depth_mm"] - abs(want["value_mm"])) < 0.3, (got, want)
+        v = got["depth_mm"]
+        assert got["level"] == ("immediate" if v >= 2.5 else "intervention" if v >= 2.0
+                                else "alert" if v >= 1.5 else None)  # fmt: skip
+        assert [e["kind"] for e in got["evidence"]] == ["isolated"] and got["runs_seen"] == 3
+        assert len(got["history"]) == 3 and got["stiffness_loss_pct"] is None
+        assert got["message"] is None and got["stiffness_basis"] is None
+        if want["level"] != "immediate":
+            assert got["next_limit"] is not None and got["next_limit"]["level"] in (
+                "intervention", "immediate",
+            )  # fmt: skip
+    csv = c.get(f"{base}/defects.csv")
+    assert csv.status_code == 200 and csv.text.count("\nD1-") + csv.text.count(",D1-") >= 1
 
 
 def _centerline_csv() -> tuple[str, Centerline]:

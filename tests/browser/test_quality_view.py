@@ -51,8 +51,8 @@ def test_quality_view_shows_classes_levels_and_exceedances(
 ) -> None:
     """From the track page's link: one bar per classed section in its class's trace, the D1
     and D2 traces and a marker per defect, the defect table row for row as the API lists them,
-    the section table with passes, exports for CSV and GeoJSON, the repeatability and what the
-    coach's body cannot see; axe clean."""
+    the section table with passes, exports for CSV and GeoJSON, the repeatability, what the
+    coach's body cannot see and which limit tables are unverified defaults; axe clean."""
     q = quality["q"]
     assert q["defects"], "the low limits should make some D1 peak a defect"
     page.goto(f"{live_server.url}/#/tracks/{quality['id']}")
@@ -88,4 +88,8 @@ def test_quality_view_shows_classes_levels_and_exceedances(
     facts = page.locator("#quality-facts li").all_inner_texts()
     assert any("Repeatability" in t for t in facts)
     assert any(t.startswith("table1 at") and "16.52" in t for t in facts)
+    # the track's own D1 limits; the other tables are still the unverified defaults, and said so
+    assert q["unverified_limits"] == ["isolated_mm.D2", "class_sd_mm"]
+    said = page.locator("#quality-unverified").inner_text()
+    assert "not verified" in said and all(t in said for t in q["unverified_limits"])
     assert axe_violations(page, axe_source()) == []

@@ -9,9 +9,18 @@ import numpy as np
 import pytest
 
 from engine.errors import ParameterError
-from engine.quality_limits import LineSpeed, QualityLimits, check_line_speeds, isolated_defects
+from engine.quality_limits import (
+    DEFAULT_ISOLATED_MM,
+    LineSpeed,
+    QualityLimits,
+    check_line_speeds,
+    isolated_defects,
+    unverified_defaults,
+)
+from engine.register import Observation, build_register
 from engine.track_quality import (
     BANDS,
+    band_levels,
     observability,
     predict_crossing,
     repeatability,
@@ -206,3 +215,56 @@ def test_trim_ends_blanks_each_stretch_ends() -> None:
     t = trim_ends(v, 0.25, 25.0)
     assert np.isnan(t[:100]).all() and np.isfinite(t[100:300]).all() and np.isnan(t[300:510]).all()
     assert np.isfinite(t[510:750]).all() and np.isnan(t[750:]).all()
+
+
+def test_d2_is_filtered_from_its_own_long_level() -> None:
+    """D1 comes from the quality level, D2 from the long level when one is given (a 50 m wave
+    only the long level holds shows at its full amplitude in D2, not in D1); without a long
+    level D2 falls back to the quality level and says so; the quality level is required."""
+    x = np.arange(0.0, 1000.0, STEP)
+    short = 1.0 * np.sin(2 * np.pi * x / 10.0)
+    long = short + 2.0 * np.sin(2 * np.pi * x / 50.0)
+    inner = (x > 200) & (x < 800)
+    filt, used = band_levels({"quality": short, "long": long}, STEP)
+    assert used == {"D1": "quality", "D2": "long"}
+    assert np.max(np.abs(filt["D2"][inner])) == pytest.approx(2.0, rel=0.03)
+    assert np.max(np.abs(filt["D1"][inner])) == pytest.approx(1.0, rel=0.03)
+    alone, used = band_levels({"quality": short}, STEP, trim_m=25.0)
+    assert used["D2"] == "quality" and np.max(np.abs(alone["D2"][inner])) < 0.05
+    assert np.isnan(alone["D1"][: int(25.0 / STEP)]).all()  # the trimmed end
+    with pytest.raises(ParameterError) as e:
+        band_levels({"long": long}, STEP)
+    assert e.value.field == "levels"
+
+
+def test_unverified_defaults_are_named_until_replaced() -> None:
+    """Every default table is flagged; a track's own D1 table is not; restating a default
+    (same figures) keeps it flagged."""
+    assert unverified_defaults(QualityLimits()) == (
+        "isolated_mm.D1", "isolated_mm.D2", "class_sd_mm",
+    )  # fmt: skip
+    own = QualityLimits.from_dict({"isolated_mm": {"D1": [[1.5, 2.0, 2.5]] * 5}})
+    assert unverified_defaults(own) == ("isolated_mm.D2", "class_sd_mm")
+    same = QualityLimits.from_dict(
+        {"isolated_mm": {"D1": [list(t) for t in DEFAULT_ISOLATED_MM["D1"]]}}
+    )
+    assert "isolated_mm.D1" in unverified_defaults(same)
+
+
+def test_register_judges_isolated_sightings_by_their_own_level() -> None:
+    """A defect of isolated-level sightings takes the level its latest sighting carries (the
+    speed-class limits'), not the register's depth limits (which 5 mm would exceed), and
+    ``level_since`` is the first sighting at that level or worse; a soft-spot sighting at the
+    same depth is still judged by the depth limits."""
+    t0 = datetime(2026, 1, 1, tzinfo=UTC)
+    seen = [
+        Observation(i, t0 + timedelta(days=30 * i), 100.0, 104.0, 102.0, v, None,
+                    source="isolated", level=lv)
+        for i, (v, lv) in enumerate(((4.0, None), (5.0, "alert"), (5.5, "alert")))
+    ]  # fmt: skip
+    (d,) = build_register(seen)
+    assert d.source == "isolated" and d.level == "alert" and d.priority == 3
+    assert d.level_since == t0 + timedelta(days=30)
+    assert d.trend_mm_per_month > 0 and d.status == "worsening"
+    (soft,) = build_register([Observation(9, t0, 100.0, 104.0, 102.0, 5.0, None)])
+    assert soft.level == "immediate"  # 5 mm over the default 0.40 mm depth limit

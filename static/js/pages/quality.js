@@ -102,7 +102,7 @@ export async function render(main, [ref], query) {
       h("a", { href: `/api/v1/tracks/${tid}/quality.geojson?section_m=${sectionM}`, download: "" }, "GeoJSON (on the centerline)")),
   ]);
   if (q.notes.length) main.append(h("ul", { class: "message info", id: "quality-notes" }, ...q.notes.map((n) => h("li", {}, n))));
-  if (q.limits_default) main.append(h("p", { class: "muted" }, "Limits and class bounds are the product's defaults (docs/method.md): set the track's own with PUT /tracks/{track}/quality-limits."));
+  if (q.unverified_limits.length) main.append(h("p", { class: "muted", id: "quality-unverified" }, `Product defaults not verified against EN 13848-5/-6 (docs/method.md): ${q.unverified_limits.join(", ")}. Set the track's own with PUT /tracks/{track}/quality-limits.`));
   const facts = [];
   if (q.repeatability && q.repeatability.r95_mm !== null) {
     facts.push(h("li", {}, `Repeatability between successive passes (${q.repeatability.band_m[0]}–${q.repeatability.band_m[1]} m): 95 % of differences within ${fmt(q.repeatability.r95_mm, 2)} mm.`));
