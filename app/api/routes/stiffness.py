@@ -23,12 +23,11 @@ from app.schemas.stiffness import (
 )
 from app.services.alignment import GRID_STEP_M
 from app.services.context import AppContext
+from app.services.lookup import get_track
 from app.services.stiffness import UPDATING, stiffness_with_vehicles
 from app.services.submit import clean_filename
 from app.services.surveys import SurveyInput, create_survey, delete_survey, get_survey, list_surveys
 from app.services.vehicles import read_settled
-
-from .lookup import get_track
 
 router = APIRouter(prefix="/tracks", tags=["geometry and stiffness"])
 
