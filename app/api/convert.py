@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from app.db.models import Calibration, Run, Track, Vehicle
+from app.db.models import Calibration, Run, Survey, Track, Vehicle
 from app.schemas.runs import (
     DetectionLimitPublic,
     RunAlignmentPublic,
@@ -12,13 +12,16 @@ from app.schemas.runs import (
     RunPositioningPublic,
     RunPublic,
 )
+from app.schemas.stiffness import SurveyPublic
 from app.schemas.tracks import TrackPublic
 from app.schemas.vehicles import (
     CalibrationPublic,
     FittedParameterPublic,
     VehiclePublic,
 )
-from app.services.stiffness import run_stiffness_basis
+from app.services.alignment import GRID_STEP_M
+from app.services.stiffness import StiffnessWindow, run_stiffness_basis
+from app.services.window import Window
 
 _PROGRESS = {"queued": 0.05, "inverting": 0.35, "storing": 0.85}
 
@@ -153,3 +156,62 @@ def calibration_public(cal: Calibration, vehicle_name: str) -> CalibrationPublic
         details=details,
         error=cal.error,
     )
+
+
+def survey_public(s: Survey, duplicate: bool = False) -> SurveyPublic:
+    """A survey's public view (chainage aligned)."""
+    off = s.chainage_offset_m or 0.0
+    return SurveyPublic(
+        id=s.id, track_id=s.track_id, name=s.name, original_filename=s.original_filename,
+        recorded_at=s.recorded_at, created_at=s.created_at, wheel_load_n=s.wheel_load_n,
+        band_min_m=s.band_min_m, band_max_m=s.band_max_m, n_points=s.n_points,
+        chainage_min_m=s.chainage_min_m + off, chainage_max_m=s.chainage_max_m + off,
+        chainage_offset_m=off, alignment_status=s.alignment_status,  # type: ignore[arg-type]
+        alignment_correlation=s.alignment_correlation, alignment_reason=s.alignment_reason,
+        duplicate=duplicate,
+    )  # fmt: skip
+
+
+def stiffness_public(trk: Track, window: Window, sep: StiffnessWindow) -> dict[str, Any]:
+    """A window of the track's separated stiffness as :class:`StiffnessPublic` states it, as
+    plain data (serialised once by orjson: the response-model pass would double the time of a
+    long window)."""
+    cols = sep.columns
+    return {
+        "track_id": trk.id,
+        "track": trk.name,
+        "from_m": window.from_m,
+        "to_m": window.to_m,
+        "grid_step_m": GRID_STEP_M,
+        "k_nominal_n_per_m": trk.k_nominal,
+        "n": sep.n,
+        "separable": sep.separable,
+        "separable_fraction": sep.separable_fraction,
+        "message": sep.message,
+        "not_separable": [st.to_dict() for st in sep.not_separable],
+        "updating": sep.updating,
+        "chainage_m": cols["chainage_m"],
+        "k_rel": cols["k_rel"],
+        "k_rel_lo": cols["k_rel_lo"],
+        "k_rel_hi": cols["k_rel_hi"],
+        "geometry_mm": cols["geometry_mm"],
+        "geometry_sd_mm": cols["geometry_sd_mm"],
+        "compliance_mm_per_kn": cols["compliance_mm_per_kn"],
+        "n_passes": cols["n_passes"],
+        "load_ratio": cols["load_ratio"],
+        "separable_at": cols["separable"],
+        "soft_spots": [
+            {
+                "start_m": s.start_m,
+                "end_m": s.end_m,
+                "peak_m": s.peak_m,
+                "stiffness_loss_pct": s.loss_pct,
+                "loss_lo_pct": s.loss_lo_pct,
+                "loss_hi_pct": s.loss_hi_pct,
+                "confidence": s.confidence,
+                "basis": "separated",
+            }  # fmt: skip
+            for s in sep.spots
+        ],
+        "contributors": sep.contributors,
+    }
