@@ -198,6 +198,11 @@ class TruthPublic(BaseModel):
         description="True fused loaded level, mm, positive up (compare after removing a "
         "baseline: the engine's profile is band-limited)"
     )
+    baseline_mm: list[float | None] = Field(
+        description="The true level's baseline as soft-spot detection draws it (running median "
+        "then mean over baseline_window_m), mm; the run's own is in its profile views"
+    )
+    baseline_window_m: float = Field(description="Length of the baseline's running median, m")
 
 
 class SimulatePublic(BaseModel):

@@ -10,7 +10,8 @@ from fastapi.concurrency import run_in_threadpool
 
 from app.api.deps import CtxDep
 from app.schemas.runs import RunCreated
-from app.schemas.simulate import SimulatePublic, SimulateRequest, TruthPublic
+from app.schemas.simulate import SimulatePublic, SimulateRequest
+from app.services.chart_views import truth_view
 from app.services.simulation import simulate_and_submit
 from engine.irregularity import SPECTRA
 from engine.sensor import SENSOR_GRADES
@@ -54,4 +55,4 @@ async def simulate_run(
     """
     run_id, created, truth = await run_in_threadpool(simulate_and_submit, ctx, body.to_spec())
     run: RunCreated = await answer_submission(ctx, response, run_id, created, wait)
-    return SimulatePublic(run=run, truth=TruthPublic.model_validate(truth.to_dict()))
+    return SimulatePublic(run=run, truth=truth_view(truth))
