@@ -1,4 +1,5 @@
-"""ORM rows to public schemas (aligned chainage: stored chainage + the run's offset)."""
+"""Between the public schemas and the services: ORM rows and service results to public views
+(aligned chainage: stored chainage + the run's offset), requests to the services' plain specs."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from app.schemas.runs import (
     RunPositioningPublic,
     RunPublic,
 )
+from app.schemas.simulate import SimulateRequest
 from app.schemas.stiffness import SurveyPublic
 from app.schemas.tracks import TrackPublic
 from app.schemas.vehicles import (
@@ -20,8 +22,13 @@ from app.schemas.vehicles import (
     VehiclePublic,
 )
 from app.services.alignment import GRID_STEP_M
+from app.services.errors import Invalid
+from app.services.simulation import SimulationSpec
 from app.services.stiffness import StiffnessWindow, run_stiffness_basis
 from app.services.window import Window
+from engine.sensor import SensorModel, sensor_for_grade
+from engine.synthetic import REALISTIC_SENSOR
+from engine.track import SoftZone
 
 _PROGRESS = {"queued": 0.05, "inverting": 0.35, "storing": 0.85}
 
@@ -215,3 +222,38 @@ def stiffness_public(trk: Track, window: Window, sep: StiffnessWindow) -> dict[s
         ],
         "contributors": sep.contributors,
     }
+
+
+def simulation_spec(body: SimulateRequest) -> SimulationSpec:
+    """The service's plain description of a simulate request (engine types, the sensor chosen)."""
+    if body.sensor_grade is not None:
+        if "sensor" in body.model_fields_set:
+            raise Invalid("give either sensor or sensor_grade, not both", field="sensor_grade")
+        # the simulation's rate (1 kHz) is the log's; the seed draws the pass's bias
+        sensor = sensor_for_grade(body.sensor_grade, 1000.0, seed=body.seed)
+    elif body.sensor == "ideal":
+        sensor = SensorModel()
+    elif body.sensor == "realistic":
+        sensor = REALISTIC_SENSOR
+    else:
+        sensor = SensorModel(**body.sensor.model_dump())
+    return SimulationSpec(
+        track=body.track or body.simulated_track_name(),
+        vehicle=body.vehicle,
+        name=body.name,
+        length_m=body.length_m,
+        speed_mps=body.speed_mps,
+        zones=tuple(SoftZone(z.start_m, z.end_m, z.loss) for z in body.zones),
+        start_chainage_m=body.start_chainage_m,
+        direction=body.direction,
+        sensor=sensor,
+        jitter=body.jitter,
+        seed=body.seed,
+        recorded_at=body.recorded_at,
+        # without a grade the record is what it was before grades (the same fingerprint)
+        record=body.model_dump(
+            mode="json", exclude={"sensor_grade"} if body.sensor_grade is None else None
+        ),
+        irregularity=None if body.irregularity is None else body.irregularity.spectrum,
+        irregularity_seed=None if body.irregularity is None else body.irregularity.seed,
+    )

@@ -105,6 +105,7 @@ def test_a_simulated_track_is_a_track_of_its_own() -> None:
     """Without a track name, a simulation's runs go to a track named after the physical track
     simulated (never a shared "simulated" track mixing with others): the same setting meets
     again, another zone, seed or rail is another track; speed and vehicle are not the track."""
+    from app.api.convert import simulation_spec
     from app.schemas.simulate import SimulateRequest
 
     base = SimulateRequest()
@@ -112,7 +113,7 @@ def test_a_simulated_track_is_a_track_of_its_own() -> None:
     other_zone = SimulateRequest(zones=[{"start_m": 100, "end_m": 106, "loss": 0.4}])
     other_seed = SimulateRequest(seed=4)
     rough = SimulateRequest(irregularity={"spectrum": "german-low", "seed": 3})
-    names = [r.to_spec().track for r in (base, other_zone, other_seed, rough)]
-    assert same.to_spec().track == names[0]
+    names = [simulation_spec(r).track for r in (base, other_zone, other_seed, rough)]
+    assert simulation_spec(same).track == names[0]
     assert len(set(names)) == 4 and all(n.startswith("simulated ") for n in names)
-    assert SimulateRequest(track="Line 9").to_spec().track == "Line 9"
+    assert simulation_spec(SimulateRequest(track="Line 9")).track == "Line 9"
