@@ -91,3 +91,21 @@ def test_no_sql_in_routes() -> None:
         if (found := sql_in(Path(p).read_text(encoding="utf-8")))
     }
     assert not offences, f"SQL in routes (move it into app/services/): {offences}"
+
+
+SCHEMAS_READING_SERVICES = {"app/schemas/track_intel.py": {"app.services.aggregate"}}
+"""Left to move: the aggregate's pass count, stated in a schema's description."""
+
+
+def test_schemas_import_no_service() -> None:
+    """Schemas describe requests and answers: they import no service (the services take plain
+    arguments; ``app/api/convert.py`` goes between), beyond the one import left listed."""
+    found: dict[str, set[str]] = {}
+    for p in sorted((REPO_ROOT / "app" / "schemas").glob("*.py")):
+        tree = ast.parse(p.read_text(encoding="utf-8"))
+        modules = {n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+        modules |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        services = {m for m in modules if m.startswith("app.services")}
+        if services:
+            found[str(p.relative_to(REPO_ROOT))] = services
+    assert found == SCHEMAS_READING_SERVICES
