@@ -6,23 +6,13 @@ from typing import Literal
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel
 
 from app import __version__
 from app.api.deps import CtxDep
+from app.schemas.status import HealthPublic
 from app.services.status import database_status
 
 router = APIRouter(tags=["health"])
-
-
-class HealthPublic(BaseModel):
-    """Service health."""
-
-    status: Literal["ok", "degraded", "error"]
-    version: str
-    database: Literal["ok", "error"]
-    worker: Literal["running", "stopped", "disabled"]
-    runs_processing: int | None
 
 
 @router.get("/healthz", response_model=HealthPublic, responses={503: {"model": HealthPublic}})
