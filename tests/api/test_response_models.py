@@ -119,6 +119,7 @@ def test_the_key_check_finds_an_undeclared_key() -> None:
     assert undeclared_keys(sent, model) == [".count", ".data[1].b"]
 
 
+@pytest.mark.slow  # the module's app, run and survey: ~8 s, paid by the first test
 def test_every_self_serialising_route_is_checked(answered: tuple[TestClient, int]) -> None:
     """The routes that may bypass their model are exactly those this module asks (the asking
     finds the paths real: a wrong one is answered 404)."""
@@ -149,6 +150,7 @@ def answered(
         yield c, run_id
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("route", sorted(ANSWERS), ids=lambda r: f"{r[0]} {r[1]}")
 def test_the_answer_is_the_declared_model(
     answered: tuple[TestClient, int], route: tuple[str, str]
