@@ -28,6 +28,7 @@ from collections.abc import Sequence
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.api.convert import simulation_spec
 from app.core.config import get_settings
 from app.core.scopes import format_scopes, parse_scopes
 from app.core.security import generate_key, hash_key, key_prefix
@@ -61,7 +62,7 @@ def cmd_demo(ns: argparse.Namespace) -> int:
     ctx = AppContext(settings=get_settings(), db=_db())
     body = SimulateRequest(track=ns.track, name="Demo run (simulated, two soft zones)")
     try:
-        run_id, created, truth = simulate_and_submit(ctx, body.to_spec())
+        run_id, created, truth = simulate_and_submit(ctx, simulation_spec(body))
     except (DomainError, EngineError) as exc:
         print(f"demo run not stored: {exc}", file=sys.stderr)
         return 2

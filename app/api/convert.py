@@ -1,10 +1,11 @@
-"""ORM rows to public schemas (aligned chainage: stored chainage + the run's offset)."""
+"""Between the public schemas and the services: ORM rows and service results to public views
+(aligned chainage: stored chainage + the run's offset), requests to the services' plain specs."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from app.db.models import Calibration, Run, Track, Vehicle
+from app.db.models import Calibration, Run, Survey, Track, Vehicle
 from app.schemas.runs import (
     DetectionLimitPublic,
     RunAlignmentPublic,
@@ -12,13 +13,22 @@ from app.schemas.runs import (
     RunPositioningPublic,
     RunPublic,
 )
+from app.schemas.simulate import SimulateRequest
+from app.schemas.stiffness import SurveyPublic
 from app.schemas.tracks import TrackPublic
 from app.schemas.vehicles import (
     CalibrationPublic,
     FittedParameterPublic,
     VehiclePublic,
 )
-from app.services.stiffness import run_stiffness_basis
+from app.services.alignment import GRID_STEP_M
+from app.services.errors import Invalid
+from app.services.simulation import SimulationSpec
+from app.services.stiffness import StiffnessWindow, run_stiffness_basis
+from app.services.window import Window
+from engine.sensor import SensorModel, sensor_for_grade
+from engine.synthetic import REALISTIC_SENSOR
+from engine.track import SoftZone
 
 _PROGRESS = {"queued": 0.05, "inverting": 0.35, "storing": 0.85}
 
@@ -152,4 +162,98 @@ def calibration_public(cal: Calibration, vehicle_name: str) -> CalibrationPublic
         applied_version=cal.applied_version,
         details=details,
         error=cal.error,
+    )
+
+
+def survey_public(s: Survey, duplicate: bool = False) -> SurveyPublic:
+    """A survey's public view (chainage aligned)."""
+    off = s.chainage_offset_m or 0.0
+    return SurveyPublic(
+        id=s.id, track_id=s.track_id, name=s.name, original_filename=s.original_filename,
+        recorded_at=s.recorded_at, created_at=s.created_at, wheel_load_n=s.wheel_load_n,
+        band_min_m=s.band_min_m, band_max_m=s.band_max_m, n_points=s.n_points,
+        chainage_min_m=s.chainage_min_m + off, chainage_max_m=s.chainage_max_m + off,
+        chainage_offset_m=off, alignment_status=s.alignment_status,  # type: ignore[arg-type]
+        alignment_correlation=s.alignment_correlation, alignment_reason=s.alignment_reason,
+        duplicate=duplicate,
+    )  # fmt: skip
+
+
+def stiffness_public(trk: Track, window: Window, sep: StiffnessWindow) -> dict[str, Any]:
+    """A window of the track's separated stiffness as :class:`StiffnessPublic` states it, as
+    plain data (serialised once by orjson: the response-model pass would double the time of a
+    long window)."""
+    cols = sep.columns
+    return {
+        "track_id": trk.id,
+        "track": trk.name,
+        "from_m": window.from_m,
+        "to_m": window.to_m,
+        "grid_step_m": GRID_STEP_M,
+        "k_nominal_n_per_m": trk.k_nominal,
+        "n": sep.n,
+        "separable": sep.separable,
+        "separable_fraction": sep.separable_fraction,
+        "message": sep.message,
+        "not_separable": [st.to_dict() for st in sep.not_separable],
+        "updating": sep.updating,
+        "chainage_m": cols["chainage_m"],
+        "k_rel": cols["k_rel"],
+        "k_rel_lo": cols["k_rel_lo"],
+        "k_rel_hi": cols["k_rel_hi"],
+        "geometry_mm": cols["geometry_mm"],
+        "geometry_sd_mm": cols["geometry_sd_mm"],
+        "compliance_mm_per_kn": cols["compliance_mm_per_kn"],
+        "n_passes": cols["n_passes"],
+        "load_ratio": cols["load_ratio"],
+        "separable_at": cols["separable"],
+        "soft_spots": [
+            {
+                "start_m": s.start_m,
+                "end_m": s.end_m,
+                "peak_m": s.peak_m,
+                "stiffness_loss_pct": s.loss_pct,
+                "loss_lo_pct": s.loss_lo_pct,
+                "loss_hi_pct": s.loss_hi_pct,
+                "confidence": s.confidence,
+                "basis": "separated",
+            }  # fmt: skip
+            for s in sep.spots
+        ],
+        "contributors": sep.contributors,
+    }
+
+
+def simulation_spec(body: SimulateRequest) -> SimulationSpec:
+    """The service's plain description of a simulate request (engine types, the sensor chosen)."""
+    if body.sensor_grade is not None:
+        if "sensor" in body.model_fields_set:
+            raise Invalid("give either sensor or sensor_grade, not both", field="sensor_grade")
+        # the simulation's rate (1 kHz) is the log's; the seed draws the pass's bias
+        sensor = sensor_for_grade(body.sensor_grade, 1000.0, seed=body.seed)
+    elif body.sensor == "ideal":
+        sensor = SensorModel()
+    elif body.sensor == "realistic":
+        sensor = REALISTIC_SENSOR
+    else:
+        sensor = SensorModel(**body.sensor.model_dump())
+    return SimulationSpec(
+        track=body.track or body.simulated_track_name(),
+        vehicle=body.vehicle,
+        name=body.name,
+        length_m=body.length_m,
+        speed_mps=body.speed_mps,
+        zones=tuple(SoftZone(z.start_m, z.end_m, z.loss) for z in body.zones),
+        start_chainage_m=body.start_chainage_m,
+        direction=body.direction,
+        sensor=sensor,
+        jitter=body.jitter,
+        seed=body.seed,
+        recorded_at=body.recorded_at,
+        # without a grade the record is what it was before grades (the same fingerprint)
+        record=body.model_dump(
+            mode="json", exclude={"sensor_grade"} if body.sensor_grade is None else None
+        ),
+        irregularity=None if body.irregularity is None else body.irregularity.spectrum,
+        irregularity_seed=None if body.irregularity is None else body.irregularity.seed,
     )

@@ -11,9 +11,10 @@ from sqlalchemy.orm import Session
 
 from app.api.access import Caller
 from app.db.models import ApiKey
+from app.schemas.common import CHAINAGE_LIMIT_M
 from app.services.chart_views import HEATMAP_MAX_SPAN_M
 from app.services.context import AppContext
-from app.services.window import CHAINAGE_LIMIT_M, Window
+from app.services.window import Window
 
 api_key_header = APIKeyHeader(name="X-API-Key", auto_error=False, description="Pipeline API key")
 bearer = HTTPBearer(auto_error=False, description="The API key as a bearer token")

@@ -66,6 +66,10 @@ characters and no spaces but ' ' (any other text, markup included, is kept as ty
 be shown as text)."""
 
 
+CHAINAGE_LIMIT_M = 1e7
+"""Largest chainage magnitude the service takes, m (10 000 km, longer than any line): far
+beyond it a chainage is a typing or unit error, and grid indices would leave 64 bits."""
+
 MAX_ID_DIGITS = 18
 """Longest id written in a URL or filter: every id of 18 digits is below 2^63."""
 

@@ -10,7 +10,6 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, create_model, model_validator
 from pydantic.json_schema import JsonDict
 
-from app.services.window import CHAINAGE_LIMIT_M
 from engine.logio import (
     GRAVITY_MODES,
     OPTION_UNITS,
@@ -22,7 +21,7 @@ from engine.logio import (
 from engine.plausibility import WHEEL_LOAD_MAX_N, WHEEL_LOAD_MIN_N
 from engine.track import TRACK_RANGES
 
-from .common import Name, StrictModel, Timestamp
+from .common import CHAINAGE_LIMIT_M, Name, StrictModel, Timestamp
 
 Direction = Literal["increasing", "decreasing"]
 

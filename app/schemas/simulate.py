@@ -8,15 +8,10 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
-from app.services.errors import Invalid
-from app.services.simulation import SimulationSpec
-from app.services.window import CHAINAGE_LIMIT_M
 from engine.irregularity import SPECTRA
-from engine.sensor import SENSOR_GRADES, SensorModel, sensor_for_grade
-from engine.synthetic import REALISTIC_SENSOR
-from engine.track import SoftZone
+from engine.sensor import SENSOR_GRADES
 
-from .common import Name, StrictModel, Timestamp, closed_list
+from .common import CHAINAGE_LIMIT_M, Name, StrictModel, Timestamp, closed_list
 from .runs import Direction, RunCreated
 
 
@@ -154,40 +149,6 @@ class SimulateRequest(StrictModel):
             f"{n} zone{'s' if n != 1 else ''} [{tag}]"
         )
 
-    def to_spec(self) -> SimulationSpec:
-        """The service's plain description of this request (engine types, the sensor chosen)."""
-        if self.sensor_grade is not None:
-            if "sensor" in self.model_fields_set:
-                raise Invalid("give either sensor or sensor_grade, not both", field="sensor_grade")
-            # the simulation's rate (1 kHz) is the log's; the seed draws the pass's bias
-            sensor = sensor_for_grade(self.sensor_grade, 1000.0, seed=self.seed)
-        elif self.sensor == "ideal":
-            sensor = SensorModel()
-        elif self.sensor == "realistic":
-            sensor = REALISTIC_SENSOR
-        else:
-            sensor = SensorModel(**self.sensor.model_dump())
-        return SimulationSpec(
-            track=self.track or self.simulated_track_name(),
-            vehicle=self.vehicle,
-            name=self.name,
-            length_m=self.length_m,
-            speed_mps=self.speed_mps,
-            zones=tuple(SoftZone(z.start_m, z.end_m, z.loss) for z in self.zones),
-            start_chainage_m=self.start_chainage_m,
-            direction=self.direction,
-            sensor=sensor,
-            jitter=self.jitter,
-            seed=self.seed,
-            recorded_at=self.recorded_at,
-            # without a grade the record is what it was before grades (the same fingerprint)
-            record=self.model_dump(
-                mode="json", exclude={"sensor_grade"} if self.sensor_grade is None else None
-            ),
-            irregularity=None if self.irregularity is None else self.irregularity.spectrum,
-            irregularity_seed=None if self.irregularity is None else self.irregularity.seed,
-        )
-
 
 class TruthPublic(BaseModel):
     """What was simulated: the zones and the true loaded level (mm, static deflection included)."""
@@ -198,6 +159,11 @@ class TruthPublic(BaseModel):
         description="True fused loaded level, mm, positive up (compare after removing a "
         "baseline: the engine's profile is band-limited)"
     )
+    baseline_mm: list[float | None] = Field(
+        description="The true level's baseline as soft-spot detection draws it (running median "
+        "then mean over baseline_window_m), mm; the run's own is in its profile views"
+    )
+    baseline_window_m: float = Field(description="Length of the baseline's running median, m")
 
 
 class SimulatePublic(BaseModel):

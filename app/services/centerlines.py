@@ -101,9 +101,11 @@ def read_centerline(
 
 def store_centerline(
     session: Session, track: Track, line: Centerline, source: str
-) -> TrackCenterline:
-    """Create or replace the track's centerline (the caller commits)."""
+) -> tuple[TrackCenterline, bool]:
+    """Create or replace the track's centerline (the caller commits); returns the row and
+    whether it is new."""
     row = session.get(TrackCenterline, track.id)
+    created = row is None
     if row is None:
         row = TrackCenterline(track_id=track.id)
         session.add(row)
@@ -113,7 +115,7 @@ def store_centerline(
     row.end_chainage_m = line.end_chainage_m
     row.source = source
     row.data = line.to_dict()
-    return row
+    return row, created
 
 
 def centerline_row(session: Session, track: Track) -> TrackCenterline:

@@ -10,6 +10,7 @@ track may carry fifty of them. These views answer what a chart of a given width 
   :data:`HEATMAP_MAX_SPAN_M` the lowest level per run and chainage bin, computed by the
   database (GROUP BY over a range scan of the profile's primary key);
 - :func:`track_window`: the fused profiles of all runs around one zone;
+- :func:`truth_view`: a simulation's true level with the baseline detection measures from;
 - :func:`csv_preview`: the engine's reading of the head of a log for the upload page.
 
 Chainage is served aligned (stored chainage + :attr:`Run.offset_m`), levels in mm.
@@ -28,6 +29,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, SoftSpot, Track
+from app.schemas.simulate import TruthPublic
 from app.schemas.views import (
     ChainageMapPublic,
     CsvPreviewPublic,
@@ -42,6 +44,7 @@ from app.schemas.views import (
 )
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
+from engine.detect import DetectionConfig, robust_baseline
 from engine.intervals import merge_intervals
 from engine.logio import CsvOptions, preview_csv
 from engine.register import Observation, RegisterConfig, RunCoverage, build_register
@@ -51,6 +54,7 @@ from .profiles import nullable, profile_arrays, read_profile
 from .register import LOAD_RATIO, separated_observations
 from .retention import require_detail
 from .runs import detail_run
+from .simulation import Truth
 from .window import Window
 
 HEATMAP_MAX_SPAN_M = 10_000.0
@@ -129,6 +133,19 @@ def run_profile_view(
         front_level_mm=nullable(cd["front_level_mm"]),
         rear_level_mm=nullable(cd["rear_level_mm"]),
         baseline_mm=nullable(cd["baseline_mm"]),
+    )
+
+
+def truth_view(truth: Truth) -> TruthPublic:
+    """What a simulation simulated, with the baseline of its true level as the detection
+    draws it (:func:`engine.detect.robust_baseline`, the processing's window): the dashboard
+    compares the truth and the recovered profile about their own baselines."""
+    window_m = DetectionConfig().baseline_window_m
+    x = np.asarray(truth.chainage_m, dtype=np.float64)
+    step = float(x[1] - x[0]) if x.size > 1 else GRID_STEP_M
+    baseline = robust_baseline(_as_array(truth.level_mm), step, window_m)
+    return TruthPublic.model_validate(
+        truth.to_dict() | {"baseline_mm": nullable(baseline), "baseline_window_m": window_m}
     )
 
 

@@ -1,5 +1,5 @@
-"""Exports: a run's profile and soft spots, a track's aggregated profile and defects as CSV,
-and the track report (HTML). Chainage aligned, m; levels mm; losses %.
+"""Exports: a run's profile and soft spots, a track's aggregated profile, defects and separated
+stiffness as CSV, and the track report (HTML). Chainage aligned, m; levels mm; losses %.
 
 Long exports stream: each writer is a generator that opens its own database session, so the
 answer starts at once and memory stays flat whatever the window.
@@ -30,7 +30,7 @@ from .report_quality import quality_section
 from .report_stiffness import stiffness_section
 from .retention import require_detail
 from .runs import SpotOnTrack
-from .stiffness import stiffness_with_vehicles
+from .stiffness import UPDATING, StiffnessWindow, stiffness_with_vehicles
 from .window import Window
 
 SOFT_SPOT_FIELDS = ("start_m", "end_m", "peak_m", "depth_mm", "stiffness_loss_pct")
@@ -43,6 +43,10 @@ DEFECT_CSV_FIELDS = (
 DEFECT_FIELDS = tuple(
     f.name for f in dataclasses.fields(Defect) if f.name not in ("history", "evidence")
 )
+STIFFNESS_CSV_FIELDS = (
+    "chainage_m", "k_rel", "k_rel_lo", "k_rel_hi", "geometry_mm", "geometry_sd_mm",
+    "compliance_mm_per_kn", "n_passes", "load_ratio", "separable",
+)  # fmt: skip
 REPORT_RUNS = 200
 """Runs listed in the report (the newest)."""
 _BATCH = 20_000
@@ -94,6 +98,27 @@ def soft_spots_csv(spots: Iterable[SpotOnTrack]) -> str:
             f"{p.start_m:.3f},{p.end_m:.3f},{p.peak_m:.3f},{p.depth_mm:.6f},"
             f"{csv_value(p.stiffness_loss_pct, '.2f')}"
         )
+    return "\n".join(lines) + "\n"
+
+
+def _stiffness_cell(v: Any) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return "1" if v else "0"
+    if isinstance(v, int):
+        return str(v)
+    return f"{v:.6g}"
+
+
+def stiffness_csv(sep: StiffnessWindow) -> str:
+    """A window of the separated stiffness as CSV (:data:`STIFFNESS_CSV_FIELDS`, 6 significant
+    digits, ``separable`` 1/0), after ``#`` lines saying it is being redone and why points are
+    not separable."""
+    lines = [f"# {note}" for note in (UPDATING if sep.updating else None, sep.message) if note]
+    lines.append(",".join(STIFFNESS_CSV_FIELDS))
+    cols = [sep.columns[k] for k in STIFFNESS_CSV_FIELDS]
+    lines += [",".join(_stiffness_cell(c[i]) for c in cols) for i in range(sep.n)]
     return "\n".join(lines) + "\n"
 
 

@@ -1,4 +1,4 @@
-"""Reading stored runs: lookup, state checks, listing, soft spots and the profile window.
+"""Stored runs: lookup, state checks, listing, soft spots, the profile window, deletion.
 
 Chainage handed out is aligned (the run's stored chainage plus :attr:`Run.offset_m`).
 """
@@ -16,6 +16,7 @@ from sqlalchemy.orm import Session, undefer
 from app.db.models import Run, RunSignals, SoftSpot
 
 from .errors import Conflict, Invalid, NotFound
+from .integrate import remove_run_from_track
 from .profiles import PROFILE_COLUMNS, read_profile
 from .retention import require_detail
 from .signals import unpack_signals
@@ -32,6 +33,13 @@ def get_run(session: Session, run_id: int) -> Run:
     if run is None:
         raise NotFound(f"run {run_id} not found", field="run_id")
     return run
+
+
+def delete_run(session: Session, run: Run) -> None:
+    """Delete ``run`` with its profile, soft spots and signals, its share of its track's
+    aggregate recomputed in the same transaction (the caller commits)."""
+    remove_run_from_track(session, run)
+    session.delete(run)
 
 
 def require_done(run: Run, what: str) -> None:

@@ -22,16 +22,14 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.db.models import Run, RunInput, RunSignals, Track, Vehicle
-from app.schemas.common import url_name_problem
-from app.schemas.tracks import TrackParamsFields
+from app.db.models import Run, RunInput, RunSignals, Track
 from engine.budget import TimeBudget
 from engine.errors import EngineError, LogFormatError
 from engine.pipeline import RunCheck, check_run
 from engine.runlog import RunLog
 from engine.track import TrackParams
-from engine.vehicle_kinds import KIND_PRESETS, vehicle_from_dict
 from engine.vehicle_kinds import Vehicle as EngineVehicle
+from engine.vehicle_kinds import vehicle_from_dict
 
 from .calibration import maybe_auto_calibrate
 from .centerlines import load_centerline, place_by_gnss
@@ -39,11 +37,13 @@ from .context import AppContext
 from .errors import Conflict, Invalid
 from .loads import declared_wheel_load, loaded_vehicle
 from .logs import pack_log, summarize
+from .lookup import check_new_track_name as _check_new_track_name
+from .lookup import new_track_columns as _new_track_columns
+from .lookup import resolve_track, resolve_vehicle
+from .lookup import track_params as _track_params
 from .processing import Processed, StartedInversion, invert, start_inversion, store_result
 from .signals import log_signals, pack_signals
-from .vehicles import create_vehicle
 
-DEFAULT_VEHICLE = "table1"
 _UNSAFE_FILENAME = re.compile(r"[\x00-\x1f\x7f]")
 
 
@@ -171,54 +171,6 @@ def clean_filename(name: str | None) -> str | None:
     return base[:255] or None
 
 
-def resolve_vehicle(session: Session, name: str | None, vehicle_id: int | None) -> Vehicle:
-    """The vehicle named or numbered (default: the Table 1 vehicle); Invalid when unknown."""
-    if vehicle_id is not None:
-        v = session.get(Vehicle, vehicle_id)
-        if v is None:
-            raise Invalid(f"vehicle_id {vehicle_id} does not exist", field="vehicle_id")
-        return v
-    wanted = name or DEFAULT_VEHICLE
-    v = session.scalar(select(Vehicle).where(Vehicle.name == wanted))
-    if v is None and wanted in KIND_PRESETS:
-        # A preset's name is a vehicle everywhere: stored on first use, like table1.
-        v = vehicle_from_preset(session, wanted)
-    if v is None:
-        # Only the engine's presets are named: the stored vehicles are listed by
-        # GET /api/v1/vehicles to those who may read them, not in every error.
-        raise Invalid(
-            f"vehicle {wanted!r} does not exist; the presets are {', '.join(sorted(KIND_PRESETS))} "
-            "(the stored vehicles: GET /api/v1/vehicles; a new one: POST /api/v1/vehicles)",
-            field="vehicle",
-        )
-    return v
-
-
-def vehicle_from_preset(session: Session, preset: str, name: str | None = None) -> Vehicle:
-    """Register the engine's vehicle preset ``preset`` as a vehicle (named after it by
-    default, version 1). Commits; a concurrent first use of the same preset loses the race on
-    the unique name and finds the other's row."""
-    wanted = name or preset
-    try:
-        return create_vehicle(
-            session, wanted, f"Engine vehicle preset {preset!r}", KIND_PRESETS[preset].to_dict()
-        )
-    except Conflict:
-        found = session.scalar(select(Vehicle).where(Vehicle.name == wanted))
-        assert found is not None
-        return found
-
-
-def resolve_track(session: Session, name: str | None, track_id: int | None) -> Track | None:
-    """The track numbered (Invalid when unknown) or named (None: a new track of that name)."""
-    if track_id is not None:
-        t = session.get(Track, track_id)
-        if t is None:
-            raise Invalid(f"track_id {track_id} does not exist", field="track_id")
-        return t
-    return session.scalar(select(Track).where(Track.name == name))
-
-
 def _existing(session: Session, sub: Submission, track: Track | None) -> Run | None:
     """A stored run this submission repeats (same Idempotency-Key, or same content on the track)."""
     if sub.idempotency_key:
@@ -239,26 +191,6 @@ def _existing(session: Session, sub: Submission, track: Track | None) -> Run | N
             select(Run).where(Run.track_id == track.id, Run.content_hash == sub.identity)
         )
     return None
-
-
-def _check_new_track_name(name: str | None) -> None:
-    # A new track must be addressable by name in URLs (/api/v1/tracks/{track}); tracks that
-    # already exist are found by their stored name whatever it is.
-    problem = url_name_problem(name or "")
-    if problem is not None:
-        raise Invalid(f"track name {name!r} {problem}", field="track")
-
-
-def _track_params(columns: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in columns.items() if k in TrackParams.__dataclass_fields__}
-
-
-def _new_track_columns(given: dict[str, Any]) -> dict[str, Any]:
-    """The columns of a track a submission creates: the given properties over the defaults
-    (UIC60 on 80 kN/mm supports), checked by the engine (a ParameterError names the field)."""
-    columns = {"rail": "UIC60", **TrackParamsFields().model_dump(), **given}
-    TrackParams.from_dict(_track_params(columns))
-    return columns
 
 
 def _preflight(sub: Submission, vehicle: EngineVehicle) -> RunCheck:

@@ -29,9 +29,11 @@ from engine.pipeline import ProcessConfig
 
 from .aggregate import chunked
 from .alignment import GRID_STEP_M, MIN_OVERLAP_M, align_to_track, on_track_grid
+from .context import AppContext
 from .errors import Invalid, NotFound
 from .integrate import lock_track
 from .logs import sha256_hex
+from .lookup import get_track
 from .packing import pack_f4
 from .stiffness import recompute_all, recompute_stiffness
 
@@ -226,6 +228,17 @@ def create_survey(
     if chunks is not None:
         recompute_stiffness(session, track.id, *chunks)
     return survey, True
+
+
+def import_survey(
+    ctx: AppContext, track: str, data: bytes, meta: SurveyInput
+) -> tuple[Survey, bool]:
+    """:func:`create_survey` on the track whose id or name is ``track``, in a transaction of
+    its own (committed); ``(survey, created)``."""
+    with ctx.db.session() as s:
+        survey, created = create_survey(s, get_track(s, track), data, meta)
+        s.commit()
+        return survey, created
 
 
 def _place(

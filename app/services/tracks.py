@@ -1,4 +1,4 @@
-"""Deleting a track with everything derived from it, in the caller's transaction."""
+"""How many runs tracks have; a track deleted with everything derived from it."""
 
 from __future__ import annotations
 
@@ -8,6 +8,16 @@ from sqlalchemy.orm import Session
 from app.db.models import Run, Track
 
 from .integrate import lock_track
+
+
+def run_counts(session: Session, track_ids: list[int]) -> dict[int, int]:
+    """How many runs each of the tracks ``track_ids`` has (tracks without runs left out)."""
+    if not track_ids:
+        return {}
+    rows = session.execute(
+        select(Run.track_id, func.count()).where(Run.track_id.in_(track_ids)).group_by(Run.track_id)
+    ).all()
+    return {int(t): int(n) for t, n in rows}
 
 
 def delete_track(session: Session, track: Track) -> int:

@@ -182,7 +182,8 @@ def edit_vehicle(
     created_by: str | None = None,
     note: str | None = None,
 ) -> tuple[int, int]:
-    """A manual edit of some parameters: a new version, runs reprocessed. Commits.
+    """A manual edit of some parameters: a new version, runs reprocessed. Commits and
+    refreshes ``vehicle``.
 
     Returns ``(version, runs queued)``; Invalid when nothing changes or a value is wrong.
     """
@@ -193,6 +194,7 @@ def edit_vehicle(
         raise Invalid("the parameters given are the vehicle's current ones", field="params")
     out = new_version(session, vehicle, params, source="manual", created_by=created_by, note=note)
     session.commit()
+    session.refresh(vehicle)
     return out
 
 
@@ -261,7 +263,7 @@ def restore_version(
     note: str | None = None,
 ) -> tuple[int, int]:
     """Make an earlier version's parameters the vehicle's next version (its runs are
-    reprocessed with them). Commits; returns ``(version, runs queued)``.
+    reprocessed with them). Commits (``vehicle`` refreshed); returns ``(version, runs queued)``.
 
     What the versions in between produced does not matter: their results are replaced.
     Restoring the parameters the vehicle has now changes nothing (``(current, 0)``).
@@ -292,6 +294,7 @@ def restore_version(
         note=note or f"restored version {version}",
     )  # fmt: skip
     session.commit()
+    session.refresh(vehicle)
     return out
 
 

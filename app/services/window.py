@@ -6,10 +6,6 @@ from dataclasses import dataclass
 
 from .errors import Invalid
 
-CHAINAGE_LIMIT_M = 1e7
-"""Largest chainage magnitude the service takes, m (10 000 km, longer than any line): far
-beyond it a chainage is a typing or unit error, and grid indices would leave 64 bits."""
-
 
 @dataclass(frozen=True)
 class Window:

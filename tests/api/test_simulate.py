@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from starlette.testclient import TestClient
 
 from api.api_support import assert_zones_match, row_counts
+from engine.detect import DetectionConfig, robust_baseline
 
 BODY = {"track": "sim", "length_m": 220, "speed_mps": 25, "zones": [{"start_m": 100,
         "end_m": 105, "loss": 0.5}], "seed": 7}  # fmt: skip
@@ -13,7 +15,7 @@ BODY = {"track": "sim", "length_m": 220, "speed_mps": 25, "zones": [{"start_m": 
 
 def test_simulated_run_finds_its_zone(client: TestClient) -> None:
     """A simulated run is stored and processed; its soft spot matches the simulated zone and
-    the answer carries the truth (zones, true loaded level)."""
+    the answer carries the truth (zones, true loaded level, the detection's baseline of it)."""
     r = client.post("/api/v1/simulate", json=BODY)
     assert r.status_code == 201, r.text
     body = r.json()
@@ -29,6 +31,14 @@ def test_simulated_run_finds_its_zone(client: TestClient) -> None:
     assert len(truth["chainage_m"]) == len(truth["level_mm"]) > 100
     i_min = min(range(len(truth["level_mm"])), key=lambda i: truth["level_mm"][i] or 0)
     assert 95 <= truth["chainage_m"][i_min] <= 110  # the true level dips at the zone
+    # the baseline the dashboard draws the truth about is the detection's, served
+    level = np.array([np.nan if v is None else v for v in truth["level_mm"]])
+    step = truth["chainage_m"][1] - truth["chainage_m"][0]
+    expected = robust_baseline(level, step, DetectionConfig().baseline_window_m)
+    assert truth["baseline_window_m"] == DetectionConfig().baseline_window_m
+    assert np.array(truth["baseline_mm"], dtype=float) == pytest.approx(expected, nan_ok=True)
+    residual = level - expected
+    assert np.nanargmin(residual) == pytest.approx(i_min, abs=8)  # still the zone, about it
     sig = client.get(f"/api/v1/runs/{run['id']}/signals").json()
     assert sig["n_samples"] == run["n_samples"]
 
@@ -95,6 +105,7 @@ def test_a_simulated_track_is_a_track_of_its_own() -> None:
     """Without a track name, a simulation's runs go to a track named after the physical track
     simulated (never a shared "simulated" track mixing with others): the same setting meets
     again, another zone, seed or rail is another track; speed and vehicle are not the track."""
+    from app.api.convert import simulation_spec
     from app.schemas.simulate import SimulateRequest
 
     base = SimulateRequest()
@@ -102,7 +113,7 @@ def test_a_simulated_track_is_a_track_of_its_own() -> None:
     other_zone = SimulateRequest(zones=[{"start_m": 100, "end_m": 106, "loss": 0.4}])
     other_seed = SimulateRequest(seed=4)
     rough = SimulateRequest(irregularity={"spectrum": "german-low", "seed": 3})
-    names = [r.to_spec().track for r in (base, other_zone, other_seed, rough)]
-    assert same.to_spec().track == names[0]
+    names = [simulation_spec(r).track for r in (base, other_zone, other_seed, rough)]
+    assert simulation_spec(same).track == names[0]
     assert len(set(names)) == 4 and all(n.startswith("simulated ") for n in names)
-    assert SimulateRequest(track="Line 9").to_spec().track == "Line 9"
+    assert simulation_spec(SimulateRequest(track="Line 9")).track == "Line 9"

@@ -27,8 +27,7 @@ from app.services.centerlines import (
     store_centerline,
 )
 from app.services.context import AppContext
-
-from .lookup import get_track
+from app.services.lookup import get_track
 
 router = APIRouter(prefix="/tracks", tags=["centerlines"])
 
@@ -64,8 +63,7 @@ def _store(
     line, source = read_centerline(data, ctype, start)
     with ctx.db.session() as s:
         trk = get_track(s, track)
-        created = s.get(TrackCenterline, trk.id) is None
-        row = store_centerline(s, trk, line, source)
+        row, created = store_centerline(s, trk, line, source)
         s.commit()
         return _public(row), created
 

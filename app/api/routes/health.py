@@ -6,24 +6,13 @@ from typing import Literal
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel
-from sqlalchemy import func, select, text
 
 from app import __version__
 from app.api.deps import CtxDep
-from app.db.models import Run
+from app.schemas.status import HealthPublic
+from app.services.status import database_status
 
 router = APIRouter(tags=["health"])
-
-
-class HealthPublic(BaseModel):
-    """Service health."""
-
-    status: Literal["ok", "degraded", "error"]
-    version: str
-    database: Literal["ok", "error"]
-    worker: Literal["running", "stopped", "disabled"]
-    runs_processing: int | None
 
 
 @router.get("/healthz", response_model=HealthPublic, responses={503: {"model": HealthPublic}})
@@ -31,16 +20,11 @@ def healthz(request: Request, ctx: CtxDep) -> HealthPublic | JSONResponse:
     """200 when the database answers (and the worker runs), 503 otherwise.
 
     ``runs_processing`` is null when reads need an API key (the count is data)."""
-    processing: int | None = None
-    try:
-        with ctx.db.session() as s:
-            s.execute(text("SELECT 1"))
-            # The count is data: hidden when reads need a key (health itself stays open).
-            if not ctx.settings.require_api_key_for_reads:
-                processing = s.scalar(select(func.count()).where(Run.status == "processing"))
-        database: Literal["ok", "error"] = "ok"
-    except Exception:
-        database = "error"
+    # The count is data: hidden when reads need a key (health itself stays open).
+    answers, processing = database_status(
+        ctx, count_processing=not ctx.settings.require_api_key_for_reads
+    )
+    database: Literal["ok", "error"] = "ok" if answers else "error"
     if not ctx.settings.start_worker:
         worker: Literal["running", "stopped", "disabled"] = "disabled"
     else:

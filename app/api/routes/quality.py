@@ -21,9 +21,8 @@ from app.schemas.quality import (
 )
 from app.services import quality as svc
 from app.services import quality_exports
+from app.services.lookup import get_track
 from engine.quality_limits import SPEED_CLASSES_KMH, QualityLimits
-
-from .lookup import get_track
 
 router = APIRouter(prefix="/tracks", tags=["track quality"])
 

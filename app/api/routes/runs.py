@@ -36,7 +36,6 @@ from app.schemas.runs import (
 )
 from app.services import exports, runs
 from app.services.context import AppContext
-from app.services.integrate import remove_run_from_track
 from app.services.json_log import has_columns, split_json_columns
 from app.services.logs import (
     hash_columns,
@@ -45,10 +44,9 @@ from app.services.logs import (
     recorded_at_of,
     sha256_hex,
 )
+from app.services.lookup import get_track
 from app.services.submit import Submission, ignored_options, submit
 from engine.runlog import RunLog
-
-from .lookup import get_track
 
 router = APIRouter(prefix="/runs", tags=["runs"])
 
@@ -351,9 +349,7 @@ def delete_run(session: SessionDep, run_id: RunId) -> Response:
 
     The track's aggregated profile is recomputed without it in the same transaction.
     """
-    run = runs.get_run(session, run_id)
-    remove_run_from_track(session, run)
-    session.delete(run)
+    runs.delete_run(session, runs.get_run(session, run_id))
     session.commit()
     return Response(status_code=204)
 

@@ -8,9 +8,11 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Response
 from fastapi.concurrency import run_in_threadpool
 
+from app.api.convert import simulation_spec
 from app.api.deps import CtxDep
 from app.schemas.runs import RunCreated
-from app.schemas.simulate import SimulatePublic, SimulateRequest, TruthPublic
+from app.schemas.simulate import SimulatePublic, SimulateRequest
+from app.services.chart_views import truth_view
 from app.services.simulation import simulate_and_submit
 from engine.irregularity import SPECTRA
 from engine.sensor import SENSOR_GRADES
@@ -52,6 +54,8 @@ async def simulate_run(
     Lets a new user try the product without a logger: the answer carries the run (its
     profile and soft spots are at the usual run endpoints) and the truth to compare with.
     """
-    run_id, created, truth = await run_in_threadpool(simulate_and_submit, ctx, body.to_spec())
+    run_id, created, truth = await run_in_threadpool(
+        simulate_and_submit, ctx, simulation_spec(body)
+    )
     run: RunCreated = await answer_submission(ctx, response, run_id, created, wait)
-    return SimulatePublic(run=run, truth=TruthPublic.model_validate(truth.to_dict()))
+    return SimulatePublic(run=run, truth=truth_view(truth))

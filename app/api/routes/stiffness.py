@@ -11,41 +11,30 @@ from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 from starlette.datastructures import UploadFile
 
-from app.api.answers import Format, add_csv_twin
+from app.api.answers import Format, add_csv_twin, csv_answer
+from app.api.convert import stiffness_public, survey_public
 from app.api.deps import CtxDep, SessionDep, WindowDep
 from app.core.errors import ApiError, validation_detail
-from app.db.models import Survey
 from app.schemas.stiffness import (
     StiffnessPublic,
     SurveyCreateJson,
     SurveyFields,
     SurveyPublic,
 )
-from app.services.alignment import GRID_STEP_M
-from app.services.context import AppContext
-from app.services.stiffness import UPDATING, stiffness_with_vehicles
+from app.services import exports
+from app.services.lookup import get_track
+from app.services.stiffness import stiffness_with_vehicles
 from app.services.submit import clean_filename
-from app.services.surveys import SurveyInput, create_survey, delete_survey, get_survey, list_surveys
+from app.services.surveys import (
+    SurveyInput,
+    delete_survey,
+    get_survey,
+    import_survey,
+    list_surveys,
+)
 from app.services.vehicles import read_settled
 
-from .lookup import get_track
-
 router = APIRouter(prefix="/tracks", tags=["geometry and stiffness"])
-
-STIFFNESS_CSV_FIELDS = (
-    "chainage_m", "k_rel", "k_rel_lo", "k_rel_hi", "geometry_mm", "geometry_sd_mm",
-    "compliance_mm_per_kn", "n_passes", "load_ratio", "separable",
-)  # fmt: skip
-
-
-def _fmt(v: Any) -> str:
-    if v is None:
-        return ""
-    if isinstance(v, bool):
-        return "1" if v else "0"
-    if isinstance(v, int):
-        return str(v)
-    return f"{v:.6g}"
 
 
 @router.get("/{track}/stiffness", response_model=StiffnessPublic)
@@ -71,74 +60,10 @@ def read_track_stiffness(
         session, trk.id, "stiffness",
         lambda: stiffness_with_vehicles(session, trk.id, from_m, to_m),
     )  # fmt: skip
-    cols = sep.columns
     if format == "csv":
-        lines = []
-        if sep.updating:
-            lines.append(f"# {UPDATING}")
-        if sep.message:
-            lines.append(f"# {sep.message}")
-        lines.append(",".join(STIFFNESS_CSV_FIELDS))
-        for i in range(sep.n):
-            lines.append(",".join(_fmt(cols[k][i]) for k in STIFFNESS_CSV_FIELDS))
-        return Response(
-            "\n".join(lines) + "\n",
-            media_type="text/csv",
-            headers={"Content-Disposition": f'attachment; filename="track-{trk.id}-stiffness.csv"'},
-        )
-    payload = {
-        "track_id": trk.id,
-        "track": trk.name,
-        "from_m": from_m,
-        "to_m": to_m,
-        "grid_step_m": GRID_STEP_M,
-        "k_nominal_n_per_m": trk.k_nominal,
-        "n": sep.n,
-        "separable": sep.separable,
-        "separable_fraction": sep.separable_fraction,
-        "message": sep.message,
-        "not_separable": [st.to_dict() for st in sep.not_separable],
-        "updating": sep.updating,
-        "chainage_m": cols["chainage_m"],
-        "k_rel": cols["k_rel"],
-        "k_rel_lo": cols["k_rel_lo"],
-        "k_rel_hi": cols["k_rel_hi"],
-        "geometry_mm": cols["geometry_mm"],
-        "geometry_sd_mm": cols["geometry_sd_mm"],
-        "compliance_mm_per_kn": cols["compliance_mm_per_kn"],
-        "n_passes": cols["n_passes"],
-        "load_ratio": cols["load_ratio"],
-        "separable_at": cols["separable"],
-        "soft_spots": [
-            {
-                "start_m": s.start_m,
-                "end_m": s.end_m,
-                "peak_m": s.peak_m,
-                "stiffness_loss_pct": s.loss_pct,
-                "loss_lo_pct": s.loss_lo_pct,
-                "loss_hi_pct": s.loss_hi_pct,
-                "confidence": s.confidence,
-                "basis": "separated",
-            }  # fmt: skip
-            for s in sep.spots
-        ],
-        "contributors": sep.contributors,
-    }
+        return csv_answer(exports.stiffness_csv(sep), f"track-{trk.id}-stiffness.csv")
+    payload = stiffness_public(trk, window, sep)
     return Response(orjson.dumps(payload), media_type="application/json")
-
-
-def survey_public(s: Survey, duplicate: bool = False) -> SurveyPublic:
-    """A survey's public view (chainage aligned)."""
-    off = s.chainage_offset_m or 0.0
-    return SurveyPublic(
-        id=s.id, track_id=s.track_id, name=s.name, original_filename=s.original_filename,
-        recorded_at=s.recorded_at, created_at=s.created_at, wheel_load_n=s.wheel_load_n,
-        band_min_m=s.band_min_m, band_max_m=s.band_max_m, n_points=s.n_points,
-        chainage_min_m=s.chainage_min_m + off, chainage_max_m=s.chainage_max_m + off,
-        chainage_offset_m=off, alignment_status=s.alignment_status,  # type: ignore[arg-type]
-        alignment_correlation=s.alignment_correlation, alignment_reason=s.alignment_reason,
-        duplicate=duplicate,
-    )  # fmt: skip
 
 
 def _fields(model: type[SurveyFields], data: Any) -> SurveyFields:
@@ -147,23 +72,6 @@ def _fields(model: type[SurveyFields], data: Any) -> SurveyFields:
     except ValidationError as exc:
         detail = validation_detail(exc.errors(include_url=False, include_input=False))
         raise ApiError(422, detail.pop("message"), **detail) from None
-
-
-def _store_survey(
-    ctx: AppContext, track: str, data: bytes, meta: SurveyFields, filename: str | None
-) -> tuple[SurveyPublic, bool]:
-    with ctx.db.session() as s:
-        trk = get_track(s, track)
-        survey, created = create_survey(
-            s, trk, data,
-            SurveyInput(
-                wheel_load_n=meta.wheel_load_n, band_min_m=meta.band_min_m,
-                band_max_m=meta.band_max_m, name=meta.name, recorded_at=meta.recorded_at,
-                filename=clean_filename(filename),
-            ),
-        )  # fmt: skip
-        s.commit()
-        return survey_public(survey, duplicate=not created), created
 
 
 SURVEY_BODY_DOC: dict[str, Any] = {
@@ -235,9 +143,13 @@ async def create_track_survey(
         )  # fmt: skip
     if len(data) > limit:
         raise ApiError(413, f"the survey is larger than the upload limit ({limit} bytes)")
-    public, created = await run_in_threadpool(_store_survey, ctx, track, data, meta, filename)
+    survey_input = SurveyInput(
+        wheel_load_n=meta.wheel_load_n, band_min_m=meta.band_min_m, band_max_m=meta.band_max_m,
+        name=meta.name, recorded_at=meta.recorded_at, filename=clean_filename(filename),
+    )  # fmt: skip
+    survey, created = await run_in_threadpool(import_survey, ctx, track, data, survey_input)
     response.status_code = 201 if created else 200
-    return public
+    return survey_public(survey, duplicate=not created)
 
 
 @router.get("/{track}/surveys", response_model=list[SurveyPublic])

@@ -26,6 +26,7 @@ from app.schemas.track_intel import (
 )
 from app.services import exports
 from app.services.aggregate import aggregated_profile_view
+from app.services.lookup import get_track
 from app.services.register import (
     LIMIT_FIELDS,
     load_limits,
@@ -36,8 +37,6 @@ from app.services.register import (
 from app.services.report import REPORT_CSP
 from app.services.vehicles import read_settled, require_settled
 from engine.register import Defect, Limits
-
-from .lookup import get_track
 
 router = APIRouter(prefix="/tracks", tags=["track intelligence"])
 

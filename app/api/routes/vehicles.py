@@ -7,11 +7,9 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, Query
-from sqlalchemy import func, select
 
 from app.api.convert import calibration_public, vehicle_public
 from app.api.deps import CalibrationId, CallerDep, CtxDep, SessionDep, caller_name
-from app.db.models import Vehicle
 from app.schemas.vehicles import (
     AnyVehicleParams,
     BogieParamsSchema,
@@ -32,12 +30,10 @@ from app.schemas.vehicles import (
     VehicleVersionPublic,
     VehicleVersionsPublic,
 )
-from app.services import calibration, vehicles
-from app.services.errors import Invalid
+from app.services import calibration, lookup, vehicles
+from app.services.lookup import get_vehicle
 from engine.bogie import BogieParams
 from engine.vehicle_kinds import KIND_PRESETS
-
-from .lookup import get_vehicle
 
 router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 
@@ -49,8 +45,7 @@ def list_vehicles(
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
 ) -> VehiclesPublic:
     """Vehicles by name (``table1``, the paper's Table 1 vehicle, always exists)."""
-    count = session.scalar(select(func.count()).select_from(Vehicle)) or 0
-    rows = session.scalars(select(Vehicle).order_by(Vehicle.name).offset(offset).limit(limit)).all()
+    rows, count = lookup.list_vehicles(session, offset, limit)
     return VehiclesPublic(data=[vehicle_public(v) for v in rows], count=count)
 
 
@@ -62,13 +57,8 @@ def create_vehicle(session: SessionDep, body: VehicleCreate, caller: CallerDep) 
     the name is taken, 422 naming ``preset`` when there is no such preset."""
     params: dict[str, Any] = body.params.model_dump()
     if body.preset is not None:
-        if body.preset not in KIND_PRESETS:
-            raise Invalid(
-                f"unknown vehicle preset {body.preset!r}; expected one of "
-                f"{', '.join(sorted(KIND_PRESETS))}", field="preset",
-            )  # fmt: skip
         given = body.params.model_fields_set
-        params = KIND_PRESETS[body.preset].to_dict() | {k: params[k] for k in given}
+        params = lookup.preset_params(body.preset, {k: params[k] for k in given})
     vehicle = vehicles.create_vehicle(
         session, body.name, body.description, params, caller_name(session, caller)
     )
@@ -125,7 +115,6 @@ def edit_vehicle(
     )
     if queued:
         ctx.wake_worker()
-    session.refresh(v)
     return vehicle_public(v)
 
 
@@ -148,7 +137,6 @@ def restore_version(
     )  # fmt: skip
     if queued:
         ctx.wake_worker()
-    session.refresh(v)
     return vehicle_public(v)
 
 

@@ -26,10 +26,10 @@ from fastapi import APIRouter, File, Query, Request, UploadFile
 from starlette.datastructures import UploadFile as StarletteUpload
 
 from app.api.deps import ClosedWindowDep, RunId, SessionDep, WindowDep
-from app.api.routes.lookup import get_track
 from app.core.errors import ApiError
 from app.schemas.views import ChainageMapPublic, CsvPreviewPublic, ProfileViewPublic, WindowPublic
 from app.services import chart_views
+from app.services.lookup import get_track
 
 router = APIRouter(prefix="/views", tags=["views"])
 

@@ -36,13 +36,6 @@ const QUALITY_FIELDS = {
   sample_rate_hz: ["Sample rate", "Hz", 0, ""],
 };
 
-function softSpotsCsv(spots) {
-  const cols = ["start_m", "end_m", "peak_m", "depth_mm", "stiffness_loss_pct"];
-  const lines = [cols.join(",")];
-  for (const s of spots) lines.push(cols.map((c) => (s[c] === null || s[c] === undefined ? "" : s[c])).join(","));
-  return `${lines.join("\n")}\n`;
-}
-
 export async function render(main, [id]) {
   let stopped = false;
   let timer = null;
@@ -270,7 +263,7 @@ export async function render(main, [id]) {
   const csvName = `run-${id}-soft-spots.csv`;
   const downloads = h("div", { class: "downloads" },
     h("a", { class: "button secondary", href: `/api/v1/runs/${encId}/profile?format=csv`, download: `run-${id}-profile.csv`, id: "download-profile" }, "Profile (CSV)"),
-    h("button", { type: "button", class: "button secondary", id: "download-spots-csv", onclick: () => downloadBlob(new Blob([softSpotsCsv(spots)], { type: "text/csv" }), csvName) }, "Soft spots (CSV)"),
+    h("a", { class: "button secondary", href: `/api/v1/runs/${encId}/soft-spots.csv`, download: csvName, id: "download-spots-csv" }, "Soft spots (CSV)"),
     h("button", { type: "button", class: "button secondary", id: "download-spots-json", onclick: () => downloadBlob(new Blob([JSON.stringify(spots, null, 2)], { type: "application/json" }), `run-${id}-soft-spots.json`) }, "Soft spots (JSON)"),
   );
   main.appendChild(h("section", { class: "card", "aria-labelledby": "spots-h" },

@@ -14,7 +14,6 @@ const NOISE_PRESETS = {
   poor: { accel_noise: 0.02, gyro_noise: 5e-4, accel_bias: 0.05, gyro_bias: 5e-4 },
 };
 
-const BASELINE_WINDOW_M = 40;
 
 export async function render(main) {
   let stopped = false;
@@ -250,11 +249,11 @@ export async function render(main) {
     const signalsDiv = h("div", { class: "plot plot-signals", id: "sim-signals-plot", role: "figure", "aria-label": "Synthetic signals against time" });
     const profileSection = h("section", { class: "card", "aria-labelledby": "sim-profile-h" },
       h("h2", { id: "sim-profile-h" }, "Recovered profile and truth"),
-      h("p", { class: "hint" }, `Blue: the profile the engine recovers from the noisy signals. Black dashed: the true loaded level under the wheels (mean of both axles). Both are drawn about their own ${BASELINE_WINDOW_M} m running median, the kind of baseline soft spots are measured from. Blue strips along the top: the true soft zones; orange bands: the soft spots detected (both in the legend).`),
+      h("p", { class: "hint" }, `Blue: the profile the engine recovers from the noisy signals. Black dashed: the true loaded level under the wheels (mean of both axles). Both are drawn about their own baseline as the server draws the one soft spots are measured from (a ${fmt(r.truth.baseline_window_m, 0)} m running median, smoothed). Blue strips along the top: the true soft zones; orange bands: the soft spots detected (both in the legend).`),
       profileDiv);
     results.append(profileSection);
 
-    const rec = detrend(r.profile.chainage_m, r.profile.level_mm, BASELINE_WINDOW_M);
+    const rec = aboutBaseline(r.profile.level_mm, r.profile.baseline_mm);
     const traces = [{
       type: "scatter", mode: "lines", name: "Recovered", x: r.profile.chainage_m, y: rec,
       line: { color: COLORS.fused, width: 1.8 }, hovertemplate: "%{y:.3f} mm<extra>recovered</extra>",
@@ -262,7 +261,7 @@ export async function render(main) {
     if (r.truth && r.truth.chainage_m) {
       traces.push({
         type: "scatter", mode: "lines", name: "Truth", x: r.truth.chainage_m,
-        y: detrend(r.truth.chainage_m, r.truth.level_mm, BASELINE_WINDOW_M),
+        y: aboutBaseline(r.truth.level_mm, r.truth.baseline_mm),
         line: { color: COLORS.truth, width: 1.4, dash: "dash" }, hovertemplate: "%{y:.3f} mm<extra>truth</extra>",
       });
     }
@@ -281,7 +280,7 @@ export async function render(main) {
       shapes: [...trueShapes, ...softSpotShapes(r.soft_spots)],
       annotations: softSpotLabels(r.soft_spots),
       margin: { l: 64, r: 24, t: 60, b: 96 },
-      yaxis: { title: { text: `Level about ${BASELINE_WINDOW_M} m median (mm)` }, gridcolor: "#e3e6ea", zerolinecolor: "#9aa3ad" },
+      yaxis: { title: { text: "Level about its baseline (mm)" }, gridcolor: "#e3e6ea", zerolinecolor: "#9aa3ad" },
     });
     await P.newPlot(profileDiv, traces, layout, CONFIG);
     profileSection.appendChild(zoomControls(profileDiv, { label: "Simulated profile view" }));
@@ -334,27 +333,9 @@ function simulateBody(req) {
   };
 }
 
-/** Level minus its running median over windowM (m): the kind of baseline dips are measured from. */
-export function detrend(x, y, windowM) {
-  const n = x.length;
-  if (n < 3) return y.slice();
-  const step = (x[n - 1] - x[0]) / (n - 1);
-  const half = Math.max(1, Math.round(windowM / step / 2));
-  const out = new Array(n);
-  for (let i = 0; i < n; i += 1) {
-    if (y[i] === null || y[i] === undefined) {
-      out[i] = null;
-      continue;
-    }
-    const win = [];
-    for (let j = Math.max(0, i - half); j <= Math.min(n - 1, i + half); j += 1) {
-      if (y[j] !== null && y[j] !== undefined) win.push(y[j]);
-    }
-    win.sort((a, b) => a - b);
-    const m = win.length % 2 ? win[(win.length - 1) / 2] : 0.5 * (win[win.length / 2 - 1] + win[win.length / 2]);
-    out[i] = y[i] - m;
-  }
-  return out;
+/** Level minus the baseline the server serves beside it (null where either is missing). */
+function aboutBaseline(level, baseline) {
+  return level.map((y, i) => (y === null || baseline[i] === null ? null : y - baseline[i]));
 }
 
 function comparisonTable(r) {

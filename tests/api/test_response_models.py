@@ -1,0 +1,166 @@
+"""Every response model is what is sent.
+
+FastAPI checks an answer against the route's ``response_model`` only when the route returns
+data; routes that serialise themselves (``orjson`` for long arrays) return a ``Response`` and
+skip the check. Here each such route is listed, asked for a real answer on a track with a run,
+a survey and its separation, and the answer is validated against the declared model, with no
+key the model does not declare. A new route that returns a ``Response`` under a
+``response_model`` fails :func:`test_every_self_serialising_route_is_checked` until it is added
+to :data:`ANSWERS`.
+"""
+
+from __future__ import annotations
+
+import inspect
+import types
+import typing
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi import Response
+from fastapi.routing import APIRoute
+from pydantic import BaseModel, TypeAdapter
+from starlette.testclient import TestClient
+
+from app.main import create_app
+
+from .api_support import upload
+from .conftest import make_settings
+
+TRACK = "answers"
+
+ANSWERS: dict[tuple[str, str], str] = {
+    ("GET", "/healthz"): "/healthz",
+    ("GET", "/api/v1/runs/{run_id}/profile"): "/api/v1/runs/{run}/profile?include=all",
+    ("GET", "/api/v1/runs/{run_id}/soft-spots"): "/api/v1/runs/{run}/soft-spots",
+    ("GET", "/api/v1/tracks/{track}/profile"): f"/api/v1/tracks/{TRACK}/profile",
+    ("GET", "/api/v1/tracks/{track}/stiffness"): f"/api/v1/tracks/{TRACK}/stiffness",
+    ("GET", "/api/v1/tracks/{track}/quality"): f"/api/v1/tracks/{TRACK}/quality?traces=true",
+    ("GET", "/api/v1/tracks/{track}/defects"): f"/api/v1/tracks/{TRACK}/defects?include=history",
+    ("GET", "/api/v1/tracks/{track}/alerts"): f"/api/v1/tracks/{TRACK}/alerts?since=2000-01-01",
+}
+"""The routes whose declared model FastAPI does not check, and a request of each."""
+
+
+def _may_skip_the_model(annotation: Any) -> bool:
+    """Whether a route returning ``annotation`` may hand FastAPI a ``Response`` (or anything)."""
+    if annotation is Any or annotation is inspect.Signature.empty:
+        return True
+    if isinstance(annotation, type):
+        return issubclass(annotation, Response)
+    if isinstance(annotation, types.UnionType) or typing.get_origin(annotation) is typing.Union:
+        return any(_may_skip_the_model(a) for a in typing.get_args(annotation))
+    return False
+
+
+def api_routes(router: Any, prefix: str = "") -> Iterator[tuple[str, APIRoute]]:
+    """``(path, route)`` of every operation under ``router``, through included routers (kept
+    as routers by FastAPI: the include carries the prefixes above a router's own)."""
+    for r in router.routes:
+        if isinstance(r, APIRoute):
+            yield prefix + r.path, r
+        elif hasattr(r, "original_router"):
+            yield from api_routes(r.original_router, prefix + r.include_context.prefix)
+
+
+def self_serialising_routes(app: Any) -> set[tuple[str, str]]:
+    """``(method, path)`` of each route with a ``response_model`` that may return a Response."""
+    found = set()
+    for path, route in api_routes(app.router):
+        if route.response_model in (None, Any):  # Any: inferred, none declared
+            continue
+        returns = inspect.signature(route.endpoint, eval_str=True).return_annotation
+        if _may_skip_the_model(returns):
+            found |= {(m, path) for m in route.methods}
+    return found
+
+
+def declared_model(app: Any, method: str, path: str) -> Any:
+    """The ``response_model`` of the operation ``method path``."""
+    (model,) = [
+        r.response_model for p, r in api_routes(app.router) if p == path and method in r.methods
+    ]
+    return model
+
+
+def undeclared_keys(sent: Any, model: Any, where: str = "") -> list[str]:
+    """Keys of ``sent`` (the JSON answer) that ``model`` (validated from it) does not declare."""
+    if isinstance(model, BaseModel) and isinstance(sent, dict):
+        fields = type(model).model_fields
+        extra = [f"{where}.{k}" for k in sent if k not in fields]
+        for k, v in sent.items():
+            if k in fields:
+                extra += undeclared_keys(v, getattr(model, k), f"{where}.{k}")
+        return extra
+    if isinstance(sent, list) and isinstance(model, list):
+        return [
+            e
+            for i, (s, m) in enumerate(zip(sent, model, strict=True))
+            for e in undeclared_keys(s, m, f"{where}[{i}]")
+        ]  # noqa: E501
+    if isinstance(sent, dict) and isinstance(model, dict):
+        return [e for k in sent for e in undeclared_keys(sent[k], model.get(k), f"{where}.{k}")]
+    return []
+
+
+def test_the_key_check_finds_an_undeclared_key() -> None:
+    """The check itself: a key the model does not declare, also inside a list, is named."""
+
+    class Item(BaseModel):
+        a: int
+
+    class Page(BaseModel):
+        data: list[Item]
+
+    sent = {"data": [{"a": 1}, {"a": 2, "b": 3}], "count": 2}
+    model = TypeAdapter(Page).validate_python(sent)
+    assert undeclared_keys(sent, model) == [".count", ".data[1].b"]
+
+
+@pytest.mark.slow  # the module's app, run and survey: ~8 s, paid by the first test
+def test_every_self_serialising_route_is_checked(answered: tuple[TestClient, int]) -> None:
+    """The routes that may bypass their model are exactly those this module asks (the asking
+    finds the paths real: a wrong one is answered 404)."""
+    assert self_serialising_routes(answered[0].app) == set(ANSWERS)
+
+
+@pytest.fixture(scope="module")
+def answered(
+    tmp_path_factory: pytest.TempPathFactory, synthetic_run: dict[str, Any]
+) -> Iterator[tuple[TestClient, int]]:  # noqa: E501
+    """An app with one run on TRACK and a survey of it at another wheel load (separable)."""
+    with TestClient(create_app(make_settings(tmp_path_factory.mktemp("answers")))) as c:
+        r = upload(
+            c, synthetic_run["csv"], track=TRACK, start_chainage_m=synthetic_run["start_chainage_m"]
+        )  # noqa: E501
+        assert r.status_code == 201, r.text
+        run_id = r.json()["id"]
+        prof = c.get(f"/api/v1/runs/{run_id}/profile").json()
+        y = np.array([np.nan if v is None else v for v in prof["level_mm"]])
+        ok = np.isfinite(y)
+        rows = [
+            f"{a:.3f},{b:.5f}"
+            for a, b in zip(np.asarray(prof["chainage_m"])[ok], y[ok], strict=True)
+        ]  # noqa: E501
+        survey = "chainage_m,level_mm\n" + "\n".join(rows) + "\n"
+        s = c.post(f"/api/v1/tracks/{TRACK}/surveys", json={"csv": survey, "wheel_load_n": 150_000})
+        assert s.status_code == 201, s.text
+        yield c, run_id
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("route", sorted(ANSWERS), ids=lambda r: f"{r[0]} {r[1]}")
+def test_the_answer_is_the_declared_model(
+    answered: tuple[TestClient, int], route: tuple[str, str]
+) -> None:  # noqa: E501
+    """The real answer validates against the route's response model and has no other key."""
+    client, run_id = answered
+    model = declared_model(client.app, *route)
+    r = client.get(ANSWERS[route].format(run=run_id))
+    assert r.status_code == 200, r.text
+    sent = r.json()
+    assert sent, "an empty answer checks nothing"
+    validated = TypeAdapter(model).validate_python(sent)
+    assert undeclared_keys(sent, validated) == []
