@@ -23,7 +23,8 @@ from engine.calibration import FITTABLE
 from engine.errors import ParameterError
 from engine.irregularity import SPECTRA
 from engine.passes import Pass, on_grid
-from engine.vehicle import PRESETS, VehicleParams
+from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import KIND_PRESETS
 
 
 def _ops(c) -> dict[tuple[str, str], dict]:
@@ -228,11 +229,11 @@ def test_chainage_has_a_stated_range_and_windows_must_meet_the_run(client) -> No
 
 
 def test_closed_lists_are_enums_from_the_engine_registries(client) -> None:
-    """Vehicle preset, vehicle parameter names, calibration fit names, simulation spectrum
+    """Vehicle preset (every kind), vehicle parameter names, calibration fit names, simulation spectrum
     and the profile's ``include`` are enums in the schema, made from the registries."""
     doc = client.get("/openapi.json").json()
     c = doc["components"]["schemas"]
-    assert c["VehicleCreate"]["properties"]["preset"]["anyOf"][0]["enum"] == sorted(PRESETS)
+    assert c["VehicleCreate"]["properties"]["preset"]["anyOf"][0]["enum"] == sorted(KIND_PRESETS)
     keys = c["VehicleEdit"]["properties"]["params"]["propertyNames"]["enum"]
     assert set(keys) == set(VehicleParams.__dataclass_fields__)
     assert c["CalibrateRequest"]["properties"]["fit"]["anyOf"][0]["items"]["enum"] == list(FITTABLE)
