@@ -229,8 +229,8 @@ def test_chainage_has_a_stated_range_and_windows_must_meet_the_run(client) -> No
 
 
 def test_closed_lists_are_enums_from_the_engine_registries(client) -> None:
-    """Vehicle preset (every kind), vehicle parameter names, calibration fit names, simulation spectrum
-    and the profile's ``include`` are enums in the schema, made from the registries."""
+    """Vehicle preset (every kind), vehicle parameter names, calibration fit names, simulation
+    spectrum and the profile's ``include`` are enums in the schema, made from the registries."""
     doc = client.get("/openapi.json").json()
     c = doc["components"]["schemas"]
     assert c["VehicleCreate"]["properties"]["preset"]["anyOf"][0]["enum"] == sorted(KIND_PRESETS)
