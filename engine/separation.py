@@ -50,7 +50,7 @@ from .track import TrackParams
 __all__ = [
     "NOT_SEPARABLE_MESSAGE", "PRECISION_MESSAGE", "SMOOTH_RAIL_MESSAGE", "SMOOTH_RAIL_SIGMA_MM",
     "Pass", "SeparatedSpot", "SeparationConfig", "SeparationResult", "align_passes",
-    "is_smooth_rail", "pass_from_result", "separate",
+    "is_smooth_rail", "load_limited", "pass_from_result", "separate",
 ]  # fmt: skip
 
 NOT_SEPARABLE_MESSAGE = (
@@ -262,9 +262,20 @@ def _message(
     lacking = (n_passes > 0) & ~separable
     if not lacking.any():
         return None
+    limited = load_limited(n_passes, load_ratio, cfg)
+    return NOT_SEPARABLE_MESSAGE if np.any(lacking & limited) else PRECISION_MESSAGE
+
+
+def load_limited(
+    n_passes: NDArray[np.int64] | NDArray[np.float64],
+    load_ratio: NDArray[np.float64],
+    cfg: SeparationConfig | None = None,
+) -> NDArray[np.bool_]:
+    """Where a point that is not separable lacks passes or wheel load (the ``load`` reason);
+    elsewhere a point that is not separable lacks precision. The one rule for why."""
+    c = cfg or SeparationConfig()
     with np.errstate(invalid="ignore"):
-        load_limited = (n_passes < cfg.min_passes) | ~(load_ratio >= cfg.min_load_ratio)
-    return NOT_SEPARABLE_MESSAGE if np.any(lacking & load_limited) else PRECISION_MESSAGE
+        return np.asarray((n_passes < c.min_passes) | ~(load_ratio >= c.min_load_ratio))
 
 
 REFERENCE_ZONE_LOSS = 0.45

@@ -51,6 +51,7 @@ from engine.separation import (
     Pass,
     SeparationConfig,
     SeparationResult,
+    load_limited,
     separate,
 )
 from engine.track import TrackParams
@@ -545,12 +546,10 @@ def not_separable_stretches(
 ) -> list[Stretch]:
     """The covered stretches that are not separable, each with its reason (see :class:`Stretch`);
     a gap in the coverage or a change of reason starts a new one."""
-    cfg = SeparationConfig()
     lacking = (n_passes > 0) & ~separable
     if not lacking.any():
         return []
-    with np.errstate(invalid="ignore"):
-        load = (n_passes < cfg.min_passes) | ~(load_ratio >= cfg.min_load_ratio)
+    load = load_limited(n_passes, load_ratio)
     out: list[Stretch] = []
     idx = np.flatnonzero(lacking)
     start = prev = int(idx[0])
