@@ -470,7 +470,9 @@ def separate(
         noise_mm = new
 
     sd_b = np.sqrt(var_b)  # mm/N
-    wheels = _slope_wheel_sets(passes, weights, z, fbar, fm, var_b, fit_ok)
+    with np.errstate(invalid="ignore"):  # each pass's coefficient in the slope
+        coef = np.where(np.isfinite(z) & fit_ok, weights * (fbar[:, None] - fm) * var_b, 0.0)
+    wheels = _slope_wheel_sets(passes, np.nan_to_num(coef), fbar)
     losses = zone_depths(trk, *band)[0]
     depths = cfg.reference_load_n * sum(
         alpha * zone_depths(trk, *band, o)[1] / point_load_factor(trk, o, *band)
@@ -548,24 +550,18 @@ def _check_wheels(j: int, p: Pass) -> None:
 
 
 def _slope_wheel_sets(
-    passes: Sequence[Pass],
-    weights: NDArray[np.float64],
-    z: NDArray[np.float64],
-    fbar: NDArray[np.float64],
-    fm: NDArray[np.float64],
-    var_b: NDArray[np.float64],
-    use: NDArray[np.bool_],
+    passes: Sequence[Pass], a: NDArray[np.float64], fbar: NDArray[np.float64]
 ) -> tuple[tuple[tuple[float, ...], float], ...]:
     """What the fitted slope is made of: per set of wheels (offsets, m) its share ``alpha``.
 
     The slope is ``b = sum_j a_j z_j`` with ``a_j = w_j (Fbar_j - Fmean) / Sxx``, so each
     pass's compliance dip enters it with ``alpha_j = a_j Fbar_j`` (summing to 1): with a
     coach at half a wagon's load, the wagon's wheels with about 2 and the coach's with
-    about -1. Averaged over the points ``use``, summed per set of wheels.
+    about -1. ``a`` (passes x points) is zero at the points not used; ``alpha`` is averaged
+    over the points used and summed per set of wheels.
     """
-    with np.errstate(invalid="ignore"):
-        a = np.where(np.isfinite(z) & use, weights * (fbar[:, None] - fm) * var_b, 0.0)
-    alpha = np.nan_to_num(a * fbar[:, None]).sum(axis=1) / max(int(use.sum()), 1)
+    used = max(int(np.any(a != 0, axis=0).sum()), 1)
+    alpha = np.nan_to_num(a * fbar[:, None]).sum(axis=1) / used
     by_wheels: dict[tuple[float, ...], float] = {}
     for p, v in zip(passes, alpha, strict=True):
         key = tuple(float(o) for o in p.wheel_offsets_m)
