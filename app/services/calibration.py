@@ -19,7 +19,13 @@ from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
 from app.db.models import Calibration, Run, RunInput, Vehicle
-from engine.calibration import CalibrationConfig, CalibrationRun, calibrate, held_vehicle
+from engine.calibration import (
+    FITTABLE,
+    CalibrationConfig,
+    CalibrationRun,
+    calibrate,
+    held_vehicle,
+)
 from engine.errors import ParameterError
 from engine.health import HealthAlert, ParameterEstimate, health_alerts
 from engine.vehicle_kinds import Vehicle as EngineVehicle
@@ -36,8 +42,12 @@ log = logging.getLogger(__name__)
 ACTIVE = ("queued", "running")
 """States of a calibration that is not finished."""
 
-HEALTH_PARAMETERS = ("Is", "ks1", "ks2", "cs1", "cs2")
-"""Vehicle parameters whose calibrated history is watched (suspension and body)."""
+HEALTH_PARAMETERS = tuple(
+    sorted({t for f in FITTABLE.values() if f.kind == "scale" for t in (*f.targets, *f.bogie)})
+)
+"""Vehicle parameters whose calibrated history is watched (suspension and body): every
+parameter a scale quantity of calibration moves, on any kind (a half car's Is, ks1, ks2, cs1,
+cs2; a bogie vehicle's pitch inertia, secondary and primary)."""
 
 
 def _config(fit: list[str] | None, load_kg: float | None) -> CalibrationConfig:
