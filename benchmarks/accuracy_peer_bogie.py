@@ -1,6 +1,7 @@
 """Accuracy on the peer's runs: bogie vehicles on a layered track made with ROSE.
 
-Run: ``python benchmarks/accuracy_peer_bogie.py [--data DIR] [--vehicle bogie|lumped]``
+Run: ``python benchmarks/accuracy_peer_bogie.py [--data DIR] [--vehicle bogie|lumped]
+[--separate]``
 
 Each run of ``DIR`` (default ``$SHARED_DIR/data/peer-bogie``, ``/work/shared`` without it)
 is processed as a user would upload it: the CSV, its start chainage and direction, and the
@@ -12,6 +13,10 @@ Scored as the README's section 5 says: a zone is found when a reported soft spot
 with both ends within 1.5 m; a false zone overlaps no true zone widened by 1.5 m; loss error
 in percentage points; the profile against the bogie-mean truth, band-passed 3-25 m and
 3-40 m (4th-order zero-phase Butterworth in wavenumber, 25 m dropped at each end).
+
+``--separate``: the rough-rail runs (coach and wagon) together through the separation, each
+pass with its vehicle's wheels (``engine.separation.separate``), aligned as the service
+aligns them; scored the same way, plus the share of covered points that is separable.
 """
 
 from __future__ import annotations
@@ -31,8 +36,10 @@ from scipy.signal import butter, sosfiltfilt  # noqa: E402
 
 from engine.bogie import BogieParams  # noqa: E402
 from engine.logio.parse import read_run_csv  # noqa: E402
+from engine.passes import align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.results import ProcessResult  # noqa: E402
+from engine.separation import separate  # noqa: E402
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
 
@@ -141,19 +148,67 @@ def zone_scores(res: ProcessResult, zones: list[dict]) -> dict[str, object]:
     return {"zones": rows, "false": false}
 
 
-def run_one(csv: Path, vehicle_kind: str) -> dict[str, object]:
+def process_one(csv: Path, vehicle_kind: str) -> tuple[ProcessResult, Vehicle, dict, float]:
+    """The run processed as uploaded: result, vehicle, truth JSON, seconds."""
     truth = json.loads(csv.with_suffix(".truth.json").read_text())
-    npz = dict(np.load(csv.with_suffix(".truth.npz")))
-    log = read_run_csv(csv)
     vehicle: Vehicle = (
         bogie_from_truth(truth) if vehicle_kind == "bogie" else lumped_from_truth(truth)
     )
     t0 = time.perf_counter()
     res = process_run(
-        log, start_chainage_m=truth["start_chainage_m"], direction=truth["direction"],
-        vehicle=vehicle,
+        read_run_csv(csv), start_chainage_m=truth["start_chainage_m"],
+        direction=truth["direction"], vehicle=vehicle,
     )  # fmt: skip
-    elapsed = time.perf_counter() - t0
+    return res, vehicle, truth, time.perf_counter() - t0
+
+
+def separate_rough(csvs: list[Path], vehicle_kind: str) -> list[str]:
+    """The rough runs together through the separation: one line per true zone and a summary."""
+    done = [process_one(c, vehicle_kind) for c in csvs]
+    passes = [
+        pass_from_result(res, label=c.stem, wheel_offsets_m=veh.axle_wheel_offsets_m[0])
+        for c, (res, veh, _, _) in zip(csvs, done, strict=True)
+    ]
+    passes, offsets = align_passes(passes)
+    sep = separate(passes)
+    zones = done[0][2]["zones"]
+    covered = sep.n_passes > 0
+    lines = [
+        f"Separation of {', '.join(c.stem for c in csvs)} (vehicle {vehicle_kind}); alignment "
+        f"offsets {', '.join(f'{o:+.2f}' for o in offsets)} m; separable "
+        f"{100 * sep.separable[covered].mean():.0f} % of the covered points "
+        f"({sep.chainage_m[covered][0]:.0f}-{sep.chainage_m[covered][-1]:.0f} m).",
+        "",
+        "| zone (true) | separable there | reported | loss true → reported |",
+        "|---|---|---|---|",
+    ]
+    for z in zones:
+        inside = (sep.chainage_m >= z["start_m"]) & (sep.chainage_m <= z["end_m"])
+        hit = [s for s in sep.soft_spots if s.start_m <= z["end_m"] and s.end_m >= z["start_m"]]
+        rep = (
+            f"{hit[0].start_m:.1f}-{hit[0].end_m:.1f} m | {100 * z['stiffness_loss']:.0f} → "
+            f"{hit[0].loss_pct:.0f} %"
+            if hit
+            else f"— | {100 * z['stiffness_loss']:.0f} → —"
+        )
+        lines.append(
+            f"| {z['start_m']:.1f}-{z['end_m']:.1f} m | "
+            f"{100 * sep.separable[inside].mean():.0f} % | {rep} |"
+        )
+    false = [
+        f"{s.start_m:.1f}-{s.end_m:.1f}"
+        for s in sep.soft_spots
+        if not any(
+            s.start_m <= z["end_m"] + TOL_M and s.end_m >= z["start_m"] - TOL_M for z in zones
+        )
+    ]
+    lines += ["", f"False zones: {', '.join(false) or 'none'}. Message: {sep.message or 'none'}"]
+    return lines
+
+
+def run_one(csv: Path, vehicle_kind: str) -> dict[str, object]:
+    res, _, truth, elapsed = process_one(csv, vehicle_kind)
+    npz = dict(np.load(csv.with_suffix(".truth.npz")))
     return {
         "run": csv.stem,
         "time_s": elapsed,
@@ -204,10 +259,15 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=default_dir())
     ap.add_argument("--vehicle", choices=("bogie", "lumped"), default="bogie")
     ap.add_argument("--runs", nargs="*", default=None, help="run names (default: all)")
+    ap.add_argument("--separate", action="store_true", help="the rough runs together")
     args = ap.parse_args()
     csvs = sorted(args.data.glob("pub_*.csv"))
     if args.runs:
         csvs = [c for c in csvs if c.stem in args.runs]
+    if args.separate:
+        print("\n".join(separate_rough([c for c in csvs if c.stem.endswith("_irr")],
+                                        args.vehicle)))  # fmt: skip
+        return
     results = [run_one(c, args.vehicle) for c in csvs]
     print("\n".join(table(results, args.vehicle)))
 

@@ -32,7 +32,7 @@ from .spectral import (
     solve_bins,
     vehicle_response,
 )
-from .vehicle import VehicleParams
+from .vehicle_kinds import Vehicle
 
 if TYPE_CHECKING:
     from .calibration import CalibrationConfig, CalibrationRun
@@ -94,7 +94,7 @@ def cubic_weights(
 
 
 def prepare(
-    runs: Sequence[CalibrationRun], vehicle: VehicleParams, cfg: CalibrationConfig
+    runs: Sequence[CalibrationRun], vehicle: Vehicle, cfg: CalibrationConfig
 ) -> tuple[list[Group], list[tuple[str, str]], list[tuple[str, float]]]:
     """Decimate, segment and transform every usable run once."""
     pcfg = ProcessConfig(lambda_min_m=cfg.lambda_min_m, lambda_max_m=cfg.lambda_max_m)
@@ -198,7 +198,7 @@ class Evaluation:
     run: NDArray[np.intp]
 
 
-def evaluate(groups: list[Group], vehicle: VehicleParams) -> Evaluation:
+def evaluate(groups: list[Group], vehicle: Vehicle) -> Evaluation:
     """The axles' disagreement of every segment inverted with ``vehicle`` (at each group's
     declared body mass)."""
     diffs: list[NDArray[np.float64]] = []

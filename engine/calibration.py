@@ -30,6 +30,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,9 +38,11 @@ from scipy.optimize import least_squares
 
 from . import axle_disagreement as disagreement
 from .axle_disagreement import Evaluation
+from .bogie import BogieParams
 from .errors import ParameterError
 from .runlog import RunLog
 from .vehicle import VehicleParams
+from .vehicle_kinds import Vehicle
 
 
 @dataclass(frozen=True)
@@ -47,6 +50,8 @@ class Fittable:
     """How one fitted quantity moves the vehicle: ``apply(params, theta) -> changes``.
 
     ``theta`` is dimensionless (log of a factor) for ``scale`` quantities, m for positions.
+    ``targets`` are the half car's parameters it moves; ``bogie`` those of a bogie vehicle
+    (empty: not fittable there). :meth:`targets_of` picks by the vehicle's kind.
     """
 
     name: str
@@ -54,31 +59,66 @@ class Fittable:
     unit: str
     kind: str  # "scale" (theta = log factor) | "offset" (theta in the parameter's unit)
     targets: tuple[str, ...]
+    bogie: tuple[str, ...] = ()
 
-    def apply(self, base: VehicleParams, theta: float) -> dict[str, float]:
+    def targets_of(self, vehicle_kind: str) -> tuple[str, ...]:
+        """The parameters this quantity moves on a vehicle of ``vehicle_kind``."""
+        return {VehicleParams.kind: self.targets, BogieParams.kind: self.bogie}[vehicle_kind]
+
+    def apply(self, base: Vehicle, theta: float) -> dict[str, float]:
         """Parameter values of ``base`` moved by ``theta``."""
+        targets = self.targets_of(base.kind)
         if self.kind == "scale":
             f = math.exp(theta)
-            return {t: getattr(base, t) * f for t in self.targets}
-        return {t: getattr(base, t) + theta for t in self.targets}
+            return {t: getattr(base, t) * f for t in targets}
+        return {t: getattr(base, t) + theta for t in targets}
 
 
 FITTABLE: dict[str, Fittable] = {
     f.name: f
     for f in (
-        Fittable("Is", "body pitch inertia", "kg m²", "scale", ("Is",)),
-        Fittable("ks", "both suspension stiffnesses (one factor)", "N/m", "scale", ("ks1", "ks2")),
+        Fittable("Is", "body pitch inertia", "kg m²", "scale", ("Is",),
+                 ("body_pitch_inertia_kgm2",)),
+        Fittable("ks", "both suspension stiffnesses (one factor; a bogie vehicle's secondary)",
+                 "N/m", "scale", ("ks1", "ks2"), ("secondary_k_n_per_m",)),
         Fittable("ks1", "front suspension stiffness", "N/m", "scale", ("ks1",)),
         Fittable("ks2", "rear suspension stiffness", "N/m", "scale", ("ks2",)),
-        Fittable("cs", "both suspension dampings (one factor)", "N s/m", "scale", ("cs1", "cs2")),
+        Fittable("kp", "primary suspension stiffness (bogie vehicles)", "N/m", "scale", (),
+                 ("primary_k_n_per_m",)),
+        Fittable("cs", "both suspension dampings (one factor; a bogie vehicle's secondary)",
+                 "N s/m", "scale", ("cs1", "cs2"), ("secondary_c_ns_per_m",)),
         Fittable("sensor_x_m", "accelerometer position ahead of the CG", "m", "offset",
-                 ("sensor_x_m",)),
+                 ("sensor_x_m",), ("sensor_x_m",)),
     )
 }  # fmt: skip
 """Quantities calibration can fit, by name (registry: add one here to make it fittable)."""
 
 DEFAULT_FIT: tuple[str, ...] = ("Is", "ks1", "ks2")
-"""What is fitted unless told otherwise: pitch inertia and both suspension stiffnesses."""
+"""What is fitted on a half car unless told otherwise: pitch inertia and both suspension
+stiffnesses."""
+
+DEFAULT_FIT_BY_KIND: dict[str, tuple[str, ...]] = {
+    VehicleParams.kind: DEFAULT_FIT,
+    BogieParams.kind: ("Is", "ks"),
+}
+"""What is fitted unless told otherwise, per vehicle kind. A bogie vehicle has one secondary
+for both bogies (its datasheet's): the body's pitch inertia and that stiffness; its primary
+(``kp``) is in series with it and barely moves the body in the band (docs/method.md)."""
+
+
+def held_vehicle(vehicle: Vehicle, load_kg: float | None) -> Vehicle:
+    """The vehicle calibration starts from: the registered one, or with the per-rail body
+    mass ``load_kg`` (kg) of a load figure. A half car's ``ms`` is replaced as given; a bogie
+    vehicle's body is that mass, its pitch inertia scaled with it
+    (:meth:`engine.bogie.BogieParams.with_body_mass`)."""
+    if load_kg is None:
+        return vehicle
+    hold: dict[str, Callable[[Any, float], Vehicle]] = {
+        VehicleParams.kind: lambda v, m: v.replace(ms=m),
+        BogieParams.kind: lambda v, m: v.with_body_mass(m),
+    }
+    return hold[vehicle.kind](vehicle, load_kg)
+
 
 SYSTEMATIC_SD: dict[str, float] = {"scale": 0.02, "offset": 0.05}
 """Systematic part of the uncertainty (relative for scales, m for positions), added to the
@@ -130,8 +170,9 @@ class CalibrationConfig:
 
     Parameters
     ----------
-    fit : sequence of str
-        Quantities to fit, names of :data:`FITTABLE`.
+    fit : sequence of str, optional
+        Quantities to fit, names of :data:`FITTABLE` (default: the vehicle kind's,
+        :data:`DEFAULT_FIT_BY_KIND`).
     load_kg : float, optional
         Known body mass (load/tare figure), kg: replaces the registered ``ms`` before fitting.
     lambda_min_m, lambda_max_m : float
@@ -153,7 +194,7 @@ class CalibrationConfig:
         A scale quantity whose relative uncertainty exceeds this is reported as not identified.
     """
 
-    fit: tuple[str, ...] = DEFAULT_FIT
+    fit: tuple[str, ...] | None = None
     load_kg: float | None = None
     lambda_min_m: float = 3.0
     lambda_max_m: float = 40.0
@@ -165,6 +206,8 @@ class CalibrationConfig:
     max_relative_sd: float = 0.15
 
     def __post_init__(self) -> None:
+        if self.fit is None:
+            return self._check_rest()
         fit = tuple(self.fit)
         object.__setattr__(self, "fit", fit)
         if not fit:
@@ -176,9 +219,36 @@ class CalibrationConfig:
             )
         if len(set(fit)) != len(fit):
             raise ParameterError(f"quantities to fit are repeated: {list(fit)}")
-        targets = [t for f in fit for t in FITTABLE[f].targets]
-        if len(set(targets)) != len(targets):
-            raise ParameterError(f"fitted quantities overlap (e.g. 'ks' with 'ks1'): {list(fit)}")
+        for kind in (VehicleParams.kind, BogieParams.kind):
+            targets = [t for f in fit for t in FITTABLE[f].targets_of(kind)]
+            if len(set(targets)) != len(targets):
+                raise ParameterError(
+                    f"fitted quantities overlap (e.g. 'ks' with 'ks1'): {list(fit)}"
+                )
+        self._check_rest()
+
+    def fit_for(self, vehicle_kind: str) -> tuple[str, ...]:
+        """The quantities fitted on a vehicle of ``vehicle_kind``.
+
+        Raises
+        ------
+        ParameterError
+            ``field="fit"``: a quantity that kind does not have (e.g. ``ks1`` on a bogie
+            vehicle, whose bogies share one secondary).
+        """
+        if self.fit is None:
+            return DEFAULT_FIT_BY_KIND[vehicle_kind]
+        missing = [f for f in self.fit if not FITTABLE[f].targets_of(vehicle_kind)]
+        if missing:
+            have = sorted(n for n, f in FITTABLE.items() if f.targets_of(vehicle_kind))
+            raise ParameterError(
+                f"cannot fit {missing} on a {vehicle_kind} vehicle; its fittable quantities "
+                f"are {have}",
+                field="fit",
+            )
+        return self.fit
+
+    def _check_rest(self) -> None:
         if self.load_kg is not None and not (math.isfinite(self.load_kg) and self.load_kg > 0):
             raise ParameterError(f"load_kg must be a positive body mass in kg, got {self.load_kg}")
         if not (0 < self.lambda_min_m < self.lambda_max_m):
@@ -237,9 +307,9 @@ class CalibrationResult:
 
     Attributes
     ----------
-    params : VehicleParams
+    params : VehicleParams or BogieParams
         The calibrated vehicle (the registered one where nothing was fitted).
-    registered : VehicleParams
+    registered : VehicleParams or BogieParams
         The vehicle calibration started from (after a given load figure, if any).
     fitted : list of FittedParameter
         One per fitted quantity.
@@ -266,8 +336,8 @@ class CalibrationResult:
         The objective along each fitted quantity through the optimum (for plots).
     """
 
-    params: VehicleParams
-    registered: VehicleParams
+    params: Vehicle
+    registered: Vehicle
     fitted: list[FittedParameter]
     objective_before: float
     objective_after: float
@@ -313,9 +383,7 @@ class CalibrationResult:
         }
 
 
-def _vehicle_at(
-    base: VehicleParams, fit: tuple[str, ...], theta: NDArray[np.float64]
-) -> VehicleParams:
+def _vehicle_at(base: Vehicle, fit: tuple[str, ...], theta: NDArray[np.float64]) -> Vehicle:
     changes: dict[str, float] = {}
     for name, t in zip(fit, theta, strict=True):
         changes |= FITTABLE[name].apply(base, float(t))
@@ -324,7 +392,7 @@ def _vehicle_at(
 
 def calibrate(
     runs: Sequence[CalibrationRun],
-    vehicle: VehicleParams,
+    vehicle: Vehicle,
     config: CalibrationConfig | None = None,
     *,
     progress: Callable[[int], None] | None = None,
@@ -335,7 +403,7 @@ def calibrate(
     ----------
     runs : sequence of CalibrationRun
         The vehicle's runs (many together: the fit is joint).
-    vehicle : VehicleParams
+    vehicle : VehicleParams or BogieParams
         The registered vehicle (starting point; held parameters keep its values).
     config : CalibrationConfig, optional
         What to fit, band, segmenting, significance thresholds.
@@ -353,14 +421,14 @@ def calibrate(
     """
     t0 = time.perf_counter()
     cfg = config or CalibrationConfig()
-    base = vehicle if cfg.load_kg is None else vehicle.replace(ms=cfg.load_kg)
+    base = held_vehicle(vehicle, cfg.load_kg)
+    fit = cfg.fit_for(vehicle.kind)
     if not runs:
         raise ParameterError("calibration needs at least one run")
     groups, skipped, used = disagreement.prepare(runs, base, cfg)
     if not groups:
         reasons = "; ".join(f"{a}: {b}" for a, b in skipped)
         raise ParameterError(f"no run can be used for calibration ({reasons})")
-    fit = cfg.fit
     k = len(fit)
     n_eval = 0
     cache: dict[bytes, Evaluation] = {}
@@ -422,8 +490,8 @@ def calibrate(
         fitted.append(
             FittedParameter(
                 name=name, description=fdef.description, unit=fdef.unit,
-                before={t: float(getattr(base, t)) for t in fdef.targets},
-                after={t: float(getattr(params, t)) for t in fdef.targets},
+                before={t: float(getattr(base, t)) for t in fdef.targets_of(base.kind)},
+                after={t: float(getattr(params, t)) for t in fdef.targets_of(base.kind)},
                 change=float(change), sd=s_i, identified=identified, significant=significant,
             )
         )  # fmt: skip

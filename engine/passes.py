@@ -30,6 +30,10 @@ class Pass:
         ``"run"`` or ``"survey"``.
     label : str
         E.g. the run id, for "which runs contributed".
+    wheel_offsets_m : tuple of float
+        The wheels of the measured point relative to it, m, sharing ``force_n`` equally:
+        ``(0,)`` for a half car's axle or a survey's point load, ``(+a/2, -a/2)`` for a bogie
+        of wheelbase ``a`` (the vehicle's ``axle_wheel_offsets_m``).
     """
 
     chainage_m: NDArray[np.float64]
@@ -37,14 +41,22 @@ class Pass:
     force_n: NDArray[np.float64] | float
     kind: str = "run"
     label: str = ""
+    wheel_offsets_m: tuple[float, ...] = (0.0,)
 
 
 def pass_from_result(
-    result: ProcessResult, *, offset_m: float = 0.0, kind: str = "run", label: str = ""
+    result: ProcessResult,
+    *,
+    offset_m: float = 0.0,
+    kind: str = "run",
+    label: str = "",
+    wheel_offsets_m: tuple[float, ...] = (0.0,),
 ) -> Pass:
     """A pass from one processed run: fused level and the mean of both axles' wheel forces.
 
-    ``offset_m`` (m) is added to the run's chainage (its alignment to the track).
+    ``offset_m`` (m) is added to the run's chainage (its alignment to the track);
+    ``wheel_offsets_m`` are the vehicle's wheels about a measured point
+    (``vehicle.axle_wheel_offsets_m[0]``; a half car's axle by default).
     """
     if result.front_force_n is None or result.rear_force_n is None:
         raise ParameterError("the processed run has no wheel force (front_force_n) to separate")
@@ -52,7 +64,9 @@ def pass_from_result(
     both = np.isfinite(f1) & np.isfinite(f2)
     with np.errstate(invalid="ignore"):
         force = np.where(both, 0.5 * (f1 + f2), np.where(np.isfinite(f1), f1, f2))
-    return Pass(result.chainage_m + offset_m, result.level_mm, force, kind, label)
+    return Pass(
+        result.chainage_m + offset_m, result.level_mm, force, kind, label, tuple(wheel_offsets_m)
+    )
 
 
 def align_passes(

@@ -8,14 +8,23 @@ and ``c = c0 + dc(x)`` (``c0`` the nominal compliance),
     B[y_j] + c0 B[dF_j] = B[g] - Fbar_j B[dc] + (second order)
 
 so per chainage point a weighted straight-line fit of the force-corrected levels against the
-passes' mean forces gives the geometry (intercept) and the compliance variation (slope). The
+passes' mean forces gives the geometry (intercept) and the compliance variation (slope).
+
+A pass's force is that of its measured point, shared by the point's wheels (a bogie: two
+wheels 1.8-2.6 m apart, each loading the rail at its own position). The level measured is the
+mean under those wheels, each the superposition of every wheel's deflection basin. The fit
+runs on equivalent point loads ``F_j kappa_j``: ``kappa_j`` makes a pass's dip over a
+reference zone that of a point load (1 for a half car's axle, 0.46-0.51 for a bogie,
+:func:`point_load_factor`); the dynamic-force correction uses the sinkage of sound track
+instead (:func:`uniform_load_factor`). The slope is then a known blend of the passes' own
+dips, and the soft spots are fitted with that blend of their wheels. The
 pass weights are the inverse variances of each pass's residual (run-to-run scatter: speed,
 dynamics, sensor noise), estimated from the fit itself when there are more passes than
 distinct unknowns. Soft spots are dips of the compliance (as the level dip they cause under a
 reference load) fitted with the beam-on-discrete-supports model (:func:`engine.stiffness
 .fit_zone`, same band-pass as the profile). Details and assumptions: docs/method.md.
 
-One module, a little over 500 lines: the pass model, the per-point fit, the windowing of the
+One module, about 650 lines: the pass model, the per-point fit, the windowing of the
 result and the soft-spot extraction share the result object and its grid conventions; split,
 each part would import the others' private helpers.
 """
@@ -35,19 +44,13 @@ from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sig
 from .errors import ParameterError
 from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
 from .passes import Pass, align_passes, column_mean_sd, on_grid, pass_from_result
-from .stiffness import InfluenceLine, fit_zone
+from .stiffness import InfluenceLine, fit_zone, modal_dips, softening_modes
 from .track import TrackParams
 
 __all__ = [
     "NOT_SEPARABLE_MESSAGE", "PRECISION_MESSAGE", "SMOOTH_RAIL_MESSAGE", "SMOOTH_RAIL_SIGMA_MM",
     "Pass", "SeparatedSpot", "SeparationConfig", "SeparationResult", "align_passes",
-    "is_smooth_rail", "pass_from_result", "separate",
-]  # fmt: skip
-
-__all__ = [
-    "NOT_SEPARABLE_MESSAGE", "PRECISION_MESSAGE", "SMOOTH_RAIL_MESSAGE", "SMOOTH_RAIL_SIGMA_MM",
-    "Pass", "SeparatedSpot", "SeparationConfig", "SeparationResult", "align_passes",
-    "is_smooth_rail", "pass_from_result", "separate",
+    "is_smooth_rail", "load_limited", "pass_from_result", "separate",
 ]  # fmt: skip
 
 NOT_SEPARABLE_MESSAGE = (
@@ -259,29 +262,88 @@ def _message(
     lacking = (n_passes > 0) & ~separable
     if not lacking.any():
         return None
+    limited = load_limited(n_passes, load_ratio, cfg)
+    return NOT_SEPARABLE_MESSAGE if np.any(lacking & limited) else PRECISION_MESSAGE
+
+
+def load_limited(
+    n_passes: NDArray[np.int64] | NDArray[np.float64],
+    load_ratio: NDArray[np.float64],
+    cfg: SeparationConfig | None = None,
+) -> NDArray[np.bool_]:
+    """Where a point that is not separable lacks passes or wheel load (the ``load`` reason);
+    elsewhere a point that is not separable lacks precision. The one rule for why."""
+    c = cfg or SeparationConfig()
     with np.errstate(invalid="ignore"):
-        load_limited = (n_passes < cfg.min_passes) | ~(load_ratio >= cfg.min_load_ratio)
-    return NOT_SEPARABLE_MESSAGE if np.any(lacking & load_limited) else PRECISION_MESSAGE
+        return np.asarray((n_passes < c.min_passes) | ~(load_ratio >= c.min_load_ratio))
 
 
-@lru_cache(maxsize=8)
-def _detectable_depth(
-    params: TrackParams, load: float, lambda_min: float, lambda_max: float, taper: float
+REFERENCE_ZONE_LOSS = 0.45
+"""Loss of the 6 m reference zone on which passes with different wheels are made comparable."""
+
+_LOSSES = np.linspace(0.0, 0.9, 19)
+
+
+@lru_cache(maxsize=32)
+def zone_depths(
+    params: TrackParams,
+    lambda_min: float,
+    lambda_max: float,
+    taper: float,
+    wheel_offsets_m: tuple[float, ...] = (0.0,),
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Peak level dip (mm, > 0) of a 6 m zone against its loss, under ``load``, in the band."""
-    from .stiffness import QuasiStaticModel
+    """Depth of the band-passed level dip of a 6 m zone against its loss, when the wheels at
+    ``wheel_offsets_m`` (m) share a force of 1 N: the losses (0-0.9) and the depths, mm/N.
 
+    The mean level under the wheels is the single-load formula with the wheels' summed
+    influence (:func:`engine.stiffness.fit_zone`, Notes).
+    """
     step = 0.25
     grid = np.arange(-60.0, 60.0 + step / 2, step)
-    model = QuasiStaticModel(params, grid[0], grid[-1], grid, load)
-    base = model.level(np.ones(model.node_x.size))
-    losses = np.linspace(0.0, 0.9, 19)
-    depths = np.zeros(losses.size)
-    for i, loss in enumerate(losses[1:], start=1):
-        d = (model.level(model.factors(-3.0, 3.0, float(loss))) - base) * 1e3
-        db = bandpass_distance(d, step, lambda_min, lambda_max, taper)
-        depths[i] = -float(np.nanmin(db))
-    return losses, depths
+    infl = InfluenceLine(params)
+    offsets = np.asarray(wheel_offsets_m, dtype=float)
+    sup_x = params.spacing * np.arange(np.ceil(-3.0 / params.spacing - 1e-9),
+                                       np.floor(3.0 / params.spacing + 1e-9) + 1)  # fmt: skip
+    B = np.sum([infl(grid[None, :] + o - sup_x[:, None]) for o in offsets], axis=0)
+    lam, E = softening_modes(infl(sup_x[None, :] - sup_x[:, None]), B, np.eye(grid.size))
+    d = modal_dips(lam, E, _LOSSES, params.k_nominal, 1.0 / offsets.size**2)
+    depths = np.array(
+        [-float(np.nanmin(bandpass_distance(row, step, lambda_min, lambda_max, taper)))
+         for row in d]
+    )  # fmt: skip
+    depths[0] = 0.0
+    return _LOSSES, depths
+
+
+def point_load_factor(
+    params: TrackParams,
+    wheel_offsets_m: tuple[float, ...],
+    lambda_min: float = 3.0,
+    lambda_max: float = 40.0,
+    taper: float = 0.3,
+) -> float:
+    """``kappa``: the point load, per N of a measured point's force shared by its wheels,
+    that makes the same band-passed dip over the reference zone (6 m, 45 %).
+
+    1 for one wheel. A bogie's two wheels each carry half the force and superpose their
+    deflection basins, smoothed over the wheelbase: 0.46-0.51 for 2.6-1.8 m on the nominal
+    track. On the reference zone passes with different wheels then give the same
+    compliance dip per unit of their equivalent force; on a zone of 4-8 m the wheelbases of
+    1.9 and 2.6 m still differ by 5 % or less.
+    """
+    i = int(np.argmin(np.abs(_LOSSES - REFERENCE_ZONE_LOSS)))
+    own = zone_depths(params, lambda_min, lambda_max, taper, tuple(wheel_offsets_m))[1][i]
+    point = zone_depths(params, lambda_min, lambda_max, taper)[1][i]
+    return float(own / point)
+
+
+def uniform_load_factor(infl: InfluenceLine, wheel_offsets_m: tuple[float, ...]) -> float:
+    """The mean nominal rail level under a measured point's wheels, each carrying an equal
+    share of its force, over the level under that force as one point load (the sinkage a
+    changing force causes away from soft zones): ``(1 + f(a) / f(0)) / 2`` for two wheels
+    ``a`` apart, ``f`` the influence line."""
+    o = np.asarray(wheel_offsets_m, dtype=float)
+    return float(infl(o[:, None] - o[None, :]).sum() / (o.size**2 * infl(np.zeros(1))[0]))
 
 
 def _edge_variance(
@@ -358,16 +420,26 @@ def separate(
     step = cfg.grid_step_m or float(passes[0].chainage_m[1] - passes[0].chainage_m[0])
     grid, levels, forces = on_grid(passes, step)
     n_pass = len(passes)
+    infl = InfluenceLine(trk)
+    band = (cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper)
+    sink, kappa = np.ones(n_pass), np.ones(n_pass)
+    for j, p in enumerate(passes):
+        _check_wheels(j, p)
+        sink[j] = uniform_load_factor(infl, p.wheel_offsets_m)
+        kappa[j] = point_load_factor(trk, p.wheel_offsets_m, *band)
     fbar = np.array([float(np.nanmean(f)) if np.isfinite(f).any() else np.nan for f in forces])
-    c0 = float(InfluenceLine(trk)(np.zeros(1))[0]) * 1e3  # mm/N
+    c0 = float(infl(np.zeros(1))[0]) * 1e3  # mm/N
     # force correction: the nominal track's deflection under each pass's dynamic force
     z = levels.copy()
     for j in range(n_pass):
         df = forces[j] - fbar[j]
         if np.isfinite(df).sum() >= 8:
-            z[j] = levels[j] + c0 * bandpass_distance(
+            z[j] = levels[j] + sink[j] * c0 * bandpass_distance(
                 df, step, cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper
             )
+    contributors = [(p.label, p.kind, float(fbar[j])) for j, p in enumerate(passes)]
+    # from here on every force is the equivalent point load (the fit's and the message's)
+    fbar = fbar * kappa
     cov = np.isfinite(z)
     n_cov = cov.sum(axis=0)
     with np.errstate(invalid="ignore"):
@@ -398,8 +470,13 @@ def separate(
         noise_mm = new
 
     sd_b = np.sqrt(var_b)  # mm/N
-    losses, depths = _detectable_depth(
-        trk, cfg.reference_load_n, cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper
+    with np.errstate(invalid="ignore"):  # each pass's coefficient in the slope
+        coef = np.where(np.isfinite(z) & fit_ok, weights * (fbar[:, None] - fm) * var_b, 0.0)
+    wheels = _slope_wheel_sets(passes, np.nan_to_num(coef), fbar)
+    losses = zone_depths(trk, *band)[0]
+    depths = cfg.reference_load_n * sum(
+        alpha * zone_depths(trk, *band, o)[1] / point_load_factor(trk, o, *band)
+        for o, alpha in wheels
     )
     dip_mm = -cfg.reference_load_n * b  # level dip under the reference load (negative = soft)
     dip_sd = cfg.reference_load_n * sd_b
@@ -424,7 +501,7 @@ def separate(
     k_lo = np.where(separable, 1.0 - min_loss, np.nan)
     k_hi = np.where(separable, 1.0, np.nan)
     if separable.any():
-        spots = _soft_spots(grid, np.where(separable, dip_mm, np.nan), dip_sd, trk, cfg)
+        spots = _soft_spots(grid, np.where(separable, dip_mm, np.nan), dip_sd, trk, cfg, wheels)
         for s in spots:
             inside = (grid >= s.start_m) & (grid <= s.end_m)
             k_rel[inside] = 1.0 - s.loss_pct / 100
@@ -441,7 +518,6 @@ def separate(
         det = DetectionConfig()
         resid_level = mean_level - robust_baseline(mean_level, step, det.baseline_window_m)
         dips, _ = find_dips(grid, resid_level, det)
-    contributors = [(p.label, p.kind, float(fbar[j])) for j, p in enumerate(passes)]
     return SeparationResult(
         chainage_m=grid,
         geometry_mm=geometry,
@@ -462,14 +538,49 @@ def separate(
     )
 
 
+def _check_wheels(j: int, p: Pass) -> None:
+    """Pass ``j``'s wheel offsets: finite, some, within 10 m of the measured point."""
+    o = p.wheel_offsets_m
+    if len(o) == 0 or not all(math.isfinite(v) for v in o) or max(map(abs, o)) > 10.0:
+        raise ParameterError(
+            f"{p.label or f'pass {j} ({p.kind})'}: wheel_offsets_m must be the finite offsets "
+            f"of the measured point's wheels from it, m, within 10 m, got {o!r}",
+            field="wheel_offsets_m",
+        )
+
+
+def _slope_wheel_sets(
+    passes: Sequence[Pass], a: NDArray[np.float64], fbar: NDArray[np.float64]
+) -> tuple[tuple[tuple[float, ...], float], ...]:
+    """What the fitted slope is made of: per set of wheels (offsets, m) its share ``alpha``.
+
+    The slope is ``b = sum_j a_j z_j`` with ``a_j = w_j (Fbar_j - Fmean) / Sxx``, so each
+    pass's compliance dip enters it with ``alpha_j = a_j Fbar_j`` (summing to 1): with a
+    coach at half a wagon's load, the wagon's wheels with about 2 and the coach's with
+    about -1. ``a`` (passes x points) is zero at the points not used; ``alpha`` is averaged
+    over the points used and summed per set of wheels.
+    """
+    used = max(int(np.any(a != 0, axis=0).sum()), 1)
+    alpha = np.nan_to_num(a * fbar[:, None]).sum(axis=1) / used
+    by_wheels: dict[tuple[float, ...], float] = {}
+    for p, v in zip(passes, alpha, strict=True):
+        key = tuple(float(o) for o in p.wheel_offsets_m)
+        by_wheels[key] = by_wheels.get(key, 0.0) + float(v)
+    sets = tuple((k, v) for k, v in by_wheels.items() if v != 0.0)
+    return sets or (((0.0,), 1.0),)
+
+
 def _soft_spots(
     grid: NDArray[np.float64],
     dip_mm: NDArray[np.float64],
     dip_sd: NDArray[np.float64],
     trk: TrackParams,
     cfg: SeparationConfig,
+    wheels: tuple[tuple[tuple[float, ...], float], ...] = (((0.0,), 1.0),),
 ) -> list[SeparatedSpot]:
-    """Significant compliance dips, fitted with the beam-on-supports model."""
+    """Significant compliance dips, fitted with the beam-on-supports model under the blend
+    of wheels the slope is made of (:func:`_slope_wheel_sets`), each set's force the
+    equivalent of the reference load."""
     step = float(grid[1] - grid[0])
     resid = dip_mm - robust_baseline(dip_mm, step, 40.0)
     spread = robust_sigma(resid)
@@ -478,13 +589,18 @@ def _soft_spots(
     # local threshold: scale by the local standard deviation before the detector
     scaled = resid / sd_eff
     cand, _ = find_dips(grid, scaled, replace(det, noise_factor=1.0, min_depth_mm=cfg.noise_factor))
+    band = (cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper)
+    sets = tuple(
+        (o, alpha * cfg.reference_load_n / (len(o) * point_load_factor(trk, o, *band)))
+        for o, alpha in wheels
+    )
     load = cfg.reference_load_n
     half = 0.5 * trk.spacing
     out: list[SeparatedSpot] = []
     for d in cand:
         with np.errstate(divide="ignore", invalid="ignore"):
             f = fit_zone(grid, resid, d.start_m, d.end_m, trk, load, cfg.lambda_min_m,
-                         cfg.lambda_max_m, taper=cfg.taper)  # fmt: skip
+                         cfg.lambda_max_m, taper=cfg.taper, wheel_sets=sets)  # fmt: skip
         if not math.isfinite(f.loss) or f.loss < cfg.min_loss:
             continue
         zone = (grid >= f.start_m - 3.0) & (grid <= f.end_m + 3.0)
@@ -495,9 +611,11 @@ def _soft_spots(
         shallower = np.where(near, resid + shift, resid)
         with np.errstate(divide="ignore", invalid="ignore"):  # a loss scanned down to 0
             hi = fit_zone(grid, deeper, f.start_m, f.end_m, trk, load, cfg.lambda_min_m,
-                          cfg.lambda_max_m, taper=cfg.taper, refine_extent=False)  # fmt: skip
+                          cfg.lambda_max_m, taper=cfg.taper, refine_extent=False,
+                          wheel_sets=sets)  # fmt: skip
             lo = fit_zone(grid, shallower, f.start_m, f.end_m, trk, load, cfg.lambda_min_m,
-                          cfg.lambda_max_m, taper=cfg.taper, refine_extent=False)  # fmt: skip
+                          cfg.lambda_max_m, taper=cfg.taper, refine_extent=False,
+                          wheel_sets=sets)  # fmt: skip
         if lo.loss <= 0.0:
             continue
         k = int(np.argmin(np.abs(grid - d.peak_m)))

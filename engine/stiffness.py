@@ -249,6 +249,7 @@ def fit_zone(
     taper: float = 0.3,
     refine_extent: bool = True,
     wheel_offsets_m: tuple[float, ...] = (0.0,),
+    wheel_sets: tuple[tuple[tuple[float, ...], float], ...] | None = None,
 ) -> ZoneFit:
     """Fit start, end and stiffness loss of one soft zone to the measured profile.
 
@@ -275,6 +276,11 @@ def fit_zone(
         ``(+a/2, -a/2)`` for a bogie of wheelbase ``a``. Each carries ``load``; the profile
         is the mean of the rail levels under them, each the superposition of every wheel's
         deflection basin.
+    wheel_sets : tuple of (offsets, load), optional
+        Instead of ``wheel_offsets_m`` and ``load``: several sets of wheels, each with the
+        load of each of its wheels (N; negative subtracts); the modelled dip is the sum of
+        the sets' dips. The separation's compliance dip is such a blend of its passes'
+        wheels.
 
     Notes
     -----
@@ -289,13 +295,15 @@ def fit_zone(
     ``s(x) = sum_k b(x + o_k)``: the single-load formula with ``b`` replaced by ``s`` and the
     load by ``P/n``.
     """
-    offsets = np.asarray(wheel_offsets_m, dtype=float)
-    if offsets.ndim != 1 or offsets.size == 0 or not np.all(np.isfinite(offsets)):
-        raise ParameterError(
-            f"wheel_offsets_m must be one or more finite offsets, m, got {wheel_offsets_m!r}",
-            field="wheel_offsets_m",
-        )
-    reach = float(np.max(np.abs(offsets)))
+    sets = [(np.asarray(o, dtype=float), float(w))
+            for o, w in (wheel_sets or ((wheel_offsets_m, load),))]  # fmt: skip
+    for offsets, _ in sets:
+        if offsets.ndim != 1 or offsets.size == 0 or not np.all(np.isfinite(offsets)):
+            raise ParameterError(
+                f"wheel_offsets_m must be one or more finite offsets, m, got {offsets.tolist()!r}",
+                field="wheel_offsets_m",
+            )
+    reach = max(float(np.max(np.abs(o))) for o, _ in sets)
     step = float(grid[1] - grid[0])
     s = params.spacing
     span = lambda_max * (1 + taper) + 5.0
@@ -315,9 +323,12 @@ def fit_zone(
     # the change of level is b^T (...) b with b the influence of the candidate supports:
     # it has decayed to ~1e-7 of its peak 12 m away (exp(-beta x), beta ~ 1.3 /m)
     near = (g >= sup_x[0] - 12.0 - reach) & (g <= sup_x[-1] + 12.0 + reach)
-    B = np.zeros((sup_x.size, int(near.sum())))  # (m, g near): the wheels' summed influence
-    for o in offsets:
-        B += infl(g[near][None, :] + o - sup_x[:, None])
+    Bs = []  # per set (m, g near): its wheels' summed influence
+    for offsets, _ in sets:
+        B = np.zeros((sup_x.size, int(near.sum())))
+        for o in offsets:
+            B += infl(g[near][None, :] + o - sup_x[:, None])
+        Bs.append(B)
     Fss = infl(sup_x[None, :] - sup_x[:, None])
     fit_w = ok & (
         np.abs(g - 0.5 * (start_m + end_m)) <= 0.5 * (end_m - start_m) + 2 * lambda_min + 2
@@ -329,13 +340,19 @@ def fit_zone(
 
     def modes(a: float, b: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         pick = np.flatnonzero((sup_x >= a - 1e-6) & (sup_x <= b + 1e-6))
-        return softening_modes(Fss[np.ix_(pick, pick)], B[pick], bp_fit)
+        # the dip is linear in each set's squared modal influence (modal_dips): weight them
+        E = None
+        for (offsets, w), B in zip(sets, Bs, strict=True):
+            lam, E_k = softening_modes(Fss[np.ix_(pick, pick)], B[pick], bp_fit)
+            E = E_k * (w / offsets.size) if E is None else E + E_k * (w / offsets.size)
+        assert E is not None
+        return lam, E
 
     def dips(
         mode: tuple[NDArray[np.float64], NDArray[np.float64]], losses: NDArray[np.float64]
     ) -> NDArray[np.float64]:
         """Band-passed modelled dips at the fitted columns, one row per loss, mm."""
-        return modal_dips(*mode, losses, kn, load / offsets.size)
+        return modal_dips(*mode, losses, kn, 1.0)
 
     tried: dict[tuple[float, float], tuple[float, float]] = {}
 

@@ -19,10 +19,17 @@ from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
 from app.db.models import Calibration, Run, RunInput, Vehicle
-from engine.calibration import CalibrationConfig, CalibrationRun, calibrate
+from engine.calibration import (
+    FITTABLE,
+    CalibrationConfig,
+    CalibrationRun,
+    calibrate,
+    held_vehicle,
+)
 from engine.errors import ParameterError
 from engine.health import HealthAlert, ParameterEstimate, health_alerts
-from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import Vehicle as EngineVehicle
+from engine.vehicle_kinds import vehicle_from_dict
 from engine.vehicle_plausibility import VehicleImplausible, implausibilities
 
 from .errors import Conflict, Invalid, NotFound
@@ -35,8 +42,12 @@ log = logging.getLogger(__name__)
 ACTIVE = ("queued", "running")
 """States of a calibration that is not finished."""
 
-HEALTH_PARAMETERS = ("Is", "ks1", "ks2", "cs1", "cs2")
-"""Vehicle parameters whose calibrated history is watched (suspension and body)."""
+HEALTH_PARAMETERS = tuple(
+    sorted({t for f in FITTABLE.values() if f.kind == "scale" for t in (*f.targets, *f.bogie)})
+)
+"""Vehicle parameters whose calibrated history is watched (suspension and body): every
+parameter a scale quantity of calibration moves, on any kind (a half car's Is, ks1, ks2, cs1,
+cs2; a bogie vehicle's pitch inertia, secondary and primary)."""
 
 
 def _config(fit: list[str] | None, load_kg: float | None) -> CalibrationConfig:
@@ -67,7 +78,9 @@ def request_calibration(
     run_ids : list of int, optional
         Runs to use (default: every processed run of the vehicle whose log is stored).
     fit : list of str, optional
-        Quantities to fit (names of ``engine.calibration.FITTABLE``; default I_s, k_s1, k_s2).
+        Quantities to fit (names of ``engine.calibration.FITTABLE`` the vehicle's kind has;
+        default ``engine.calibration.DEFAULT_FIT_BY_KIND``: I_s, k_s1, k_s2 on a half car,
+        I_s and the secondary k_s on a bogie vehicle).
     apply : bool
         Make a significant result the vehicle's next version and reprocess its runs.
     load_kg : float, optional
@@ -80,17 +93,19 @@ def request_calibration(
     Conflict
         A calibration of this vehicle is already queued or running.
     """
-    if vehicle.kind != "half_car":
-        # the calibration's fittable quantities (I_s, k_s1, k_s2, ...) are the half car's
-        raise Invalid(
-            f"vehicle {vehicle.name!r} is a {vehicle.kind} vehicle; calibration fits half-car "
-            "parameters only (edit the vehicle's parameters instead)",
-            field="vehicle",
-        )
-    _config(fit, load_kg)  # checked now, so a bad request changes nothing
+    # checked now, so a bad request changes nothing
+    registered = vehicle_from_dict(vehicle.params_dict())
+    try:
+        _config(fit, load_kg).fit_for(registered.kind)
+    except ParameterError as exc:
+        raise Invalid.from_engine(exc, field="fit") from None
     if load_kg is not None:
         # the body mass must make a vehicle with the rest (and lie in its own range)
-        checked_params(vehicle.params_dict() | {"ms": load_kg}, field="load_kg")
+        try:
+            held = held_vehicle(registered, load_kg)
+        except ParameterError as exc:
+            raise Invalid.from_engine(exc, field="load_kg") from None
+        checked_params(held.to_dict(), field="load_kg")
     if run_ids is not None:
         if not run_ids:
             raise Invalid(
@@ -211,13 +226,12 @@ def maybe_auto_calibrate(session: Session, vehicle_id: int, every_n_runs: int) -
 
 def calibration_inputs(
     session: Session, cal: Calibration
-) -> tuple[VehicleParams, int, list[CalibrationRun], datetime | None, datetime | None]:
+) -> tuple[EngineVehicle, int, list[CalibrationRun], datetime | None, datetime | None]:
     """The registered vehicle (and its version) and the stored runs a calibration uses."""
     vehicle = session.get(Vehicle, cal.vehicle_id)
     assert vehicle is not None
-    vp = VehicleParams.from_dict(vehicle.params_dict())
-    load_kg = cal.request.get("load_kg")
-    held = vp if load_kg is None else vp.replace(ms=load_kg)
+    vp = vehicle_from_dict(vehicle.params_dict())
+    held = held_vehicle(vp, cal.request.get("load_kg"))
     runs: list[CalibrationRun] = []
     times: list[datetime] = []
     for run_id in cal.request.get("run_ids") or []:
@@ -245,7 +259,7 @@ def calibration_inputs(
 
 
 def fit_calibration(
-    vehicle: VehicleParams, runs: list[CalibrationRun], request: dict[str, Any]
+    vehicle: EngineVehicle, runs: list[CalibrationRun], request: dict[str, Any]
 ) -> dict[str, Any]:
     """Run the engine's calibration; the stored result (JSON-safe)."""
     cfg = _config(request.get("fit"), request.get("load_kg"))
@@ -279,10 +293,9 @@ def store_calibration(
                 f"not applied: the vehicle changed meanwhile (version {base_version} -> "
                 f"{vehicle.version}); calibrate again"
             )
-        elif found := implausibilities(VehicleParams.from_dict(result["params"])):
+        elif found := implausibilities(params := vehicle_from_dict(result["params"]), params.kind):
             result["apply_note"] = "not applied: " + VehicleImplausible(found).args[0]
         else:
-            params = VehicleParams.from_dict(result["params"])
             version, queued = new_version(
                 session, vehicle, params, source="calibration",
                 created_by=cal.created_by or ("automatic" if cal.automatic else None),

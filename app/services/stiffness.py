@@ -43,6 +43,7 @@ from app.db.models import (
     TrackStiffness,
     TrackStiffnessSpot,
     Vehicle,
+    VehicleVersion,
 )
 from engine.errors import EngineError
 from engine.separation import (
@@ -50,9 +51,11 @@ from engine.separation import (
     Pass,
     SeparationConfig,
     SeparationResult,
+    load_limited,
     separate,
 )
 from engine.track import TrackParams
+from engine.vehicle_kinds import vehicle_from_dict
 
 from .aggregate import CHUNK_POINTS, newest_runs
 from .alignment import GRID_STEP_M
@@ -115,6 +118,9 @@ class PassLevels:
     id: int
     level_mm: NDArray[np.float64]
     force_n: NDArray[np.float64]
+    wheel_offsets_m: tuple[float, ...] = (0.0,)
+    """The wheels sharing ``force_n`` about the measured point, m (a bogie's two; a survey's
+    and a half car's axle: one)."""
 
     @property
     def label(self) -> str:
@@ -163,6 +169,7 @@ def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[P
         part = _unblob(levels)
         lv[at : at + CHUNK_POINTS] = part
         fv[at : at + CHUNK_POINTS] = np.where(np.isfinite(part), float(load), np.nan)
+    wheels = _run_wheels(session, [pid for kind, pid in passes if kind == "run"])
     out = []
     for (kind, pid), (lv, fv) in sorted(passes.items()):
         # A wheel force that is not a compression (a pass stored under a vehicle that was not
@@ -173,7 +180,33 @@ def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[P
         fv[~np.isfinite(lv)] = np.nan
         lv[~np.isfinite(fv)] = np.nan
         if np.isfinite(lv).any():
-            out.append(PassLevels(kind, pid, lv, fv))
+            one = wheels.get(pid, (0.0,)) if kind == "run" else (0.0,)  # a survey: a point load
+            out.append(PassLevels(kind, pid, lv, fv, one))
+    return out
+
+
+def _run_wheels(session: Session, run_ids: list[int]) -> dict[int, tuple[float, ...]]:
+    """Each run's wheels about its measured point (m), from the vehicle version that made its
+    results (the vehicle's current parameters where that version is not stored)."""
+    if not run_ids:
+        return {}
+    rows = session.execute(
+        select(Run.id, Run.vehicle_version, Vehicle)
+        .join(Vehicle, Vehicle.id == Run.vehicle_id)
+        .where(Run.id.in_(run_ids))
+    ).all()
+    versions = {
+        (vid, ver): prm
+        for vid, ver, prm in session.execute(
+            select(VehicleVersion.vehicle_id, VehicleVersion.version, VehicleVersion.params).where(
+                VehicleVersion.vehicle_id.in_({v.id for _, _, v in rows})
+            )
+        )
+    }
+    out: dict[int, tuple[float, ...]] = {}
+    for rid, ver, veh in rows:
+        prm = versions.get((veh.id, ver if ver is not None else veh.version), veh.params_dict())
+        out[int(rid)] = tuple(vehicle_from_dict(prm).axle_wheel_offsets_m[0])
     return out
 
 
@@ -249,7 +282,7 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
             res = separate(
                 [
                     Pass(chainage_m=grid, level_mm=p.level_mm, force_n=p.force_n, kind=p.kind,
-                         label=p.label)
+                         label=p.label, wheel_offsets_m=p.wheel_offsets_m)
                     for p in passes
                 ],
                 params,
@@ -513,12 +546,10 @@ def not_separable_stretches(
 ) -> list[Stretch]:
     """The covered stretches that are not separable, each with its reason (see :class:`Stretch`);
     a gap in the coverage or a change of reason starts a new one."""
-    cfg = SeparationConfig()
     lacking = (n_passes > 0) & ~separable
     if not lacking.any():
         return []
-    with np.errstate(invalid="ignore"):
-        load = (n_passes < cfg.min_passes) | ~(load_ratio >= cfg.min_load_ratio)
+    load = load_limited(n_passes, load_ratio)
     out: list[Stretch] = []
     idx = np.flatnonzero(lacking)
     start = prev = int(idx[0])

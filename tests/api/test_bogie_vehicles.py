@@ -77,12 +77,20 @@ def test_bogie_presets(client) -> None:
     assert r.json()["params"]["wheelbase_m"] == FREIGHT_WAGON.wheelbase_m
 
 
-def test_calibrating_a_bogie_vehicle_is_refused(client) -> None:
-    """Calibration fits half-car quantities: a bogie vehicle gets a 422 naming the vehicle."""
+def test_calibrating_a_bogie_vehicle_asks_for_its_own_quantities(client, settings) -> None:
+    """A bogie vehicle is calibrated with its kind's quantities: ks1 (its bogies share one
+    secondary) is a 422 naming fit and saying what it has; with no run to calibrate from, a
+    422 naming run_ids; nothing stored either way."""
     client.post("/api/v1/vehicles", json={"name": "coach-1", "params": COACH})
+    before = row_counts(settings)
+    r = client.post("/api/v1/vehicles/coach-1/calibrate", json={"fit": ["Is", "ks1"]})
+    assert r.status_code == 422, r.text
+    assert r.json()["detail"]["field"] == "fit"
+    assert "ks1" in r.json()["detail"]["message"] and "kp" in r.json()["detail"]["message"]
     r = client.post("/api/v1/vehicles/coach-1/calibrate", json={})
     assert r.status_code == 422, r.text
-    assert r.json()["detail"]["field"] == "vehicle"
+    assert r.json()["detail"]["field"] == "run_ids"
+    assert row_counts(settings) == before
 
 
 @pytest.mark.slow
