@@ -296,14 +296,50 @@ export function limitsCard(enc, onSaved) {
   return { section, load };
 }
 
-/** A notice listing the runs that could not be aligned (kept out of the register). */
+const NOTICE_RUNS = 10; // runs named in a notice; the others counted
+
+// What each alignment status (the API's RunAlignmentPublic.status) means for the track's
+// register: a reference or an aligned run needs no word; the others are listed with why.
+const ALIGNMENT_NOTES = {
+  reference: null,
+  aligned: null,
+  placed: {
+    id: "placed-runs",
+    kind: "info",
+    lead: (n) => `${n === 1 ? "1 run is" : `${n} runs are`} in the aggregated profile and the register at the chainage ${n === 1 ? "its log (or its GNSS fixes) gave" : "their logs (or their GNSS fixes) gave"}, not yet matched to the track's profile: ${n === 1 ? "its" : "their"} position is as uncertain as that start, and ${n === 1 ? "it is" : "they are"} aligned again as the track gains passes: `,
+  },
+  unaligned: {
+    id: "unaligned-runs",
+    kind: "warning",
+    reasons: true,
+    lead: (n) => `${n === 1 ? "1 run was" : `${n} runs were`} not aligned to this track and ${n === 1 ? "is" : "are"} left out of the aggregated profile and the register: `,
+  },
+};
+
+/**
+ * The notices of the track's runs whose alignment status needs a word (placed, unaligned, or
+ * a status this page does not know), each listing its runs with the reason; null when every
+ * run is a reference or aligned.
+ */
 export function alignmentNotice(runs) {
-  const bad = runs.filter((r) => r.alignment && r.alignment.status === "unaligned");
-  if (!bad.length) return null;
-  const box = h("div", { class: "message warning", role: "status", id: "unaligned-runs" });
-  append(box, [
-    `${bad.length} run${bad.length === 1 ? " was" : "s were"} not aligned to this track and ${bad.length === 1 ? "is" : "are"} left out of the aggregated profile and the register: `,
-    bad.map((r, i) => [i ? "; " : "", h("a", { href: `#/runs/${encodeURIComponent(r.id)}` }, `run ${r.id}`), ` (${r.alignment.reason || "no reason given"})`]),
-  ]);
-  return box;
+  const byStatus = new Map();
+  for (const r of runs) {
+    const st = r.alignment && r.alignment.status;
+    if (!st || ALIGNMENT_NOTES[st] === null) continue;
+    if (!byStatus.has(st)) byStatus.set(st, []);
+    byStatus.get(st).push(r);
+  }
+  if (!byStatus.size) return null;
+  const wrap = h("div", { id: "alignment-notices" });
+  for (const [st, list] of byStatus) {
+    const note = ALIGNMENT_NOTES[st] || {
+      id: `${st}-runs`, kind: "warning", reasons: true, lead: (n) => `${n === 1 ? "1 run has" : `${n} runs have`} the alignment status “${st}”: `,
+    };
+    const shown = list.slice(0, NOTICE_RUNS);
+    wrap.append(h("div", { class: `message ${note.kind}`, role: "status", id: note.id },
+      note.lead(list.length),
+      shown.map((r, i) => [i ? "; " : "", h("a", { href: `#/runs/${encodeURIComponent(r.id)}` }, `run ${r.id}`), note.reasons && r.alignment.reason ? ` (${r.alignment.reason})` : ""]),
+      list.length > shown.length ? ` and ${list.length - shown.length} more` : "", "."));
+  }
+  return wrap;
 }

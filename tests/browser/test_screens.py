@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 from browser.harness import LiveServer, axe_source, axe_violations, wait_for_plot
+from playwright.sync_api import expect
 
 pytestmark = pytest.mark.browser
 
@@ -154,3 +155,75 @@ def test_no_serious_axe_violation_on_the_changed_pages(
             wait_for_plot(page, "#chainage-map")
         found[url] = axe_violations(page, src)
     assert not any(found.values()), found
+
+
+def test_a_track_being_reprocessed_reads_as_updating_then_loads(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any]
+) -> None:
+    """The register answered 409 ``status: "updating"`` (a vehicle edit reprocessing the
+    track's runs) twice: the page says "Updating — N runs left" with the server's count, no
+    error, and shows the register once the read succeeds; the notice then goes away."""
+    answers = [3, 2]
+    seen: list[int] = []
+
+    def defects(route: Any) -> None:
+        if answers:
+            left = answers.pop(0)
+            seen.append(left)
+            route.fulfill(
+                status=409,
+                content_type="application/json",
+                body=json.dumps(
+                    {
+                        "detail": {
+                            "message": "the track is updating",
+                            "status": "updating",
+                            "runs_left": left,
+                        }
+                    }
+                ),  # fmt: skip
+            )
+        else:
+            route.continue_()
+
+    page.route("**/api/v1/tracks/*/defects", defects)
+    page.goto(f"{live_server.url}/#/tracks/{geo_track['id']}")
+    updating = page.locator("#updating")
+    expect(updating).to_contain_text("Updating — 3 runs left")
+    expect(updating).to_contain_text("Updating — 2 runs left")
+    page.wait_for_selector("#zone-table tbody tr")
+    expect(updating).to_be_hidden()
+    assert seen == [3, 2]
+    assert "Cannot load" not in page.locator("main").inner_text()
+    assert len([r for r in register_rows(page) if r["Evidence"].startswith("separated")]) == 3
+    page.watch.assert_clean()
+
+
+def test_alignment_notice_names_every_status(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any]
+) -> None:
+    """The track page's notice of runs: a placed run is said to be in the register at its
+    logged (or GNSS) chainage, an unaligned one to be left out with its reason; reference and
+    aligned runs get no notice (the runs list's statuses are set here to one of each)."""
+    statuses = ["reference", "aligned", "placed", "unaligned"]
+
+    def runs(route: Any) -> None:
+        body = route.fetch().json()
+        for r, st in zip(body["data"], statuses, strict=False):
+            r["alignment"] = {"status": st, "offset_m": 0.0, "correlation": None,
+                              "overlap_m": None, "reason": f"why {st}"}  # fmt: skip
+        route.fulfill(json=body)
+
+    page.route("**/api/v1/runs?track=*", runs)
+    page.goto(f"{live_server.url}/#/tracks/{geo_track['id']}")
+    page.wait_for_selector("#alignment-notices")
+    placed = page.locator("#placed-runs").inner_text()
+    assert placed.startswith("1 run is in the aggregated profile and the register")
+    assert "aligned again as the track gains passes" in placed
+    unaligned = page.locator("#unaligned-runs").inner_text()
+    assert unaligned.startswith("1 run was not aligned to this track and is left out")
+    assert "why unaligned" in unaligned
+    notices = page.locator("#alignment-notices").inner_text()
+    assert "why reference" not in notices and "why aligned" not in notices
+    assert page.locator("#alignment-notices .message").count() == 2
+    page.watch.assert_clean()
