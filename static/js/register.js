@@ -2,7 +2,7 @@
 // profile plot, the alerts since a date, the limits form and the export links. Every value
 // from the API is shown through text nodes (h(), textContent); nothing is parsed as HTML.
 
-import { h, clear, append, announce, fmt, fmtDay, fmtKm, fmtKmRange, field, messageBox } from "./dom.js";
+import { h, clear, append, announce, fmt, fmtDay, fmtKm, fmtKmRange, field, messageBox, scrollTable } from "./dom.js";
 import { ApiError, apiFetch, apiSchema } from "./api.js";
 import { applyBounds, clearFieldErrors, numberProblem, showFieldError, showServerErrors } from "./formerrors.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, TERMS } from "./plots.js";
@@ -193,7 +193,7 @@ export function alertsCard(enc, getDefects = null) {
       h("td", {}, evidenceOf(d))));
     out.append(
       h("p", { class: "small", id: "alerts-count" }, `${alerts.length} defect${alerts.length === 1 ? "" : "s"} reached a limit since ${since}.`),
-      h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": `Alerts since ${since}` }, h("table", { class: "data", id: "alerts-table" },
+      scrollTable(`Alerts since ${since}`, h("table", { class: "data", id: "alerts-table" },
         h("caption", { class: "visually-hidden" }, `Defects that reached a limit since ${since}`),
         h("thead", {}, h("tr", {}, [["Priority", 1], ["Level"], ["Since"], ["Zone", 1], ["Depth (mm)", 1], ["Loss (%)", 1], ["Status"], ["Evidence"]].map(([t, num]) => h("th", { scope: "col", class: num ? "num" : null }, t)))),
         h("tbody", {}, rows))),

@@ -227,3 +227,24 @@ def test_alignment_notice_names_every_status(
     assert "why reference" not in notices and "why aligned" not in notices
     assert page.locator("#alignment-notices .message").count() == 2
     page.watch.assert_clean()
+
+
+@pytest.mark.parametrize("width", [1280, 390])
+def test_no_serious_axe_violation_on_vehicle_pages_and_report(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any], width: int
+) -> None:
+    """axe-core: no serious or critical violation on the vehicle list, a vehicle's page and
+    the track's HTML report, at desktop and phone width."""
+    page.set_viewport_size({"width": width, "height": 900})
+    src = axe_source()
+    found = {}
+    for url, ready in (
+        ("/#/vehicles", "main h1"),
+        ("/#/vehicles/table1", "main h1"),
+        (f"/api/v1/tracks/{geo_track['id']}/report", "h1"),
+    ):
+        page.goto(f"{live_server.url}{url}")
+        page.wait_for_selector(ready)
+        page.wait_for_load_state("networkidle")
+        found[url] = axe_violations(page, src)
+    assert not any(found.values()), found
