@@ -1,0 +1,123 @@
+"""The history of a track's separations: what each successive separation said of a soft spot.
+
+The separation (``app.services.stiffness``) keeps only its newest soft spots; this module keeps
+the earlier results beside them, so that the register can trend a separated defect and date
+its sightings (``app.services.register.separated_observations``). A separation opens a new
+entry for a spot when the passes it adds to those the spot's latest entry opened with span two
+wheel loads by themselves: an independent pair of passes, new evidence of the support's state.
+Anything less (one more pass of a load already there, a reprocess after a vehicle edit, a
+deleted pass) refines the latest entry: the same evidence, separated again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.db.models import TrackSeparationHistory
+from engine.register import RegisterConfig, count_loads
+from engine.separation import SeparationConfig
+
+LOAD_RATIO = SeparationConfig().min_load_ratio
+"""Wheel loads this ratio apart count as distinct: the separation's own threshold."""
+
+JOIN_GAP_M = RegisterConfig().join_gap_m
+"""Extents closer than this are one soft spot: the register's own merging distance, m."""
+
+SEARCH_M = 100.0
+"""Reach of the search for a spot's entries around its extent, m (longer than any spot)."""
+
+FIGURES = ("start_m", "end_m", "peak_m", "loss_pct", "depth_mm", "loss_lo_pct", "loss_hi_pct")
+"""The figures of a separated spot an entry keeps (``TrackStiffnessSpot`` columns)."""
+
+Key = tuple[str, int]
+
+
+def pass_key(entry: Mapping[str, Any]) -> Key:
+    """A support entry's pass (``{"kind", "id", ...}``) as ``(kind, id)``."""
+    return str(entry["kind"]), int(entry["id"])
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One separation of a soft spot (aligned chainage m, loss %, depth mm at the reference
+    load): the passes behind it (``support``, ``{"kind", "id", "force_n"}`` each) and the
+    passes it opened with (``base``)."""
+
+    start_m: float
+    end_m: float
+    peak_m: float
+    loss_pct: float
+    depth_mm: float | None
+    loss_lo_pct: float | None
+    loss_hi_pct: float | None
+    support: tuple[Mapping[str, Any], ...]
+    base: frozenset[Key]
+
+    def overlaps(self, start_m: float, end_m: float) -> bool:
+        """Whether this entry is of the spot over ``[start_m, end_m]`` (m)."""
+        return _same_spot(self.start_m, self.end_m, start_m, end_m)
+
+
+def _same_spot(a_start: float, a_end: float, b_start: float, b_end: float) -> bool:
+    return a_start <= b_end + JOIN_GAP_M and b_start <= a_end + JOIN_GAP_M
+
+
+def _opens(row: TrackSeparationHistory, support: Sequence[Mapping[str, Any]]) -> bool:
+    base = {(str(k), int(i)) for k, i in row.base}
+    added = [e.get("force_n") for e in support if pass_key(e) not in base]
+    return count_loads(added, LOAD_RATIO) >= 2
+
+
+def record_separation(session: Session, track_id: int, spots: Sequence[Mapping[str, Any]]) -> None:
+    """Add the soft spots a separation has just stored (``TrackStiffnessSpot`` columns with
+    ``support``) to the track's history: each opens a new entry or refines its spot's latest
+    (see the module's description). Caller's transaction."""
+    if not spots:
+        return
+    lo = min(s["start_m"] for s in spots) - SEARCH_M
+    hi = max(s["end_m"] for s in spots) + SEARCH_M
+    h = TrackSeparationHistory
+    rows = list(
+        session.scalars(
+            select(h).where(h.track_id == track_id, h.peak_m >= lo, h.peak_m <= hi).order_by(h.id)
+        )
+    )
+    for spot in spots:
+        support = list(spot["support"])
+        mine = [r for r in rows if _same_spot(r.start_m, r.end_m, spot["start_m"], spot["end_m"])]
+        latest = mine[-1] if mine else None
+        figures = {k: spot[k] for k in FIGURES}
+        if latest is not None and not _opens(latest, support):
+            for k, v in figures.items():
+                setattr(latest, k, v)
+            latest.support = support
+            continue
+        base = sorted([k, i] for k, i in {pass_key(e) for e in support})
+        row = h(track_id=track_id, **figures, support=support, base=base)
+        session.add(row)
+        rows.append(row)
+    session.flush()
+
+
+def track_history(session: Session, track_id: int) -> list[Entry]:
+    """Every entry of the track's separation history, oldest first."""
+    h = TrackSeparationHistory
+    return [
+        Entry(
+            r.start_m,
+            r.end_m,
+            r.peak_m,
+            r.loss_pct,
+            r.depth_mm,
+            r.loss_lo_pct,
+            r.loss_hi_pct,
+            tuple(r.support),
+            frozenset((str(k), int(i)) for k, i in r.base),
+        )  # fmt: skip
+        for r in session.scalars(select(h).where(h.track_id == track_id).order_by(h.id))
+    ]
