@@ -57,8 +57,8 @@ export const REGISTER_COLUMNS = [
   { key: "runs_seen", label: "Evidence", title: "What supports the defect: single passes, or the separation of geometry from stiffness across passes of different wheel loads (passes that support it of the runs covering it)", get: (d) => d.runs_seen, show: evidenceOf },
   { key: "depth_mm", label: "Depth (mm)", title: TERMS.depth, num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
   { key: "stiffness_loss_pct", label: "Loss (%)", title: `${TERMS.loss} (with its band where the separation gives one)`, num: true, get: (d) => d.stiffness_loss_pct, show: lossOf },
-  { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month (— until two runs saw the defect)", num: true, get: (d) => trendOf(d, "trend_mm_per_month"), show: (d) => signed(trendOf(d, "trend_mm_per_month"), 3) },
-  { key: "trend_loss_pct_per_month", label: "Trend (%/mo)", title: "Stiffness-loss trend, percentage points per month (— until two runs saw the defect)", num: true, get: (d) => trendOf(d, "trend_loss_pct_per_month"), show: (d) => signed(trendOf(d, "trend_loss_pct_per_month"), 1) },
+  { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month (— until two runs, or two successive separations, saw the defect)", num: true, get: (d) => trendOf(d, "trend_mm_per_month"), show: (d) => signed(trendOf(d, "trend_mm_per_month"), 3) },
+  { key: "trend_loss_pct_per_month", label: "Trend (%/mo)", title: "Stiffness-loss trend, percentage points per month (— until two runs, or two successive separations, saw the defect)", num: true, get: (d) => trendOf(d, "trend_loss_pct_per_month"), show: (d) => signed(trendOf(d, "trend_loss_pct_per_month"), 1) },
   { key: "first_seen", label: "First seen", get: (d) => d.first_seen || "", show: (d) => fmtDay(d.first_seen) },
   { key: "last_seen", label: "Last seen", get: (d) => d.last_seen || "", show: (d) => fmtDay(d.last_seen) },
 ];

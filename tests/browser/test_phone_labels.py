@@ -3,6 +3,7 @@ spots must not print their labels over one another."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -30,7 +31,11 @@ def close_spots_run(live_server: LiveServer) -> dict[str, Any]:
 
 @pytest.mark.parametrize("width", [390, 1280])
 def test_soft_spot_labels_do_not_overlap(
-    page: Any, live_server: LiveServer, close_spots_run: dict[str, Any], width: int
+    page: Any,
+    live_server: LiveServer,
+    close_spots_run: dict[str, Any],
+    width: int,
+    screenshots: Path,
 ) -> None:
     """Six soft spots 35 m apart on a 400 m run: every label drawn is clear of the others
     (boxes compared in the page), and at least half the spots keep a label."""
@@ -48,4 +53,7 @@ def test_soft_spot_labels_do_not_overlap(
         for b in boxes[i + 1 :]:
             apart = a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1]
             assert apart, (width, a, b)
+    if width == 390:
+        page.locator("#profile-plot").scroll_into_view_if_needed()
+        page.screenshot(path=str(screenshots / "run-phone.png"), full_page=False)
     page.watch.assert_clean()
