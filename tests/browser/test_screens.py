@@ -230,15 +230,20 @@ def test_alignment_notice_names_every_status(
 
 
 @pytest.mark.parametrize("width", [1280, 390])
-def test_no_serious_axe_violation_on_vehicle_pages_and_report(
+def test_no_serious_axe_violation_on_the_other_pages(
     page: Any, live_server: LiveServer, geo_track: dict[str, Any], width: int
 ) -> None:
-    """axe-core: no serious or critical violation on the vehicle list, a vehicle's page and
-    the track's HTML report, at desktop and phone width."""
+    """axe-core: no serious or critical violation on the home page, the track's quality
+    view, the simulate form, the vehicle list, a vehicle's page and the track's HTML report,
+    at desktop and phone width (the track, run, upload and plan views: the tests above and
+    test_gnss)."""
     page.set_viewport_size({"width": width, "height": 900})
     src = axe_source()
     found = {}
     for url, ready in (
+        ("/#/", "#runs-table"),
+        (f"/#/tracks/{geo_track['id']}/quality", "main h1"),
+        ("/#/simulate", "main form"),
         ("/#/vehicles", "main h1"),
         ("/#/vehicles/table1", "main h1"),
         (f"/api/v1/tracks/{geo_track['id']}/report", "h1"),
