@@ -231,7 +231,7 @@ def separated_observations(
         # the spot's earlier separations, each dated from the pass that completed its new
         # evidence; the current one is the latest entry's (or, before any history, the
         # spot's own passes)
-        entries = [e for e in history if e.overlaps(spot.start_m, spot.end_m)]
+        entries = history.of(spot.start_m, spot.end_m)
         at = complete_at(support, LOAD_RATIO)
         seen = frozenset[tuple[str, int]]()
         for i, e in enumerate(entries):

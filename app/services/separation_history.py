@@ -11,6 +11,7 @@ deleted pass) refines the latest entry: the same evidence, separated again.
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -104,20 +105,28 @@ def record_separation(session: Session, track_id: int, spots: Sequence[Mapping[s
     session.flush()
 
 
-def track_history(session: Session, track_id: int) -> list[Entry]:
-    """Every entry of the track's separation history, oldest first."""
+class TrackHistory:
+    """A track's separation history, looked up by a spot's extent."""
+
+    def __init__(self, entries: Sequence[tuple[int, Entry]]) -> None:
+        self._by_peak = sorted(entries, key=lambda ie: ie[1].peak_m)
+        self._peaks = [e.peak_m for _, e in self._by_peak]
+
+    def of(self, start_m: float, end_m: float) -> list[Entry]:
+        """The entries of the spot over ``[start_m, end_m]`` (m), oldest first."""
+        lo = bisect.bisect_left(self._peaks, start_m - SEARCH_M)
+        hi = bisect.bisect_right(self._peaks, end_m + SEARCH_M)
+        mine = [ie for ie in self._by_peak[lo:hi] if ie[1].overlaps(start_m, end_m)]
+        return [e for _, e in sorted(mine, key=lambda ie: ie[0])]
+
+
+def track_history(session: Session, track_id: int) -> TrackHistory:
+    """The track's separation history (every entry)."""
     h = TrackSeparationHistory
-    return [
-        Entry(
-            r.start_m,
-            r.end_m,
-            r.peak_m,
-            r.loss_pct,
-            r.depth_mm,
-            r.loss_lo_pct,
-            r.loss_hi_pct,
-            tuple(r.support),
-            frozenset((str(k), int(i)) for k, i in r.base),
-        )  # fmt: skip
-        for r in session.scalars(select(h).where(h.track_id == track_id).order_by(h.id))
-    ]
+    return TrackHistory([
+        (r.id, Entry(
+            r.start_m, r.end_m, r.peak_m, r.loss_pct, r.depth_mm, r.loss_lo_pct,
+            r.loss_hi_pct, tuple(r.support), frozenset((str(k), int(i)) for k, i in r.base),
+        ))
+        for r in session.scalars(select(h).where(h.track_id == track_id))
+    ])  # fmt: skip
