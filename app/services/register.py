@@ -38,7 +38,7 @@ from engine.separation import SeparationConfig
 
 from .aggregate import CHUNK_POINTS, _batches, aggregate_chunk_range, newest_levels
 from .alignment import GRID_STEP_M, MERGED_STATUSES
-from .separation_history import pass_key, track_history
+from .separation_history import pass_key, read_history
 from .stiffness import NOT_SEPARABLE, separable_intervals
 
 LOAD_RATIO = SeparationConfig().min_load_ratio
@@ -220,7 +220,7 @@ def separated_observations(
         )
     ):
         passes["survey", sid] = Support(sid, recorded or created, load, kind="survey")
-    history = track_history(session, track_id)
+    history = read_history(session, track_id)
     out = []
     for spot in spots:
         support = _supports(

@@ -12,13 +12,15 @@ deleted pass) refines the latest entry: the same evidence, separated again.
 from __future__ import annotations
 
 import bisect
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import insert, select, update
 from sqlalchemy.orm import Session
 
+from app.db.base import utcnow
 from app.db.models import TrackSeparationHistory
 from engine.register import RegisterConfig, count_loads
 from engine.separation import SeparationConfig
@@ -68,8 +70,7 @@ def _same_spot(a_start: float, a_end: float, b_start: float, b_end: float) -> bo
     return a_start <= b_end + JOIN_GAP_M and b_start <= a_end + JOIN_GAP_M
 
 
-def _opens(row: TrackSeparationHistory, support: Sequence[Mapping[str, Any]]) -> bool:
-    base = {(str(k), int(i)) for k, i in row.base}
+def _opens(base: frozenset[Key], support: Sequence[Mapping[str, Any]]) -> bool:
     added = [e.get("force_n") for e in support if pass_key(e) not in base]
     return count_loads(added, LOAD_RATIO) >= 2
 
@@ -82,27 +83,24 @@ def record_separation(session: Session, track_id: int, spots: Sequence[Mapping[s
         return
     lo = min(s["start_m"] for s in spots) - SEARCH_M
     hi = max(s["end_m"] for s in spots) + SEARCH_M
-    h = TrackSeparationHistory
-    rows = list(
-        session.scalars(
-            select(h).where(h.track_id == track_id, h.peak_m >= lo, h.peak_m <= hi).order_by(h.id)
-        )
-    )
+    history = read_history(session, track_id, lo, hi)
+    added, refined = [], []
+    now = utcnow()
     for spot in spots:
         support = list(spot["support"])
-        mine = [r for r in rows if _same_spot(r.start_m, r.end_m, spot["start_m"], spot["end_m"])]
-        latest = mine[-1] if mine else None
         figures = {k: spot[k] for k in FIGURES}
-        if latest is not None and not _opens(latest, support):
-            for k, v in figures.items():
-                setattr(latest, k, v)
-            latest.support = support
+        latest = history.latest(spot["start_m"], spot["end_m"])
+        if latest is not None and not _opens(latest[1].base, support):
+            refined.append({"id": latest[0], **figures, "support": support, "separated_at": now})
             continue
         base = sorted([k, i] for k, i in {pass_key(e) for e in support})
-        row = h(track_id=track_id, **figures, support=support, base=base)
-        session.add(row)
-        rows.append(row)
-    session.flush()
+        added.append({"track_id": track_id, **figures, "support": support, "base": base,
+                      "separated_at": now})  # fmt: skip
+    # ORM bulk statements: an UPDATE by primary key per refined entry, one INSERT for the new
+    if refined:
+        session.execute(update(TrackSeparationHistory), refined)
+    if added:
+        session.execute(insert(TrackSeparationHistory), added)
 
 
 class TrackHistory:
@@ -112,21 +110,36 @@ class TrackHistory:
         self._by_peak = sorted(entries, key=lambda ie: ie[1].peak_m)
         self._peaks = [e.peak_m for _, e in self._by_peak]
 
-    def of(self, start_m: float, end_m: float) -> list[Entry]:
-        """The entries of the spot over ``[start_m, end_m]`` (m), oldest first."""
+    def _of(self, start_m: float, end_m: float) -> list[tuple[int, Entry]]:
         lo = bisect.bisect_left(self._peaks, start_m - SEARCH_M)
         hi = bisect.bisect_right(self._peaks, end_m + SEARCH_M)
         mine = [ie for ie in self._by_peak[lo:hi] if ie[1].overlaps(start_m, end_m)]
-        return [e for _, e in sorted(mine, key=lambda ie: ie[0])]
+        return sorted(mine, key=lambda ie: ie[0])
+
+    def of(self, start_m: float, end_m: float) -> list[Entry]:
+        """The entries of the spot over ``[start_m, end_m]`` (m), oldest first."""
+        return [e for _, e in self._of(start_m, end_m)]
+
+    def latest(self, start_m: float, end_m: float) -> tuple[int, Entry] | None:
+        """The newest entry of the spot over ``[start_m, end_m]`` (m) with its row id."""
+        mine = self._of(start_m, end_m)
+        return mine[-1] if mine else None
 
 
-def track_history(session: Session, track_id: int) -> TrackHistory:
-    """The track's separation history (every entry)."""
-    h = TrackSeparationHistory
+def read_history(
+    session: Session, track_id: int, from_m: float = -math.inf, to_m: float = math.inf
+) -> TrackHistory:
+    """The track's separation history (the entries peaking within ``[from_m, to_m]``, m)."""
+    h = TrackSeparationHistory.__table__
+    where = [h.c.track_id == track_id]
+    if math.isfinite(from_m):
+        where.append(h.c.peak_m >= from_m)
+    if math.isfinite(to_m):
+        where.append(h.c.peak_m <= to_m)
+    rows = session.execute(
+        select(h.c.id, *(h.c[k] for k in FIGURES), h.c.support, h.c.base).where(*where)
+    )
     return TrackHistory([
-        (r.id, Entry(
-            r.start_m, r.end_m, r.peak_m, r.loss_pct, r.depth_mm, r.loss_lo_pct,
-            r.loss_hi_pct, tuple(r.support), frozenset((str(k), int(i)) for k, i in r.base),
-        ))
-        for r in session.scalars(select(h).where(h.track_id == track_id))
+        (r[0], Entry(*r[1:8], tuple(r[8]), frozenset((str(k), int(i)) for k, i in r[9])))
+        for r in rows
     ])  # fmt: skip
