@@ -221,10 +221,13 @@ def separated_observations(
     ):
         passes["survey", sid] = Support(sid, recorded or created, load, kind="survey")
     history = read_history(session, track_id)
+    made: dict[tuple[str, int, Any], Support] = {}
     out = []
     for spot in spots:
         support = _supports(
-            spot.support if spot.support is not None else _chunk_passes(session, spot), passes
+            spot.support if spot.support is not None else _chunk_passes(session, spot),
+            passes,
+            made,
         )
         if not support:
             continue
@@ -235,12 +238,12 @@ def separated_observations(
         at = complete_at(support, LOAD_RATIO)
         seen = frozenset[tuple[str, int]]()
         for i, e in enumerate(entries):
-            added = _supports([x for x in e.support if pass_key(x) not in seen], passes)
+            added = _supports([x for x in e.support if pass_key(x) not in seen], passes, made)
             seen = e.base
             if added:
                 t = complete_at(added, LOAD_RATIO)
                 at = t if i == 0 else max(at, t)
-            was = _supports(e.support, passes)
+            was = _supports(e.support, passes, made)
             if i == len(entries) - 1 or len(was) < len(e.support):
                 continue  # the latest is the current spot; one with a deleted pass is void
             out.append(_separated(was, at, e))
@@ -249,15 +252,24 @@ def separated_observations(
 
 
 def _supports(
-    entries: Sequence[Mapping[str, Any]], passes: Mapping[tuple[str, int], Support]
+    entries: Sequence[Mapping[str, Any]],
+    passes: Mapping[tuple[str, int], Support],
+    made: dict[tuple[str, int, Any], Support],
 ) -> tuple[Support, ...]:
     """The stored passes of support entries (``{"kind", "id", "force_n"}``), each with its
-    wheel load over the spot; passes no longer stored are left out."""
-    return tuple(
-        dataclasses.replace(passes[pass_key(e)], wheel_load_n=e.get("force_n"))
-        for e in entries
-        if pass_key(e) in passes
-    )
+    wheel load over the spot; passes no longer stored are left out. ``made`` keeps each pass
+    at each load once (a long line's history names the same passes thousands of times)."""
+    out = []
+    for e in entries:
+        key = pass_key(e)
+        if key not in passes:
+            continue
+        force = e.get("force_n")
+        support = made.get((*key, force))
+        if support is None:
+            support = made[(*key, force)] = dataclasses.replace(passes[key], wheel_load_n=force)
+        out.append(support)
+    return tuple(out)
 
 
 def _separated(support: tuple[Support, ...], at: datetime, spot: Any) -> Observation:
