@@ -490,11 +490,10 @@ class TrackStiffness(Base):
     meta: Mapped[dict[str, Any]] = mapped_column(JSON)
 
 
-class TrackStiffnessSpot(Base):
-    """A soft spot found by separating geometry and stiffness (aligned chainage, m; loss %)."""
-
-    __tablename__ = "track_stiffness_spots"
-    __table_args__ = (Index("ix_track_stiffness_spots_track_id_peak_m", "track_id", "peak_m"),)
+class SeparatedSpotFigures:
+    """What a separation says of a soft spot (aligned chainage, m; loss and its band, %; depth
+    as a level dip under the separation's reference load, mm): the columns of the current
+    spots and of their history."""
 
     id: Mapped[int] = mapped_column(primary_key=True)
     track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="CASCADE"))
@@ -502,12 +501,36 @@ class TrackStiffnessSpot(Base):
     end_m: Mapped[float] = mapped_column(Float)
     peak_m: Mapped[float] = mapped_column(Float)
     loss_pct: Mapped[float] = mapped_column(Float)
-    depth_mm: Mapped[float | None] = mapped_column(Float)  # as a level dip, reference load
+    depth_mm: Mapped[float | None] = mapped_column(Float)
     loss_lo_pct: Mapped[float | None] = mapped_column(Float)
     loss_hi_pct: Mapped[float | None] = mapped_column(Float)
+
+
+class TrackStiffnessSpot(SeparatedSpotFigures, Base):
+    """A soft spot found by separating geometry and stiffness (aligned chainage, m; loss %)."""
+
+    __tablename__ = "track_stiffness_spots"
+    __table_args__ = (Index("ix_track_stiffness_spots_track_id_peak_m", "track_id", "peak_m"),)
+
     confidence: Mapped[float | None] = mapped_column(Float)
     # the passes with data over the spot: [{"kind": "run"|"survey", "id", "force_n"}]
     support: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON)
+
+
+class TrackSeparationHistory(SeparatedSpotFigures, Base):
+    """One separation of a soft spot, kept after the next one (aligned chainage, m; loss %;
+    depth mm at the separation's reference load): the register's trend and first sighting of a
+    separated defect (``app.services.separation_history``). ``support`` is the passes behind
+    the figures (as ``TrackStiffnessSpot.support``), ``base`` the passes it opened with
+    (``[[kind, id], ...]``): a later separation opens the next entry when the passes it adds
+    to that base span two wheel loads by themselves, and refines this one otherwise."""
+
+    __tablename__ = "track_separation_history"
+    __table_args__ = (Index("ix_track_separation_history_track_id_peak_m", "track_id", "peak_m"),)
+
+    support: Mapped[list[dict[str, Any]]] = mapped_column(JSON)
+    base: Mapped[list[list[Any]]] = mapped_column(JSON)
+    separated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow, onupdate=utcnow)
 
 
 class TrackCenterline(Base):

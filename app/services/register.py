@@ -13,7 +13,7 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import fields
 from datetime import datetime
 from typing import Any
@@ -39,6 +39,7 @@ from engine.separation import SeparationConfig
 from .aggregate import CHUNK_POINTS, _batches, aggregate_chunk_range, newest_levels
 from .alignment import GRID_STEP_M, MERGED_STATUSES
 from .quality_register import isolated_register
+from .separation_history import pass_key, read_history
 from .stiffness import NOT_SEPARABLE, separable_intervals
 
 LOAD_RATIO = SeparationConfig().min_load_ratio
@@ -220,26 +221,66 @@ def separated_observations(
         )
     ):
         passes["survey", sid] = Support(sid, recorded or created, load, kind="survey")
+    history = read_history(session, track_id)
+    made: dict[tuple[str, int, Any], Support] = {}
     out = []
     for spot in spots:
-        entries = spot.support if spot.support is not None else _chunk_passes(session, spot)
-        support = tuple(
-            dataclasses.replace(passes[e["kind"], e["id"]], wheel_load_n=e.get("force_n"))
-            for e in entries
-            if (e["kind"], e["id"]) in passes
+        support = _supports(
+            spot.support if spot.support is not None else _chunk_passes(session, spot),
+            passes,
+            made,
         )
         if not support:
             continue
-        runs = sorted((p for p in support if p.kind == "run"), key=lambda p: (p.recorded_at, p.id))
-        out.append(
-            Observation(
-                runs[0].id if runs else 0, complete_at(support, LOAD_RATIO), spot.start_m,
-                spot.end_m, spot.peak_m, spot.depth_mm or 0.0, spot.loss_pct,
-                source="separated", support=support, loss_lo_pct=spot.loss_lo_pct,
-                loss_hi_pct=spot.loss_hi_pct,
-            )
-        )  # fmt: skip
+        # the spot's earlier separations, each dated from the pass that completed its new
+        # evidence; the current one is the latest entry's (or, before any history, the
+        # spot's own passes)
+        entries = history.of(spot.start_m, spot.end_m)
+        at = complete_at(support, LOAD_RATIO)
+        seen = frozenset[tuple[str, int]]()
+        for i, e in enumerate(entries):
+            added = _supports([x for x in e.support if pass_key(x) not in seen], passes, made)
+            seen = e.base
+            if added:
+                t = complete_at(added, LOAD_RATIO)
+                at = t if i == 0 else max(at, t)
+            was = _supports(e.support, passes, made)
+            if i == len(entries) - 1 or len(was) < len(e.support):
+                continue  # the latest is the current spot; one with a deleted pass is void
+            out.append(_separated(was, at, e))
+        out.append(_separated(support, at, spot))
     return out
+
+
+def _supports(
+    entries: Sequence[Mapping[str, Any]],
+    passes: Mapping[tuple[str, int], Support],
+    made: dict[tuple[str, int, Any], Support],
+) -> tuple[Support, ...]:
+    """The stored passes of support entries (``{"kind", "id", "force_n"}``), each with its
+    wheel load over the spot; passes no longer stored are left out. ``made`` keeps each pass
+    at each load once (a long line's history names the same passes thousands of times)."""
+    out = []
+    for e in entries:
+        key = pass_key(e)
+        if key not in passes:
+            continue
+        force = e.get("force_n")
+        support = made.get((*key, force))
+        if support is None:
+            support = made[(*key, force)] = dataclasses.replace(passes[key], wheel_load_n=force)
+        out.append(support)
+    return tuple(out)
+
+
+def _separated(support: tuple[Support, ...], at: datetime, spot: Any) -> Observation:
+    """A separated soft spot (``TrackStiffnessSpot`` or a history ``Entry``) as a sighting."""
+    runs = sorted((p for p in support if p.kind == "run"), key=lambda p: (p.recorded_at, p.id))
+    return Observation(
+        runs[0].id if runs else 0, at, spot.start_m, spot.end_m, spot.peak_m,
+        spot.depth_mm or 0.0, spot.loss_pct, source="separated", support=support,
+        loss_lo_pct=spot.loss_lo_pct, loss_hi_pct=spot.loss_hi_pct,
+    )  # fmt: skip
 
 
 def _chunk_passes(session: Session, spot: TrackStiffnessSpot) -> list[dict[str, Any]]:

@@ -61,6 +61,7 @@ from .aggregate import CHUNK_POINTS, newest_runs
 from .alignment import GRID_STEP_M
 from .notation import km_m, km_m_range
 from .packing import unpack_f4
+from .separation_history import record_separation
 
 STIFFNESS_ARRAYS = (
     "geometry_mm",
@@ -335,6 +336,7 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
         ]
         if spots:
             session.execute(insert(TrackStiffnessSpot), spots)
+            record_separation(session, track_id, spots)
     return written
 
 

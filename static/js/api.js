@@ -135,9 +135,37 @@ export function apiSchema() {
   return openapi;
 }
 
-/** Fetch JSON from the API; throws ApiError with the server's detail on HTTP errors. */
-export async function apiFetch(path, options = {}) {
-  const url = path.startsWith("http") || path.startsWith("/") ? path : `${API}/${path}`;
+/**
+ * The runs still to reprocess when the error is the API's 409 `status: "updating"` (a track's
+ * runs being reprocessed after a vehicle edit: its derived data is answered once complete),
+ * else null.
+ */
+export function updatingRunsLeft(err) {
+  const d = err instanceof ApiError ? err.detail : null;
+  if (err.status !== 409 || !d || typeof d !== "object" || d.status !== "updating") return null;
+  return Number.isFinite(d.runs_left) ? d.runs_left : 0;
+}
+
+const UPDATING_RETRY_MS = 2000;
+const UPDATING_MAX_WAIT_MS = 10 * 60 * 1000; // a large fleet's reprocess takes minutes
+const waiting = new Map(); // url -> runs left, while a read waits for a reprocess to end
+
+/** The page-wide "updating" notice: shown while any read waits, with the fewest runs left. */
+function showUpdating() {
+  const box = document.getElementById("updating");
+  if (!box) return;
+  if (!waiting.size) {
+    box.hidden = true;
+    box.textContent = "";
+    return;
+  }
+  const left = Math.min(...waiting.values());
+  const runs = `${left} run${left === 1 ? "" : "s"}`;
+  box.textContent = `Updating — ${runs} left: a vehicle edit is reprocessing this track's runs; the results are shown once the new ones are complete.`;
+  box.hidden = false;
+}
+
+async function fetchOnce(url, options) {
   let response;
   try {
     response = await fetch(url, { headers: { Accept: "application/json" }, ...options });
@@ -149,7 +177,36 @@ export async function apiFetch(path, options = {}) {
     const detail = body && typeof body === "object" && "detail" in body ? body.detail : body;
     throw new ApiError(response.status, detail || response.statusText, url);
   }
-  return watched(body, (options.method || "GET").toUpperCase(), url);
+  return body;
+}
+
+/**
+ * Fetch JSON from the API; throws ApiError with the server's detail on HTTP errors. A read
+ * answered "updating" (409) is not an error to the page: the notice says how many runs are
+ * left and the read is tried again until the track is settled, or the page is left.
+ */
+export async function apiFetch(path, options = {}) {
+  const url = path.startsWith("http") || path.startsWith("/") ? path : `${API}/${path}`;
+  const method = (options.method || "GET").toUpperCase();
+  const page = globalThis.location ? globalThis.location.hash : "";
+  const until = Date.now() + UPDATING_MAX_WAIT_MS;
+  for (;;) {
+    try {
+      const body = await fetchOnce(url, options);
+      if (waiting.delete(url)) showUpdating();
+      return watched(body, method, url);
+    } catch (err) {
+      const left = method === "GET" ? updatingRunsLeft(err) : null;
+      const stay = left !== null && Date.now() < until && (!globalThis.location || globalThis.location.hash === page);
+      if (!stay) {
+        if (waiting.delete(url)) showUpdating();
+        throw err;
+      }
+      waiting.set(url, left);
+      showUpdating();
+      await new Promise((resolve) => setTimeout(resolve, UPDATING_RETRY_MS));
+    }
+  }
 }
 
 /**

@@ -124,6 +124,14 @@ export function field(labelText, control, hint) {
   return h("div", { class: "field" }, parts);
 }
 
+/**
+ * A table in a box that scrolls sideways on a narrow screen: a labelled region in the tab
+ * order, so that keyboard users can scroll it too (axe: scrollable-region-focusable).
+ */
+export function scrollTable(label, table, extraClass = "") {
+  return h("div", { class: `table-scroll${extraClass ? ` ${extraClass}` : ""}`, tabindex: "0", role: "region", "aria-label": label }, table);
+}
+
 /** Offer a Blob to the user as a file download. */
 export function downloadBlob(blob, filename) {
   const url = URL.createObjectURL(blob);

@@ -123,11 +123,11 @@ export function softSpotShapes(spots, { fill = COLORS.spotFill, line = COLORS.sp
 }
 
 /** One text label per soft spot (layout.annotations): number, depth and stiffness loss. */
-export function softSpotLabels(spots, { prefix = "S", color = COLORS.spotLine } = {}) {
-  return spots.map((s, i) => ({
+export function softSpotLabels(spots, { prefix = "S", color = COLORS.spotLine, widthPx = null, range = null } = {}) {
+  const labels = spots.map((s, i) => ({
     x: s.peak_m ?? (s.start_m + s.end_m) / 2,
     xref: "x",
-    y: 1 + (i % 2) * 0.075,
+    y: 1,
     yref: "paper",
     yanchor: "bottom",
     showarrow: false,
@@ -140,7 +140,39 @@ export function softSpotLabels(spots, { prefix = "S", color = COLORS.spotLine } 
     borderpad: 2,
     name: "soft-spot-label",
   }));
+  if (!widthPx || !range || !(range[1] > range[0])) {
+    labels.forEach((a, i) => { a.y = 1 + (i % 2) * LABEL_ROW; });
+    return labels;
+  }
+  // Laid out in the plot's own pixels: on a narrow plot a label is its name only (the rest
+  // is its hover text and the table's row), each goes to the first row where it overlaps no
+  // other, and a label that finds no row is left out (its peak marker still says it all).
+  const short = widthPx < SHORT_LABELS_BELOW_PX;
+  const rowsEnd = Array(LABEL_ROWS).fill(-Infinity);
+  const order = labels.map((a, i) => i).sort((i, j) => labels[i].x - labels[j].x);
+  const kept = [];
+  for (const i of order) {
+    const a = labels[i];
+    if (short) {
+      a.hovertext = a.text;
+      a.text = `${prefix}${i + 1}`;
+    }
+    const w = a.text.length * LABEL_CHAR_PX + 2 * (a.borderpad + a.borderwidth) + 4;
+    const mid = ((a.x - range[0]) / (range[1] - range[0])) * widthPx;
+    const row = rowsEnd.findIndex((end) => mid - w / 2 > end + LABEL_GAP_PX);
+    if (row < 0) continue;
+    rowsEnd[row] = mid + w / 2;
+    a.y = 1 + row * LABEL_ROW;
+    kept.push(a);
+  }
+  return kept;
 }
+
+const LABEL_ROW = 0.075; // paper height between label rows
+const LABEL_ROWS = 2; // rows the plot's top margin holds
+const LABEL_CHAR_PX = 6.6; // width of a character of the 11 px label font, px (generous)
+const LABEL_GAP_PX = 4;
+const SHORT_LABELS_BELOW_PX = 640; // plot width below which labels are names only
 
 /** Keyboard-accessible zoom/pan buttons for a chainage plot (Plotly's modebar is mouse-only). */
 export function zoomControls(gd, { label = "Plot view" } = {}) {

@@ -2,7 +2,7 @@
 // profile plot, the alerts since a date, the limits form and the export links. Every value
 // from the API is shown through text nodes (h(), textContent); nothing is parsed as HTML.
 
-import { h, clear, append, announce, fmt, fmtDay, fmtKm, fmtKmRange, field, messageBox } from "./dom.js";
+import { h, clear, append, announce, fmt, fmtDay, fmtKm, fmtKmRange, field, messageBox, scrollTable } from "./dom.js";
 import { ApiError, apiFetch, apiSchema } from "./api.js";
 import { applyBounds, clearFieldErrors, numberProblem, showFieldError, showServerErrors } from "./formerrors.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, TERMS } from "./plots.js";
@@ -57,8 +57,8 @@ export const REGISTER_COLUMNS = [
   { key: "runs_seen", label: "Evidence", title: "What supports the defect: single passes, or the separation of geometry from stiffness across passes of different wheel loads (passes that support it of the runs covering it)", get: (d) => d.runs_seen, show: evidenceOf },
   { key: "depth_mm", label: "Depth (mm)", title: TERMS.depth, num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
   { key: "stiffness_loss_pct", label: "Loss (%)", title: `${TERMS.loss} (with its band where the separation gives one)`, num: true, get: (d) => d.stiffness_loss_pct, show: lossOf },
-  { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month (— until two runs saw the defect)", num: true, get: (d) => trendOf(d, "trend_mm_per_month"), show: (d) => signed(trendOf(d, "trend_mm_per_month"), 3) },
-  { key: "trend_loss_pct_per_month", label: "Trend (%/mo)", title: "Stiffness-loss trend, percentage points per month (— until two runs saw the defect)", num: true, get: (d) => trendOf(d, "trend_loss_pct_per_month"), show: (d) => signed(trendOf(d, "trend_loss_pct_per_month"), 1) },
+  { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month (— until two runs, or two successive separations, saw the defect)", num: true, get: (d) => trendOf(d, "trend_mm_per_month"), show: (d) => signed(trendOf(d, "trend_mm_per_month"), 3) },
+  { key: "trend_loss_pct_per_month", label: "Trend (%/mo)", title: "Stiffness-loss trend, percentage points per month (— until two runs, or two successive separations, saw the defect)", num: true, get: (d) => trendOf(d, "trend_loss_pct_per_month"), show: (d) => signed(trendOf(d, "trend_loss_pct_per_month"), 1) },
   { key: "first_seen", label: "First seen", get: (d) => d.first_seen || "", show: (d) => fmtDay(d.first_seen) },
   { key: "last_seen", label: "Last seen", get: (d) => d.last_seen || "", show: (d) => fmtDay(d.last_seen) },
 ];
@@ -193,7 +193,7 @@ export function alertsCard(enc, getDefects = null) {
       h("td", {}, evidenceOf(d))));
     out.append(
       h("p", { class: "small", id: "alerts-count" }, `${alerts.length} defect${alerts.length === 1 ? "" : "s"} reached a limit since ${since}.`),
-      h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": `Alerts since ${since}` }, h("table", { class: "data", id: "alerts-table" },
+      scrollTable(`Alerts since ${since}`, h("table", { class: "data", id: "alerts-table" },
         h("caption", { class: "visually-hidden" }, `Defects that reached a limit since ${since}`),
         h("thead", {}, h("tr", {}, [["Priority", 1], ["Level"], ["Since"], ["Zone", 1], ["Depth (mm)", 1], ["Loss (%)", 1], ["Status"], ["Evidence"]].map(([t, num]) => h("th", { scope: "col", class: num ? "num" : null }, t)))),
         h("tbody", {}, rows))),
@@ -296,14 +296,50 @@ export function limitsCard(enc, onSaved) {
   return { section, load };
 }
 
-/** A notice listing the runs that could not be aligned (kept out of the register). */
+const NOTICE_RUNS = 10; // runs named in a notice; the others counted
+
+// What each alignment status (the API's RunAlignmentPublic.status) means for the track's
+// register: a reference or an aligned run needs no word; the others are listed with why.
+const ALIGNMENT_NOTES = {
+  reference: null,
+  aligned: null,
+  placed: {
+    id: "placed-runs",
+    kind: "info",
+    lead: (n) => `${n === 1 ? "1 run is" : `${n} runs are`} in the aggregated profile and the register at the chainage ${n === 1 ? "its log (or its GNSS fixes) gave" : "their logs (or their GNSS fixes) gave"}, not yet matched to the track's profile: ${n === 1 ? "its" : "their"} position is as uncertain as that start, and ${n === 1 ? "it is" : "they are"} aligned again as the track gains passes: `,
+  },
+  unaligned: {
+    id: "unaligned-runs",
+    kind: "warning",
+    reasons: true,
+    lead: (n) => `${n === 1 ? "1 run was" : `${n} runs were`} not aligned to this track and ${n === 1 ? "is" : "are"} left out of the aggregated profile and the register: `,
+  },
+};
+
+/**
+ * The notices of the track's runs whose alignment status needs a word (placed, unaligned, or
+ * a status this page does not know), each listing its runs with the reason; null when every
+ * run is a reference or aligned.
+ */
 export function alignmentNotice(runs) {
-  const bad = runs.filter((r) => r.alignment && r.alignment.status === "unaligned");
-  if (!bad.length) return null;
-  const box = h("div", { class: "message warning", role: "status", id: "unaligned-runs" });
-  append(box, [
-    `${bad.length} run${bad.length === 1 ? " was" : "s were"} not aligned to this track and ${bad.length === 1 ? "is" : "are"} left out of the aggregated profile and the register: `,
-    bad.map((r, i) => [i ? "; " : "", h("a", { href: `#/runs/${encodeURIComponent(r.id)}` }, `run ${r.id}`), ` (${r.alignment.reason || "no reason given"})`]),
-  ]);
-  return box;
+  const byStatus = new Map();
+  for (const r of runs) {
+    const st = r.alignment && r.alignment.status;
+    if (!st || ALIGNMENT_NOTES[st] === null) continue;
+    if (!byStatus.has(st)) byStatus.set(st, []);
+    byStatus.get(st).push(r);
+  }
+  if (!byStatus.size) return null;
+  const wrap = h("div", { id: "alignment-notices" });
+  for (const [st, list] of byStatus) {
+    const note = ALIGNMENT_NOTES[st] || {
+      id: `${st}-runs`, kind: "warning", reasons: true, lead: (n) => `${n === 1 ? "1 run has" : `${n} runs have`} the alignment status “${st}”: `,
+    };
+    const shown = list.slice(0, NOTICE_RUNS);
+    wrap.append(h("div", { class: `message ${note.kind}`, role: "status", id: note.id },
+      note.lead(list.length),
+      shown.map((r, i) => [i ? "; " : "", h("a", { href: `#/runs/${encodeURIComponent(r.id)}` }, `run ${r.id}`), note.reasons && r.alignment.reason ? ` (${r.alignment.reason})` : ""]),
+      list.length > shown.length ? ` and ${list.length - shown.length} more` : "", "."));
+  }
+  return wrap;
 }

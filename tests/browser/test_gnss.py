@@ -9,6 +9,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from browser.harness import LiveServer, axe_source, axe_violations
 from playwright.sync_api import expect
@@ -104,6 +105,25 @@ def test_centerline_upload_gnss_run_and_plan_view(
     assert "Chainage (km+m)" in names, names
     assert any(f"run {run_id} (" in str(n) for n in names), names
     assert page.locator("#plan-flag").is_hidden()
+    # the run's trace is its placed stretch on the centerline (not its raw fixes): it starts
+    # and ends at the run's aligned extent, and every point of it lies on the line
+    traces = page.evaluate(
+        """() => document.getElementById('plan-plot').data.map(t => ({name: t.name,
+            x: [...t.x], y: [...t.y], c: t.customdata ? [...t.customdata] : null}))"""
+    )
+    trace = next(t for t in traces if str(t["name"]).startswith(f"run {run_id} ("))
+    with live_server.api() as api:
+        track_id = api.get(f"/api/v1/tracks/{TRACK}").json()["id"]
+        view = api.get(f"/api/v1/views/tracks/{track_id}/chainage-map?zones=false").json()
+        placed = next(r for r in view["runs"] if r["id"] == run_id)
+        plan = api.get(f"/api/v1/tracks/{track_id}/centerline/plan").json()
+    assert trace["c"][0] == pytest.approx(placed["chainage_min_m"], abs=1e-6)
+    assert trace["c"][-1] == pytest.approx(placed["chainage_max_m"], abs=1e-6)
+    line = np.column_stack([plan["x_m"], plan["y_m"]])
+    for p in np.column_stack([trace["x"], trace["y"]]):
+        a, b = line[:-1], line[1:]
+        t = np.clip(np.einsum("ij,ij->i", p - a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0, 1)
+        assert np.min(np.hypot(*(a + t[:, None] * (b - a) - p).T)) < 0.01
     page.locator("#plan-card").scroll_into_view_if_needed()
     box = points.first.bounding_box()
     assert box is not None

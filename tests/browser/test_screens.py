@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 from browser.harness import LiveServer, axe_source, axe_violations, wait_for_plot
+from playwright.sync_api import expect
 
 pytestmark = pytest.mark.browser
 
@@ -152,5 +153,103 @@ def test_no_serious_axe_violation_on_the_changed_pages(
         page.wait_for_selector(ready, state="attached")
         if url.startswith("#/tracks"):
             wait_for_plot(page, "#chainage-map")
+        found[url] = axe_violations(page, src)
+    assert not any(found.values()), found
+
+
+def test_a_track_being_reprocessed_reads_as_updating_then_loads(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any]
+) -> None:
+    """The register answered 409 ``status: "updating"`` (a vehicle edit reprocessing the
+    track's runs) twice: the page says "Updating — N runs left" with the server's count, no
+    error, and shows the register once the read succeeds; the notice then goes away."""
+    answers = [3, 2]
+    seen: list[int] = []
+
+    def defects(route: Any) -> None:
+        if answers:
+            left = answers.pop(0)
+            seen.append(left)
+            route.fulfill(
+                status=409,
+                content_type="application/json",
+                body=json.dumps(
+                    {
+                        "detail": {
+                            "message": "the track is updating",
+                            "status": "updating",
+                            "runs_left": left,
+                        }
+                    }
+                ),  # fmt: skip
+            )
+        else:
+            route.continue_()
+
+    page.route("**/api/v1/tracks/*/defects", defects)
+    page.goto(f"{live_server.url}/#/tracks/{geo_track['id']}")
+    updating = page.locator("#updating")
+    expect(updating).to_contain_text("Updating — 3 runs left")
+    expect(updating).to_contain_text("Updating — 2 runs left")
+    page.wait_for_selector("#zone-table tbody tr")
+    expect(updating).to_be_hidden()
+    assert seen == [3, 2]
+    assert "Cannot load" not in page.locator("main").inner_text()
+    assert len([r for r in register_rows(page) if r["Evidence"].startswith("separated")]) == 3
+    page.watch.assert_clean()
+
+
+def test_alignment_notice_names_every_status(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any]
+) -> None:
+    """The track page's notice of runs: a placed run is said to be in the register at its
+    logged (or GNSS) chainage, an unaligned one to be left out with its reason; reference and
+    aligned runs get no notice (the runs list's statuses are set here to one of each)."""
+    statuses = ["reference", "aligned", "placed", "unaligned"]
+
+    def runs(route: Any) -> None:
+        body = route.fetch().json()
+        for r, st in zip(body["data"], statuses, strict=False):
+            r["alignment"] = {"status": st, "offset_m": 0.0, "correlation": None,
+                              "overlap_m": None, "reason": f"why {st}"}  # fmt: skip
+        route.fulfill(json=body)
+
+    page.route("**/api/v1/runs?track=*", runs)
+    page.goto(f"{live_server.url}/#/tracks/{geo_track['id']}")
+    page.wait_for_selector("#alignment-notices")
+    placed = page.locator("#placed-runs").inner_text()
+    assert placed.startswith("1 run is in the aggregated profile and the register")
+    assert "aligned again as the track gains passes" in placed
+    unaligned = page.locator("#unaligned-runs").inner_text()
+    assert unaligned.startswith("1 run was not aligned to this track and is left out")
+    assert "why unaligned" in unaligned
+    notices = page.locator("#alignment-notices").inner_text()
+    assert "why reference" not in notices and "why aligned" not in notices
+    assert page.locator("#alignment-notices .message").count() == 2
+    page.watch.assert_clean()
+
+
+@pytest.mark.parametrize("width", [1280, 390])
+def test_no_serious_axe_violation_on_the_other_pages(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any], width: int
+) -> None:
+    """axe-core: no serious or critical violation on the home page, the track's quality
+    view, the simulate form, the vehicle list, a vehicle's page and the track's HTML report,
+    at desktop and phone width (the track, run, upload and plan views: the tests above and
+    test_gnss)."""
+    page.set_viewport_size({"width": width, "height": 900})
+    src = axe_source()
+    found = {}
+    for url, ready in (
+        ("/#/", "#runs-table"),
+        (f"/#/tracks/{geo_track['id']}/quality", "main h1"),
+        ("/#/simulate", "main form"),
+        ("/#/vehicles", "main h1"),
+        ("/#/vehicles/table1", "main h1"),
+        (f"/api/v1/tracks/{geo_track['id']}/report", "h1"),
+    ):
+        page.goto(f"{live_server.url}{url}")
+        page.wait_for_selector(ready)
+        page.wait_for_load_state("networkidle")
         found[url] = axe_violations(page, src)
     assert not any(found.values()), found

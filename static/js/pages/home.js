@@ -1,6 +1,6 @@
 // Home: the tracks (each opens its chainage map) and the latest runs (each opens its run view).
 
-import { h, clear, announce, field, fmt, fmtDate, fmtKmRange, messageBox, plural } from "../dom.js";
+import { h, clear, announce, field, fmt, fmtDate, fmtKmRange, messageBox, plural, scrollTable } from "../dom.js";
 import { ApiError, apiFetch, apiPostJson } from "../api.js";
 import { evidenceOf, LEVEL_LABELS } from "../register.js";
 import { loadPlotly } from "../plots.js";
@@ -81,7 +81,7 @@ export async function render(main) {
   }
 
   const tbody = h("tbody", {});
-  const table = h("div", { class: "table-scroll" }, h("table", { class: "data", id: "runs-table" },
+  const table = scrollTable("Latest runs", h("table", { class: "data", id: "runs-table" },
     h("caption", { class: "visually-hidden" }, "Latest runs"),
     h("thead", {}, h("tr", {},
       h("th", { scope: "col" }, "Run"), h("th", { scope: "col" }, "Track"), h("th", { scope: "col" }, "Vehicle"),
@@ -184,7 +184,7 @@ async function fillAttention(section, tracks) {
     h("td", {}, evidenceOf(d))));
   body.replaceWith(
     h("p", { class: "small", id: "attention-count" }, `${plural(found.length, "defect")} at a limit level across ${plural(new Set(found.map((d) => d.track.id)).size, "track")}${found.length > ATTENTION_ROWS ? `; the ${ATTENTION_ROWS} most urgent:` : ":"}`),
-    h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "Defects needing attention" },
+    scrollTable("Defects needing attention",
       h("table", { class: "data", id: "attention-table" },
         h("thead", {}, h("tr", {}, ["Level", "Track", "Zone", "Depth (mm)", "Loss (%)", "Evidence"].map((t) => h("th", { scope: "col" }, t)))),
         h("tbody", {}, rows))));

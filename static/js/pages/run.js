@@ -1,7 +1,7 @@
 // Run view: fused loaded profile with shaded, labelled soft spots; front/rear axle profiles on
 // demand; raw signals against time; metadata and quality; downloads.
 
-import { h, clear, append, announce, fmt, fmtDate, fmtKm, downloadBlob, messageBox, plural } from "../dom.js";
+import { h, clear, append, announce, fmt, fmtDate, fmtKm, downloadBlob, messageBox, plural, scrollTable } from "../dom.js";
 import { ApiError, apiFetch, apiGetOptional, runErrorMessage } from "../api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, TERMS, zoomControls, zoomTo } from "../plots.js";
 import { unseenText } from "../visibility.js";
@@ -180,11 +180,9 @@ export async function render(main, [id]) {
       hovertemplate: "S%{customdata[0]}: depth %{customdata[1]:.2f} mm, stiffness loss %{customdata[2]:.0f} %<br>%{customdata[3]:.1f}–%{customdata[4]:.1f} m<extra></extra>",
     });
   }
-  const layout = baseLayout({
-    shapes: softSpotShapes(spots),
-    annotations: softSpotLabels(spots),
-    margin: { l: 64, r: 24, t: 60, b: 96 },
-  });
+  const margin = { l: 64, r: 24, t: 60, b: 96 };
+  const labelRoom = { widthPx: profileDiv.clientWidth - margin.l - margin.r, range: [profile.chainage_m[0], profile.chainage_m.at(-1)] };
+  const layout = baseLayout({ shapes: softSpotShapes(spots), annotations: softSpotLabels(spots, labelRoom), margin });
   await P.newPlot(profileDiv, traces, layout, CONFIG);
   profileSection.append(zoomControls(profileDiv, { label: "Profile plot view" }), resolutionNote);
 
@@ -269,7 +267,7 @@ export async function render(main, [id]) {
   main.appendChild(h("section", { class: "card", "aria-labelledby": "spots-h" },
     h("div", { class: "section-head" }, h("h2", { id: "spots-h" }, "Soft spots"), downloads),
     spots.length
-      ? h("div", { class: "table-scroll" }, h("table", { class: "data", id: "spots-table" },
+      ? scrollTable("Soft spots of this run", h("table", { class: "data", id: "spots-table" },
         h("caption", { class: "visually-hidden" }, "Soft spots of this run, by chainage"),
         h("thead", {}, h("tr", {},
           h("th", { scope: "col" }, "#"), h("th", { scope: "col", class: "num" }, "Start (m)"), h("th", { scope: "col", class: "num" }, "End (m)"),

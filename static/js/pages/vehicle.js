@@ -2,7 +2,7 @@
 // and versions, calibrations (objective before/after and a plot of the fit), suspension-health
 // alerts, and a button that calibrates it from its stored runs.
 
-import { h, clear, announce, fmt, fmtDate, fmtDay, messageBox } from "../dom.js";
+import { h, clear, announce, fmt, fmtDate, fmtDay, messageBox, scrollTable } from "../dom.js";
 import { apiFetch, apiFetchAll, apiPostJson } from "../api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly } from "../plots.js";
 
@@ -87,7 +87,7 @@ export async function render(main, params) {
       const [label, unit] = PARAM_LABELS[k] || [k, ""];
       return h("tr", {}, h("th", { scope: "row" }, label), h("td", { class: "num" }, num(v)), h("td", {}, unit));
     });
-    paramsSection.appendChild(h("div", { class: "table-scroll" }, h("table", { class: "data", id: "params-table" },
+    paramsSection.appendChild(scrollTable("Current parameters", h("table", { class: "data", id: "params-table" },
       h("caption", { class: "visually-hidden" }, "Current parameters"),
       h("thead", {}, h("tr", {}, h("th", { scope: "col" }, "Parameter"), h("th", { scope: "col", class: "num" }, "Value"), h("th", { scope: "col" }, "Unit"))),
       h("tbody", {}, rows))));
@@ -105,7 +105,7 @@ export async function render(main, params) {
         h("td", {}, v.calibration_id ? `calibration ${v.calibration_id}` : (v.created_by || "—")),
         h("td", {}, fmtDate(v.created_at)), h("td", {}, changed || "—"), h("td", {}, v.note || ""));
     });
-    versionsSection.appendChild(h("div", { class: "table-scroll" }, h("table", { class: "data", id: "versions-table" },
+    versionsSection.appendChild(scrollTable("Parameter versions", h("table", { class: "data", id: "versions-table" },
       h("caption", { class: "visually-hidden" }, "Parameter versions, newest first"),
       h("thead", {}, h("tr", {}, ...["Version", "Made by", "From", "When", "Changes", "Note"].map((t) => h("th", { scope: "col" }, t)))),
       h("tbody", {}, rows))));
@@ -143,7 +143,7 @@ export async function render(main, params) {
       h("td", {}, c.fitted.length ? c.fitted.map((f) => `${f.name} ${changeText(f)}`).join("; ") : "—"),
       h("td", {}, c.applied ? `applied: version ${c.applied_version}` : (c.apply ? "not applied" : "—")),
       h("td", {}, c.status === "failed" ? (c.error?.message || "failed") : (c.message || ""))));
-    calList.appendChild(h("div", { class: "table-scroll" }, h("table", { class: "data", id: "calibrations-table" },
+    calList.appendChild(scrollTable("Calibrations", h("table", { class: "data", id: "calibrations-table" },
       h("caption", { class: "visually-hidden" }, "Calibrations, newest first"),
       h("thead", {}, h("tr", {}, ...["#", "Status", "Requested", "Runs", "Axle disagreement", "Fitted change", "Applied", "Result"].map((t) => h("th", { scope: "col" }, t)))),
       h("tbody", {}, rows))));

@@ -1,7 +1,7 @@
 // The track page's defect register: the sortable table of tracked defects (most urgent first)
 // and the profiles of all runs around the chosen defect.
 
-import { h, clear, announce, fmt, fmtKm, fmtKmRange, plural } from "../../dom.js";
+import { h, clear, announce, fmt, fmtKm, fmtKmRange, plural, scrollTable } from "../../dom.js";
 import { apiFetch, apiGetOptional } from "../../api.js";
 import { baseLayout, CONFIG, loadPlotly, viridis } from "../../plots.js";
 import { REGISTER_COLUMNS, aggregateTraces, defectShapes } from "../../register.js";
@@ -101,10 +101,10 @@ export function zoneTable(zones, onSelect, columns = REGISTER_COLUMNS) {
     }
   }
   draw();
-  return h("div", { class: "table-scroll zone-table-wrap" },
-    h("table", { class: "data sortable", id: "zone-table" },
-      h("caption", { class: "visually-hidden" }, "Defect register, most urgent first; column titles sort the table"),
-      h("thead", {}, headRow), tbody));
+  const table = h("table", { class: "data sortable", id: "zone-table" },
+    h("caption", { class: "visually-hidden" }, "Defect register, most urgent first; column titles sort the table"),
+    h("thead", {}, headRow), tbody);
+  return scrollTable("Defect register", table, "zone-table-wrap");
 }
 
 /**

@@ -1,7 +1,7 @@
 // Upload page view: the form (file, columns and units, track/vehicle/position, upload), the
 // preview of the file's first rows and the way errors are shown. No requests are made here.
 
-import { h, clear, append, announce, field, fmt, messageBox } from "../../dom.js";
+import { h, clear, append, announce, field, fmt, messageBox, scrollTable } from "../../dom.js";
 import { ApiError } from "../../api.js";
 import { estimateRate, HEAD_BYTES } from "../../csvpreview.js";
 import { applyBounds } from "../../formerrors.js";
@@ -310,7 +310,7 @@ export function showPreview(ui, state) {
   }
   const tbody = h("tbody", {});
   for (const r of rows.slice(0, 10)) tbody.appendChild(h("tr", {}, r.map((cell) => h("td", {}, String(cell)))));
-  previewBox.appendChild(h("div", { class: "table-scroll", tabindex: "0", role: "region", "aria-label": "Preview of the first rows" },
+  previewBox.appendChild(scrollTable("Preview of the first rows",
     h("table", { class: "data preview-table", id: "preview-table" }, h("thead", {}, thead), tbody)));
   const problems = previewProblems(state);
   if (problems.length) {
