@@ -38,8 +38,21 @@ def checked_params(params: dict[str, Any], field: str = "params") -> EngineVehic
         vp = vehicle_from_dict(params)
         check_vehicle(vp, vp.kind, field=field)
     except ParameterError as exc:
+        # a request's params object: name the parameter in it; another field (load_kg) as is
+        if field == "params":
+            raise _invalid_params(exc, field) from None
         raise Invalid.from_engine(exc, field=field) from None
     return vp
+
+
+def _invalid_params(exc: ParameterError, field: str) -> Invalid:
+    """Invalid naming the request field, and the parameter inside it when the engine names
+    one (``params.ks1``), as a schema error names a nested field."""
+    err = Invalid.from_engine(exc, field=field)
+    named = err.facts.get("field")
+    if named and named != field and not str(named).startswith(f"{field}."):
+        err.facts["field"] = f"{field}.{named}"
+    return err
 
 
 def create_vehicle(
@@ -240,7 +253,7 @@ def preview_edit(session: Session, vehicle: Vehicle, changes: dict[str, Any]) ->
     try:
         vp = vehicle_from_dict({**vehicle.params_dict(), **changes})
     except ParameterError as exc:
-        raise Invalid.from_engine(exc, field="params") from None
+        raise _invalid_params(exc, "params") from None
     now, after = vehicle.params_dict(), vp.to_dict()
     found = implausibilities(vp, vp.kind)
     return EditPreview(

@@ -204,9 +204,10 @@ def test_manual_edit_is_a_version_and_reprocesses(client: TestClient, healthy_ru
     assert _wait_version(client, run_id, 2)["status"] == "done"
     v = client.get("/api/v1/vehicles/edit/versions").json()["data"][0]
     assert (v["source"], v["note"], v["params"]["ms"]) == ("manual", "weighed", 17000.0)
-    for params in ({"ms": 17000.0}, {"mass": 1.0}, {"ks1": -1}):
+    for params, field in (({"ms": 17000.0}, "params"), ({"mass": 1.0}, "params"),
+                          ({"ks1": -1}, "params.ks1")):  # fmt: skip
         r = client.patch("/api/v1/vehicles/edit", json={"params": params})
-        assert r.status_code == 422 and r.json()["detail"]["field"] == "params", r.text
+        assert r.status_code == 422 and r.json()["detail"]["field"] == field, r.text
     assert client.get("/api/v1/vehicles/edit").json()["version"] == 2
 
 
