@@ -29,10 +29,11 @@ export function rolesOf(spec) {
   return { roles, gravity: props.gravity["x-values"].filter((g) => g !== "auto") };
 }
 
-/** Vehicle parameters: [[name, label, unit, default]] (defaults: the Table 1 vehicle). */
+/** Vehicle parameters: [[name, label, unit, default]] (defaults: the Table 1 vehicle). The
+ * numeric ones only: `kind` (the half car, the schema's default) is not typed in. */
 export function vehicleFieldsOf(spec) {
   const props = spec.components.schemas.VehicleParamsSchema.properties;
-  return Object.entries(props).map(([name, p]) => {
+  return Object.entries(props).filter(([, p]) => p.type === "number").map(([name, p]) => {
     const cut = p.description.lastIndexOf(", ");
     return [name, p.description.slice(0, cut), p.description.slice(cut + 2), p.default];
   });
