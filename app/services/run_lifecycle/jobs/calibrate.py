@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from sqlalchemy import update
+from sqlalchemy import Update, update
 from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
@@ -79,7 +79,7 @@ class CalibrateJob(Job):
         if queued:
             self.crew.wake()
 
-    def _owned(self, cal_id: int) -> Any:
+    def _owned(self, cal_id: int) -> Update:
         return update(Calibration).where(
             Calibration.id == cal_id, Calibration.claimed_by == self.crew.id,
             Calibration.status == "running",
