@@ -24,22 +24,8 @@ from pathlib import Path
 import httpx
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_service import wait_healthy  # noqa: E402
-from common import CACHE, hour_log, machine  # noqa: E402
-
-
-def log_csv(minutes: float) -> tuple[Path, float]:
-    """The simulated log of ``minutes`` as a CSV on disk (cached), and its start chainage, m."""
-    from engine.logio import write_run_csv
-
-    log, start = hour_log(60.0 * minutes)
-    path = CACHE / f"log_{int(60 * minutes)}s_1kHz_8digits.csv"
-    if not path.exists():
-        tmp = path.with_suffix(".tmp")
-        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-            write_run_csv(log, fh, digits=8)
-        tmp.rename(path)
-    return path, start
+from bench_service import hour_csv, wait_healthy  # noqa: E402
+from common import machine  # noqa: E402
 
 
 def upload_to_done(tree: Path, csv_path: Path, start: float, port: int) -> tuple[float, float]:
@@ -84,7 +70,7 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--port", type=int, default=8790)
     ns = ap.parse_args()
-    csv_path, start = log_csv(ns.minutes)
+    csv_path, start = hour_csv(ns.minutes)
     trees = {"before": ns.before.resolve(), "after": ns.after.resolve()}
     times: dict[str, list[tuple[float, float]]] = {k: [] for k in trees}
     for r in range(ns.rounds):
