@@ -176,7 +176,7 @@ def cmd_worker(_ns: argparse.Namespace) -> int:
     import signal
     import threading
 
-    from app.services.worker import Worker
+    from app.services.run_lifecycle.queue import Worker
 
     ctx = AppContext(settings=get_settings(), db=_db())
     worker = Worker(ctx)

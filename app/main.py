@@ -38,7 +38,7 @@ from app.db.session import Database
 from app.schemas.runs import RunCreateJson
 from app.schemas.stiffness import SurveyCreateJson
 from app.services.context import AppContext
-from app.services.worker import Worker
+from app.services.run_lifecycle.queue import Worker
 from app.web import install_web
 
 log = logging.getLogger("app")

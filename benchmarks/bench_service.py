@@ -46,12 +46,14 @@ sys.path.insert(0, str(REPO))
 from common import CACHE, hour_log, machine  # noqa: E402
 
 
-def hour_csv() -> tuple[Path, float]:
-    """The 1-hour log as a canonical CSV on disk (cached) and its start chainage, m."""
+def hour_csv(minutes: float = 60.0) -> tuple[Path, float]:
+    """The 1-hour log (or one of ``minutes``) as a canonical CSV on disk (cached) and its
+    start chainage, m."""
     from engine.logio import write_run_csv
 
-    log, start = hour_log()
-    path = CACHE / "hour_1kHz_8digits.csv"
+    log, start = hour_log(60.0 * minutes)
+    name = "hour" if minutes == 60.0 else f"log_{int(60 * minutes)}s"
+    path = CACHE / f"{name}_1kHz_8digits.csv"
     if not path.exists():
         tmp = path.with_suffix(".tmp")
         with open(tmp, "w", encoding="utf-8", newline="\n") as fh:

@@ -256,7 +256,7 @@ class Run(Base):
     content_hash: Mapped[str] = mapped_column(String(64))
     idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
 
-    # Work claim of the background worker (see app.services.worker).
+    # Work claim of the background worker (see app.services.run_lifecycle.lease).
     claimed_by: Mapped[str | None] = mapped_column(String(120))
     heartbeat_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     attempts: Mapped[int] = mapped_column(Integer, default=0)

@@ -60,6 +60,33 @@ def _config(fit: list[str] | None, load_kg: float | None) -> CalibrationConfig:
         raise Invalid.from_engine(exc, field=field) from None
 
 
+def _chosen_runs(session: Session, vehicle: Vehicle, run_ids: list[int]) -> list[int]:
+    """The runs a calibration request names, sorted; Invalid unless each exists, was logged
+    by ``vehicle``, is processed and has its log stored."""
+    if not run_ids:
+        raise Invalid("run_ids is empty: give some runs, or leave it out for all", field="run_ids")
+    ids = sorted(set(run_ids))
+    rows = {r.id: r for r in session.scalars(select(Run).where(Run.id.in_(ids))).all()}
+    missing = [i for i in ids if i not in rows]
+    if missing:
+        raise Invalid(f"run(s) {missing} do not exist", field="run_ids")
+    foreign = [i for i in ids if rows[i].vehicle_id != vehicle.id]
+    if foreign:
+        names = ", ".join(f"{i} ({rows[i].vehicle.name})" for i in foreign)
+        raise Invalid(
+            f"run(s) {names} were logged by another vehicle, not {vehicle.name!r}",
+            field="run_ids",
+        )
+    stored = set(session.scalars(select(RunInput.run_id).where(RunInput.run_id.in_(ids))))
+    not_done = [i for i in ids if rows[i].status != "done" or i not in stored]
+    if not_done:
+        raise Invalid(
+            f"run(s) {not_done} are not processed or have no stored log to calibrate from",
+            field="run_ids",
+        )
+    return ids
+
+
 def request_calibration(
     session: Session,
     vehicle: Vehicle,
@@ -106,38 +133,16 @@ def request_calibration(
         except ParameterError as exc:
             raise Invalid.from_engine(exc, field="load_kg") from None
         checked_params(held.to_dict(), field="load_kg")
-    if run_ids is not None:
-        if not run_ids:
-            raise Invalid(
-                "run_ids is empty: give some runs, or leave it out for all", field="run_ids"
-            )
-        ids = sorted(set(run_ids))
-        rows = {r.id: r for r in session.scalars(select(Run).where(Run.id.in_(ids))).all()}
-        missing = [i for i in ids if i not in rows]
-        if missing:
-            raise Invalid(f"run(s) {missing} do not exist", field="run_ids")
-        foreign = [i for i in ids if rows[i].vehicle_id != vehicle.id]
-        if foreign:
-            names = ", ".join(f"{i} ({rows[i].vehicle.name})" for i in foreign)
-            raise Invalid(
-                f"run(s) {names} were logged by another vehicle, not {vehicle.name!r}",
-                field="run_ids",
-            )
-        stored = set(session.scalars(select(RunInput.run_id).where(RunInput.run_id.in_(ids))))
-        not_done = [i for i in ids if rows[i].status != "done" or i not in stored]
-        if not_done:
-            raise Invalid(
-                f"run(s) {not_done} are not processed or have no stored log to calibrate from",
-                field="run_ids",
-            )
-    else:
-        ids = usable_run_ids(session, vehicle.id)
-        if not ids:
-            raise Invalid(
-                f"vehicle {vehicle.name!r} has no processed runs with a stored log to calibrate "
-                "from",
-                field="run_ids",
-            )
+    ids = (
+        usable_run_ids(session, vehicle.id)
+        if run_ids is None
+        else _chosen_runs(session, vehicle, run_ids)
+    )
+    if not ids:
+        raise Invalid(
+            f"vehicle {vehicle.name!r} has no processed runs with a stored log to calibrate from",
+            field="run_ids",
+        )
     active = session.scalar(
         select(Calibration.id).where(
             Calibration.vehicle_id == vehicle.id, Calibration.status.in_(ACTIVE)

@@ -142,6 +142,149 @@ def _marker(shape: str, x: float, y: float, r: float, fill: str, stroke: str) ->
     )
 
 
+@dataclass(frozen=True)
+class _MapFrame:
+    """The chainage map's layout (px) and its chainage range (m)."""
+
+    x0: float
+    x1: float
+    width: int
+    ml: int = 64
+    mr: int = 16
+    mt: int = 16
+    prof_h: int = 220
+    strip_h: int = 70
+    axis_h: int = 44
+
+    @property
+    def pw(self) -> int:
+        return self.width - self.ml - self.mr
+
+    @property
+    def height(self) -> int:
+        return self.mt + self.prof_h + self.strip_h + self.axis_h
+
+    def sx(self, v: float) -> float:
+        return self.ml + (v - self.x0) / (self.x1 - self.x0) * self.pw
+
+
+def _gap_segments(
+    c: NDArray[np.float64], lv: NDArray[np.float64], max_gap_m: float
+) -> list[list[int]]:
+    """Indices of the runs of finite levels, split where chainage jumps over ``max_gap_m``."""
+    seg: list[int] = []
+    segments: list[list[int]] = []
+    for k in range(c.size):
+        if np.isfinite(lv[k]) and (not seg or c[k] - c[seg[-1]] <= max_gap_m):
+            seg.append(k)
+        else:
+            if len(seg) > 1:
+                segments.append(seg)
+            seg = [k] if np.isfinite(lv[k]) else []
+    if len(seg) > 1:
+        segments.append(seg)
+    return segments
+
+
+def _profile_panel(
+    f: _MapFrame,
+    chainage_m: NDArray[np.float64],
+    level_mm: NDArray[np.float64],
+    spread_mm: NDArray[np.float64],
+    defects: Sequence[Defect],
+    ranks: dict[str, int],
+) -> list[str]:
+    """The aggregated level with its spread band (split at gaps), its level axis, and the
+    50 first-ranked defects as markers on it."""
+    ml, mt, prof_h, pw = f.ml, f.mt, f.prof_h, f.pw
+    finite = np.isfinite(level_mm)
+    keep = minmax_indices(np.where(finite, level_mm, np.nan), REPORT_MAX_POINTS)
+    c = chainage_m[keep]
+    lv = level_mm[keep]
+    sp = np.nan_to_num(spread_mm[keep], nan=0.0)
+    lo_all = np.nanmin(lv - sp)
+    hi_all = np.nanmax(lv + sp)
+    if not hi_all > lo_all:
+        lo_all, hi_all = lo_all - 0.1, hi_all + 0.1
+    ypad = 0.08 * (hi_all - lo_all)
+    y0, y1 = lo_all - ypad, hi_all + ypad
+
+    def sy(v: float) -> float:
+        return mt + prof_h - (v - y0) / (y1 - y0) * prof_h
+
+    sx = f.sx
+    out: list[str] = []
+    segments = _gap_segments(c, lv, 5 * (f.x1 - f.x0) / pw + 1.0)
+    for s in segments:
+        upper = " ".join(f"{sx(c[k]):.1f},{sy(lv[k] + sp[k]):.1f}" for k in s)
+        lower = " ".join(f"{sx(c[k]):.1f},{sy(lv[k] - sp[k]):.1f}" for k in reversed(s))
+        out.append(f'<polygon points="{upper} {lower}" fill="#bfdbfe" stroke="none"/>')
+    for s in segments:
+        pts = " ".join(f"{sx(c[k]):.1f},{sy(lv[k]):.1f}" for k in s)
+        out.append(f'<polyline points="{pts}" fill="none" stroke="#1d4ed8" stroke-width="1"/>')
+    for v in _ticks(y0, y1, 4):
+        y = sy(v)
+        out.append(
+            f'<line x1="{ml - 4}" y1="{y:.1f}" x2="{ml + pw}" y2="{y:.1f}" stroke="#e2e8f0"/>'
+            f'<text x="{ml - 6}" y="{y + 4:.1f}" font-size="11" text-anchor="end">'
+            f"{v:g}</text>"
+        )
+    out.append(
+        f'<text x="14" y="{mt + prof_h / 2:.0f}" font-size="12" text-anchor="middle" '
+        f'transform="rotate(-90 14 {mt + prof_h / 2:.0f})">Level (mm)</text>'
+    )
+    for d in defects:
+        rank = ranks[d.id]
+        if rank > 50:
+            continue
+        fill, stroke, shape = LEVEL_STYLE[d.level]
+        k = int(np.argmin(np.abs(c - d.peak_m))) if c.size else 0
+        y = sy(float(lv[k])) if c.size and np.isfinite(lv[k]) else mt + prof_h - 10
+        out.append(_marker(shape, sx(d.peak_m), y, 6.5, fill, stroke))
+    return out
+
+
+def _defect_strip(f: _MapFrame, defects: Sequence[Defect], ranks: dict[str, int]) -> list[str]:
+    """The defects' extents as bars in up to four lanes, labelled with the rank of the table
+    below (the first 20)."""
+    ml, sy0 = f.ml, f.mt + f.prof_h + 10
+    out = [f'<text x="{ml - 6}" y="{sy0 + 26}" font-size="11" text-anchor="end">Defects</text>']
+    lanes: list[float] = []
+    for d in sorted(defects, key=lambda d: d.start_m):
+        rank = ranks[d.id]
+        fill, stroke, _ = LEVEL_STYLE[d.level]
+        xa, xb = f.sx(d.start_m), max(f.sx(d.end_m), f.sx(d.start_m) + 3)
+        lane = next((i for i, end in enumerate(lanes) if end < xa - 2), None)
+        if lane is None:
+            lane = len(lanes)
+            lanes.append(0.0)
+        lanes[lane] = xb + (18 if rank <= 20 else 0)
+        y = sy0 + 4 + (lane % 4) * 14
+        out.append(
+            f'<rect x="{xa:.1f}" y="{y:.1f}" width="{xb - xa:.1f}" height="10" fill="{fill}" '
+            f'stroke="{stroke}"/>'
+        )
+        if rank <= 20:
+            out.append(f'<text x="{xb + 2:.1f}" y="{y + 9:.1f}" font-size="10">{rank}</text>')
+    return out
+
+
+def _chainage_axis(f: _MapFrame) -> list[str]:
+    ml, pw, ya = f.ml, f.pw, f.mt + f.prof_h + f.strip_h
+    out = [f'<line x1="{ml}" y1="{ya}" x2="{ml + pw}" y2="{ya}" stroke="#475569"/>']
+    for v in _ticks(f.x0, f.x1, 8):
+        x = f.sx(v)
+        out.append(
+            f'<line x1="{x:.1f}" y1="{ya}" x2="{x:.1f}" y2="{ya + 5}" stroke="#475569"/>'
+            f'<text x="{x:.1f}" y="{ya + 18}" font-size="11" text-anchor="middle">{v:g}</text>'
+        )
+    out.append(
+        f'<text x="{ml + pw / 2:.0f}" y="{ya + 36}" font-size="12" text-anchor="middle">'
+        "Chainage (m, aligned)</text></svg>"
+    )
+    return out
+
+
 def chainage_map_svg(
     chainage_m: NDArray[np.float64],
     level_mm: NDArray[np.float64],
@@ -151,10 +294,6 @@ def chainage_map_svg(
     width: int = 1000,
 ) -> str:
     """The chainage map: aggregated level with its spread band, defects as ranked markers."""
-    ml, mr, mt = 64, 16, 16
-    prof_h, strip_h, axis_h = 220, 70, 44
-    height = mt + prof_h + strip_h + axis_h
-    pw = width - ml - mr
     xs = [float(d.start_m) for d in defects] + [float(d.end_m) for d in defects]
     finite = np.isfinite(level_mm)
     if finite.any():
@@ -169,109 +308,23 @@ def chainage_map_svg(
     if x1 - x0 < 1:
         x0, x1 = x0 - 5, x1 + 5
     pad = 0.01 * (x1 - x0)
-    x0, x1 = x0 - pad, x1 + pad
-
-    def sx(v: float) -> float:
-        return ml + (v - x0) / (x1 - x0) * pw
-
+    f = _MapFrame(x0 - pad, x1 + pad, width)
     out = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width} {height}" '
+        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width} {f.height}" '
         f'width="100%" role="img" aria-labelledby="map-title">'
         '<title id="map-title">Chainage map: aggregated loaded profile with its spread, '
         "and the defects of the register by priority</title>",
-        f'<rect x="{ml}" y="{mt}" width="{pw}" height="{prof_h}" fill="#f8fafc" stroke="#cbd5e1"/>',
+        f'<rect x="{f.ml}" y="{f.mt}" width="{f.pw}" height="{f.prof_h}" fill="#f8fafc" '
+        'stroke="#cbd5e1"/>',
     ]
     if finite.any():
-        keep = minmax_indices(np.where(finite, level_mm, np.nan), REPORT_MAX_POINTS)
-        c = chainage_m[keep]
-        lv = level_mm[keep]
-        sp = np.nan_to_num(spread_mm[keep], nan=0.0)
-        lo_all = np.nanmin(lv - sp)
-        hi_all = np.nanmax(lv + sp)
-        if not hi_all > lo_all:
-            lo_all, hi_all = lo_all - 0.1, hi_all + 0.1
-        ypad = 0.08 * (hi_all - lo_all)
-        y0, y1 = lo_all - ypad, hi_all + ypad
-
-        def sy(v: float) -> float:
-            return mt + prof_h - (v - y0) / (y1 - y0) * prof_h
-
-        # spread band and median line, split at gaps
-        seg: list[int] = []
-        segments: list[list[int]] = []
-        for k in range(c.size):
-            if np.isfinite(lv[k]) and (not seg or c[k] - c[seg[-1]] <= 5 * (x1 - x0) / pw + 1.0):
-                seg.append(k)
-            else:
-                if len(seg) > 1:
-                    segments.append(seg)
-                seg = [k] if np.isfinite(lv[k]) else []
-        if len(seg) > 1:
-            segments.append(seg)
-        for s in segments:
-            upper = " ".join(f"{sx(c[k]):.1f},{sy(lv[k] + sp[k]):.1f}" for k in s)
-            lower = " ".join(f"{sx(c[k]):.1f},{sy(lv[k] - sp[k]):.1f}" for k in reversed(s))
-            out.append(f'<polygon points="{upper} {lower}" fill="#bfdbfe" stroke="none"/>')
-        for s in segments:
-            pts = " ".join(f"{sx(c[k]):.1f},{sy(lv[k]):.1f}" for k in s)
-            out.append(f'<polyline points="{pts}" fill="none" stroke="#1d4ed8" stroke-width="1"/>')
-        for v in _ticks(y0, y1, 4):
-            y = sy(v)
-            out.append(
-                f'<line x1="{ml - 4}" y1="{y:.1f}" x2="{ml + pw}" y2="{y:.1f}" stroke="#e2e8f0"/>'
-                f'<text x="{ml - 6}" y="{y + 4:.1f}" font-size="11" text-anchor="end">'
-                f"{v:g}</text>"
-            )
-        out.append(
-            f'<text x="14" y="{mt + prof_h / 2:.0f}" font-size="12" text-anchor="middle" '
-            f'transform="rotate(-90 14 {mt + prof_h / 2:.0f})">Level (mm)</text>'
-        )
-        for d in defects:
-            rank = ranks[d.id]
-            if rank > 50:
-                continue
-            fill, stroke, shape = LEVEL_STYLE[d.level]
-            k = int(np.argmin(np.abs(c - d.peak_m))) if c.size else 0
-            y = sy(float(lv[k])) if c.size and np.isfinite(lv[k]) else mt + prof_h - 10
-            out.append(_marker(shape, sx(d.peak_m), y, 6.5, fill, stroke))
+        out += _profile_panel(f, chainage_m, level_mm, spread_mm, defects, ranks)
     else:
         out.append(
-            f'<text x="{ml + 10}" y="{mt + 24}" font-size="13">No aggregated profile yet.</text>'
+            f'<text x="{f.ml + 10}" y="{f.mt + 24}" font-size="13">'
+            "No aggregated profile yet.</text>"
         )
-    # defect strip: extents as bars labelled with the rank of the table below
-    sy0 = mt + prof_h + 10
-    out.append(f'<text x="{ml - 6}" y="{sy0 + 26}" font-size="11" text-anchor="end">Defects</text>')
-    lanes: list[float] = []
-    for d in sorted(defects, key=lambda d: d.start_m):
-        rank = ranks[d.id]
-        fill, stroke, _ = LEVEL_STYLE[d.level]
-        xa, xb = sx(d.start_m), max(sx(d.end_m), sx(d.start_m) + 3)
-        lane = next((i for i, end in enumerate(lanes) if end < xa - 2), None)
-        if lane is None:
-            lane = len(lanes)
-            lanes.append(0.0)
-        lanes[lane] = xb + (18 if rank <= 20 else 0)
-        y = sy0 + 4 + (lane % 4) * 14
-        out.append(
-            f'<rect x="{xa:.1f}" y="{y:.1f}" width="{xb - xa:.1f}" height="10" fill="{fill}" '
-            f'stroke="{stroke}"/>'
-        )
-        if rank <= 20:
-            out.append(f'<text x="{xb + 2:.1f}" y="{y + 9:.1f}" font-size="10">{rank}</text>')
-    # chainage axis
-    ya = mt + prof_h + strip_h
-    out.append(f'<line x1="{ml}" y1="{ya}" x2="{ml + pw}" y2="{ya}" stroke="#475569"/>')
-    for v in _ticks(x0, x1, 8):
-        x = sx(v)
-        out.append(
-            f'<line x1="{x:.1f}" y1="{ya}" x2="{x:.1f}" y2="{ya + 5}" stroke="#475569"/>'
-            f'<text x="{x:.1f}" y="{ya + 18}" font-size="11" text-anchor="middle">{v:g}</text>'
-        )
-    out.append(
-        f'<text x="{ml + pw / 2:.0f}" y="{ya + 36}" font-size="12" text-anchor="middle">'
-        "Chainage (m, aligned)</text></svg>"
-    )
-    return "".join(out)
+    return "".join(out + _defect_strip(f, defects, ranks) + _chainage_axis(f))
 
 
 def _legend() -> str:
@@ -317,34 +370,9 @@ def _loss_band(d: Defect) -> str:
     )
 
 
-def render_report(data: ReportInput) -> str:
-    """The HTML report of a track (a complete document, UTF-8)."""
-    defects = list(data.defects)
-    ranks = {d.id: i + 1 for i, d in enumerate(defects)}
-    counts = {lv: sum(1 for d in defects if d.level == lv) for lv in LEVELS}
-    name = escape(data.track_name)
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>Track report: {name}</title><style>{STYLE}</style></head><body>",
-        f"<h1>Track report: {name}</h1>",
-        f'<p class="meta">Track id {data.track_id}'
-        + (f" · {escape(data.description)}" if data.description else "")
-        + f" · generated {data.generated_at:%Y-%m-%d %H:%M} UTC · {data.runs_total} run"
-        + ("s" if data.runs_total != 1 else "")
-        + f" · {len(defects)} defect"
-        + ("s" if len(defects) != 1 else "")
-        + f" ({counts['immediate']} immediate action, {counts['intervention']} intervention, "
-        f"{counts['alert']} alert)</p>",
-        "<h2>Chainage map</h2>",
-        chainage_map_svg(data.chainage_m, data.level_mm, data.spread_mm, defects, ranks),
-        _legend(),
-        '<p class="note">Levels are the loaded profile (mm, positive up): a soft spot is a dip. '
-        "Bars under the profile are the defects' extents, numbered as in the table.</p>",
-        data.stiffness_html,
-        data.quality_html,
-    ]
+def _defects_table(data: ReportInput, defects: list[Defect], ranks: dict[str, int]) -> list[str]:
+    """The top defects' table (or why there is none)."""
+    parts: list[str] = []
     parts.append(f"<h2>Top defects ({min(len(defects), data.top)} of {len(defects)})</h2>")
     if defects:
         rows = []
@@ -382,6 +410,12 @@ def render_report(data: ReportInput) -> str:
         )
     else:
         parts.append("<p>No defect: no aligned run of this track found a soft spot.</p>")
+    return parts
+
+
+def _limits_table(data: ReportInput) -> list[str]:
+    """The limits each level is reached at."""
+    parts: list[str] = []
     lim = data.limits
     parts.append(
         "<h2>Limits</h2>"
@@ -402,6 +436,12 @@ def render_report(data: ReportInput) -> str:
         '<p class="note">A defect reaches a level when its depth or its stiffness loss in the '
         "latest run reaches that level's value (— : criterion not used).</p>"
     )
+    return parts
+
+
+def _runs_table(data: ReportInput) -> list[str]:
+    """The newest runs of the track: alignment, extent, soft spots."""
+    parts: list[str] = []
     parts.append(
         f"<h2>Runs ({len(data.runs)}"
         + (f" newest of {data.runs_total}" if data.runs_total > len(data.runs) else "")
@@ -431,6 +471,40 @@ def render_report(data: ReportInput) -> str:
         )
     else:
         parts.append("<p>No run on this track yet.</p>")
+    return parts
+
+
+def render_report(data: ReportInput) -> str:
+    """The HTML report of a track (a complete document, UTF-8)."""
+    defects = list(data.defects)
+    ranks = {d.id: i + 1 for i, d in enumerate(defects)}
+    counts = {lv: sum(1 for d in defects if d.level == lv) for lv in LEVELS}
+    name = escape(data.track_name)
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>Track report: {name}</title><style>{STYLE}</style></head><body>",
+        f"<h1>Track report: {name}</h1>",
+        f'<p class="meta">Track id {data.track_id}'
+        + (f" · {escape(data.description)}" if data.description else "")
+        + f" · generated {data.generated_at:%Y-%m-%d %H:%M} UTC · {data.runs_total} run"
+        + ("s" if data.runs_total != 1 else "")
+        + f" · {len(defects)} defect"
+        + ("s" if len(defects) != 1 else "")
+        + f" ({counts['immediate']} immediate action, {counts['intervention']} intervention, "
+        f"{counts['alert']} alert)</p>",
+        "<h2>Chainage map</h2>",
+        chainage_map_svg(data.chainage_m, data.level_mm, data.spread_mm, defects, ranks),
+        _legend(),
+        '<p class="note">Levels are the loaded profile (mm, positive up): a soft spot is a dip. '
+        "Bars under the profile are the defects' extents, numbered as in the table.</p>",
+        data.stiffness_html,
+        data.quality_html,
+    ]
+    parts += _defects_table(data, defects, ranks)
+    parts += _limits_table(data)
+    parts += _runs_table(data)
     parts.append(
         '<p class="note">Alignment: each run is cross-correlated with the aggregated profile of '
         "the runs before it; an unaligned run is shown as logged and left out of the aggregate "

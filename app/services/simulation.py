@@ -23,7 +23,9 @@ from engine.vehicle_kinds import vehicle_from_dict
 from .context import AppContext
 from .errors import Invalid
 from .logs import sha256_hex
-from .submit import Submission, resolve_track, resolve_vehicle, submit
+from .lookup import resolve_track, resolve_vehicle
+from .run_lifecycle.accept import submit
+from .run_lifecycle.intake import Submission
 
 TRUTH_POINTS = 5000
 """Most points of the true profile returned with a simulated run."""

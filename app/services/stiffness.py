@@ -244,6 +244,61 @@ def _contributors(passes: list[PassLevels], lo: int, hi: int) -> list[dict[str, 
     return out
 
 
+def _chunk_rows(
+    track_id: int, res: SeparationResult, passes: list[PassLevels], a: int, b: int, r_lo: int,
+    n: int,
+) -> tuple[list[dict[str, Any]], int]:  # fmt: skip
+    """The ``track_stiffness`` rows of chunks ``a..b`` from a separation over the ``n`` grid
+    points from chunk ``r_lo`` on, and the number of grid points they cover."""
+    cols = {name: _on_grid(res, name, r_lo * CHUNK_POINTS, n) for name in STIFFNESS_ARRAYS}
+    cols["n_passes"] = np.nan_to_num(cols["n_passes"], nan=0.0)
+    rows = []
+    written = 0
+    for chunk in range(a, b + 1):
+        lo = (chunk - r_lo) * CHUNK_POINTS
+        hi = lo + CHUNK_POINTS
+        if not (cols["n_passes"][lo:hi] > 0).any():
+            continue
+        data = b"".join(
+            np.asarray(cols[name][lo:hi], dtype=_DTYPE).tobytes() for name in STIFFNESS_ARRAYS
+        )
+        contributors = _contributors(passes, lo, hi)
+        separable = cols["separable"][lo:hi]
+        covered = cols["n_passes"][lo:hi] > 0
+        message = None
+        if (covered & ~(separable > 0.5)).any():
+            message = res.message or NOT_SEPARABLE
+        rows.append({
+            "track_id": track_id, "chunk": chunk, "data": data,
+            "meta": {"contributors": contributors, "message": message},
+        })  # fmt: skip
+        written += int(covered.sum())
+    return rows, written
+
+
+def _spot_rows(
+    track_id: int, res: SeparationResult, passes: list[PassLevels], grid: NDArray[np.float64],
+    x_lo: float, x_hi: float,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """The ``track_stiffness_spots`` rows of the soft spots peaking in ``[x_lo, x_hi)``, m."""
+    return [
+        {
+            "track_id": track_id,
+            "start_m": float(sp.start_m),
+            "end_m": float(sp.end_m),
+            "peak_m": float(sp.peak_m),
+            "loss_pct": float(sp.loss_pct),
+            "loss_lo_pct": _finite(sp.loss_lo_pct),
+            "loss_hi_pct": _finite(sp.loss_hi_pct),
+            "confidence": _finite(sp.confidence),
+            "depth_mm": _finite(sp.depth_mm),
+            "support": _support(passes, grid, sp.start_m, sp.end_m),
+        }  # fmt: skip
+        for sp in res.soft_spots
+        if x_lo <= float(sp.peak_m) < x_hi and math.isfinite(float(sp.loss_pct))
+    ]
+
+
 def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -> int:
     """Separate geometry and stiffness again over chunks ``c_lo..c_hi`` (caller's transaction).
 
@@ -294,46 +349,11 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
             log.warning("separation of track %s chunks %d-%d failed", track_id, a, b,
                         exc_info=True)  # fmt: skip
             continue
-        cols = {name: _on_grid(res, name, i0, n) for name in STIFFNESS_ARRAYS}
-        cols["n_passes"] = np.nan_to_num(cols["n_passes"], nan=0.0)
-        rows = []
-        for chunk in range(a, b + 1):
-            lo = (chunk - r_lo) * CHUNK_POINTS
-            hi = lo + CHUNK_POINTS
-            if not (cols["n_passes"][lo:hi] > 0).any():
-                continue
-            data = b"".join(
-                np.asarray(cols[name][lo:hi], dtype=_DTYPE).tobytes() for name in STIFFNESS_ARRAYS
-            )
-            contributors = _contributors(passes, lo, hi)
-            separable = cols["separable"][lo:hi]
-            covered = cols["n_passes"][lo:hi] > 0
-            message = None
-            if (covered & ~(separable > 0.5)).any():
-                message = res.message or NOT_SEPARABLE
-            rows.append({
-                "track_id": track_id, "chunk": chunk, "data": data,
-                "meta": {"contributors": contributors, "message": message},
-            })  # fmt: skip
-            written += int(covered.sum())
+        rows, covered = _chunk_rows(track_id, res, passes, a, b, r_lo, n)
+        written += covered
         if rows:
             session.execute(insert(TrackStiffness), rows)
-        spots = [
-            {
-                "track_id": track_id,
-                "start_m": float(sp.start_m),
-                "end_m": float(sp.end_m),
-                "peak_m": float(sp.peak_m),
-                "loss_pct": float(sp.loss_pct),
-                "loss_lo_pct": _finite(sp.loss_lo_pct),
-                "loss_hi_pct": _finite(sp.loss_hi_pct),
-                "confidence": _finite(sp.confidence),
-                "depth_mm": _finite(sp.depth_mm),
-                "support": _support(passes, grid, sp.start_m, sp.end_m),
-            }  # fmt: skip
-            for sp in res.soft_spots
-            if x_lo <= float(sp.peak_m) < x_hi and math.isfinite(float(sp.loss_pct))
-        ]
+        spots = _spot_rows(track_id, res, passes, grid, x_lo, x_hi)
         if spots:
             session.execute(insert(TrackStiffnessSpot), spots)
             record_separation(session, track_id, spots)
@@ -441,6 +461,30 @@ def _none_nan(a: NDArray[np.float64]) -> list[float | None]:
     return values
 
 
+def _spots_in(
+    session: Session, track_id: int, from_m: float | None, to_m: float | None
+) -> list[TrackStiffnessSpot]:
+    """The separation's soft spots overlapping ``[from_m, to_m]`` (m), by start."""
+    sp = TrackStiffnessSpot
+    spot_stmt = select(sp).where(sp.track_id == track_id)
+    if from_m is not None:
+        spot_stmt = spot_stmt.where(sp.end_m >= from_m)
+    if to_m is not None:
+        spot_stmt = spot_stmt.where(sp.start_m <= to_m)
+    return list(session.scalars(spot_stmt.order_by(sp.start_m)).all())
+
+
+def _updating(session: Session, track_id: int, from_m: float | None, to_m: float | None) -> bool:
+    """Whether chunks of the track overlapping ``[from_m, to_m]`` (m) wait for their
+    separation to be redone."""
+    pending = pending_chunks(session, track_id)
+    return (
+        pending is not None
+        and (from_m is None or (pending[1] + 1) * CHUNK_POINTS * GRID_STEP_M > from_m)
+        and (to_m is None or pending[0] * CHUNK_POINTS * GRID_STEP_M <= to_m)
+    )
+
+
 def read_stiffness(
     session: Session, track_id: int, from_m: float | None = None, to_m: float | None = None
 ) -> StiffnessWindow:
@@ -500,24 +544,13 @@ def read_stiffness(
             columns[name] = named[name].astype(np.int64).tolist()
         else:
             columns[name] = _none_nan(named[name])
-    sp = TrackStiffnessSpot
-    spot_stmt = select(sp).where(sp.track_id == track_id)
-    if from_m is not None:
-        spot_stmt = spot_stmt.where(sp.end_m >= from_m)
-    if to_m is not None:
-        spot_stmt = spot_stmt.where(sp.start_m <= to_m)
-    spots = list(session.scalars(spot_stmt.order_by(sp.start_m)).all())
+    spots = _spots_in(session, track_id, from_m, to_m)
     contrib = [
         {k2: v for k2, v in c.items() if k2 not in ("force_sum", "mean_force_n")}
         | {"mean_force_n": c["force_sum"] / max(1, c["points"])}
         for c in contributors.values()
     ]
-    pending = pending_chunks(session, track_id)
-    updating = (
-        pending is not None
-        and (from_m is None or (pending[1] + 1) * CHUNK_POINTS * GRID_STEP_M > from_m)
-        and (to_m is None or pending[0] * CHUNK_POINTS * GRID_STEP_M <= to_m)
-    )
+    updating = _updating(session, track_id, from_m, to_m)
     stretches = not_separable_stretches(x, named["n_passes"], named["load_ratio"], separable)
     return StiffnessWindow(
         columns, spots, contrib, stretches_message(stretches) if x.size else None, updating,

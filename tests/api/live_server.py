@@ -41,7 +41,7 @@ LOG_CONFIG = {
 }
 
 CLAIM_LINE = re.compile(r"claimed run (\d+) \(attempt (\d+)\)")
-"""The worker's log line for a claim (see app.services.worker.Worker.claim)."""
+"""The worker's log line for a claim (see app.services.run_lifecycle.jobs.process)."""
 
 
 _reserved: set[int] = set()

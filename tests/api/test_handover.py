@@ -9,14 +9,15 @@ from collections import Counter
 import pytest
 
 import app.services.processing as processing_mod
-import app.services.submit as submit_mod
-import app.services.worker as worker_mod
+import app.services.run_lifecycle.accept as accept_mod
+import app.services.run_lifecycle.inversion as inversion_mod
 import engine.pipeline as pipeline_mod
 import engine.plausibility as plausibility_mod
 from api.api_support import row_counts, upload, wait_done
 from app.services.handover import Handover
 from app.services.logs import pack_log
-from app.services.worker import Worker
+from app.services.run_lifecycle.jobs.process import HANDOVER_GRACE_S
+from app.services.run_lifecycle.queue import Worker
 from engine.pipeline import check_run
 from engine.runlog import RunLog
 from engine.vehicle import TABLE1
@@ -37,11 +38,11 @@ def calls(monkeypatch) -> Counter:
 
     check = spy("check_run", pipeline_mod.check_run)
     monkeypatch.setattr(pipeline_mod, "check_run", check)
-    monkeypatch.setattr(submit_mod, "check_run", check)
+    monkeypatch.setattr(accept_mod, "check_run", check)
     monkeypatch.setattr(
         plausibility_mod, "check_time_steps", spy("plausible", plausibility_mod.check_time_steps)
     )
-    monkeypatch.setattr(worker_mod, "unpack_log", spy("unpack", worker_mod.unpack_log))
+    monkeypatch.setattr(inversion_mod, "unpack_log", spy("unpack", inversion_mod.unpack_log))
     return seen
 
 
@@ -159,7 +160,7 @@ def test_logs_of_runs_claimed_elsewhere_are_freed_when_the_worker_finds_nothing(
     ctx.handover.put(10_001, "elsewhere", log, chk)  # no such queued run here
     assert worker.run_once() is False and len(ctx.handover) == 1  # within the grace
     now = time.monotonic()
-    monkeypatch.setattr(time, "monotonic", lambda: now + worker_mod.HANDOVER_GRACE_S + 1)
+    monkeypatch.setattr(time, "monotonic", lambda: now + HANDOVER_GRACE_S + 1)
     ctx.handover.put(10_002, "just handed", log, chk)
     assert worker.run_once() is False
     assert ctx.handover.take(10_001) is None and ctx.handover.take(10_002) is not None
@@ -227,14 +228,14 @@ def test_a_submission_failing_after_the_start_leaves_no_slot_taken(
 
     c = start_app(inline_max_samples=0)
     ctx = c.app.state.ctx
-    monkeypatch.setattr(submit_mod, "pack_log", broken_pack)
+    monkeypatch.setattr(accept_mod, "pack_log", broken_pack)
     r = upload(c, synthetic_run["csv"], track="T",
                start_chainage_m=synthetic_run["start_chainage_m"])  # fmt: skip
     assert r.status_code == 500, r.text
     assert row_counts(settings)["runs"] == 0 and len(ctx.handover) == 0
     assert ctx.slots.acquire(timeout=60)  # the started inversion ended and let it go
     ctx.slots.release()
-    monkeypatch.setattr(submit_mod, "pack_log", pack_log)
+    monkeypatch.setattr(accept_mod, "pack_log", pack_log)
     run_id = _queue(c, synthetic_run)
     assert wait_done(c, run_id)["status"] == "done"
     assert [name for name, _ in inversions] == ["early-inversion", "early-inversion"]

@@ -15,7 +15,7 @@ def test_with_no_idle_time_memory_is_released_after_each_upload_and_run(
     """memory_release_idle_s 0 (the tests' setting): handed back when an upload has been
     stored and when a run has been processed, not while the worker looks for work."""
     from api.api_support import upload
-    from app.services.worker import Worker
+    from app.services.run_lifecycle.queue import Worker
 
     calls: list[int] = []
     monkeypatch.setattr(memory, "release_freed_memory", lambda: calls.append(1) or True)

@@ -191,7 +191,7 @@ def test_placement_holds_a_processing_slot_and_keeps_to_the_budget(
     budget is 422 BudgetExceeded naming the stage, nothing stored."""
     import json
 
-    import app.services.submit as submit
+    import app.services.run_lifecycle.accept as accept
 
     body = _gnss_csv(short_pass, 0.0, seed=4)
     (tmp_path / "a").mkdir()
@@ -201,7 +201,7 @@ def test_placement_holds_a_processing_slot_and_keeps_to_the_budget(
         assert put_line(c, json.dumps(centerline_geojson())).status_code == 201
         slots = c.app.state.ctx.slots  # type: ignore[attr-defined]
         free_while_placing: list[bool] = []
-        place = submit.place_by_gnss
+        place = accept.place_by_gnss
 
         def spy(*args: Any, **kwargs: Any) -> Any:
             free = slots.acquire(blocking=False)
@@ -210,7 +210,7 @@ def test_placement_holds_a_processing_slot_and_keeps_to_the_budget(
             free_while_placing.append(free)
             return place(*args, **kwargs)
 
-        monkeypatch.setattr(submit, "place_by_gnss", spy)
+        monkeypatch.setattr(accept, "place_by_gnss", spy)
         assert upload(c, body, track="Line").status_code == 201
         assert free_while_placing == [False]
 

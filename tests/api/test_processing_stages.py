@@ -13,7 +13,7 @@ import threading
 
 from api.api_support import row_counts, upload
 from api.live_server import wait_status
-from app.services import worker as worker_module
+from app.services.run_lifecycle import store as store_module
 
 
 def test_a_run_over_its_budget_fails_clearly_and_frees_the_slot(start_app, synthetic_run):
@@ -53,14 +53,14 @@ def test_a_run_within_its_budget_is_done(start_app, synthetic_run) -> None:
 
 def test_the_storing_stage_is_visible(start_app, synthetic_run, monkeypatch) -> None:
     storing, release = threading.Event(), threading.Event()
-    real_store = worker_module.store_result
+    real_store = store_module.store_result
 
     def slow_store(*args, **kwargs):
         storing.set()
         assert release.wait(30)
         return real_store(*args, **kwargs)
 
-    monkeypatch.setattr(worker_module, "store_result", slow_store)
+    monkeypatch.setattr(store_module, "store_result", slow_store)
     c = start_app(inline_max_samples=0)
     run_id = upload(c, synthetic_run["csv"], track="L", start_chainage_m=12).json()["id"]
     try:

@@ -16,7 +16,8 @@ from starlette.testclient import TestClient
 
 from api.api_support import row_counts, sql, stored_points, upload
 from app.services.retention import RetentionPolicy, sweep
-from app.services.worker import Worker
+from app.services.run_lifecycle.jobs import SweepJob
+from app.services.run_lifecycle.queue import Worker
 
 OLD = "2020-03-01T08:00:00Z"
 NEW = "2026-11-20T08:00:00Z"
@@ -128,8 +129,8 @@ def test_count_policy_and_log_retention(start_app, synthetic_run, settings) -> N
     )
     ids = _runs(client, synthetic_run["csv"], [OLD, NEW, "2026-11-25T08:00:00Z"])
     worker = Worker(client.app.state.ctx)
-    assert worker.sweep_if_due() is True
-    assert worker.sweep_if_due() is False  # not due again for an hour
+    assert worker.job(SweepJob).look() is True
+    assert worker.job(SweepJob).look() is False  # not due again for an hour
     assert client.get(f"/api/v1/runs/{ids[0]}/profile").status_code == 410
     assert client.get(f"/api/v1/runs/{ids[1]}/profile").status_code == 200
     assert client.get(f"/api/v1/runs/{ids[2]}/profile").status_code == 200

@@ -12,7 +12,8 @@ from typing import Any
 
 import app.services.integrate as integrate_mod
 from api.api_support import upload
-from app.services.worker import SEPARATION_RETRY_S, Worker
+from app.services.run_lifecycle.jobs import SEPARATION_RETRY_S, SeparateJob
+from app.services.run_lifecycle.queue import Worker
 
 LOADS_KG = (0.0, 9000.0)  # two wheel loads: part of the short run can be separable
 
@@ -57,7 +58,7 @@ def test_separation_follows_the_done_run_and_survives_a_stop_in_between(
     c = start_app(inline_max_samples=0, start_worker=False)
     ctx = c.app.state.ctx
     # the process "stops" after each run's commit, before the track's separation
-    monkeypatch.setattr(Worker, "separate_track", lambda self, track_id: False)
+    monkeypatch.setattr(SeparateJob, "separate_track", lambda self, track_id: False)
     ids = _queue_both(c, synthetic_run, "W")
     _drain(Worker(ctx))
     assert [c.get(f"/api/v1/runs/{i}").json()["status"] for i in ids] == ["done", "done"]
@@ -88,7 +89,7 @@ def test_the_worker_separates_right_after_storing(start_app, synthetic_run) -> N
     assert w.run_once() is True and w.run_once() is True
     assert [c.get(f"/api/v1/runs/{i}").json()["status"] for i in ids] == ["done", "done"]
     assert _stiffness(c, "W")["updating"] is False
-    assert w.separate_waiting() is False
+    assert w.job(SeparateJob).look() is False
 
 
 def test_a_failed_separation_is_kept_waiting_and_retried_later(
@@ -107,8 +108,8 @@ def test_a_failed_separation_is_kept_waiting_and_retried_later(
     assert w.run_once() is True and w.run_once() is True  # the runs are done all the same
     assert _stiffness(c, "W")["updating"] is True
     monkeypatch.setattr(integrate_mod, "recompute_stiffness", real)
-    assert w.separate_waiting() is False  # not retried at once
+    assert w.job(SeparateJob).look() is False  # not retried at once
     now = time.monotonic()
     monkeypatch.setattr(time, "monotonic", lambda: now + SEPARATION_RETRY_S + 1)
-    assert w.separate_waiting() is True
+    assert w.job(SeparateJob).look() is True
     assert _stiffness(c, "W")["updating"] is False

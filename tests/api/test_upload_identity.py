@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 
 from api.api_support import upload
-from app.services import submit as submit_module
+from app.services.run_lifecycle import inversion as inversion_module
 
 
 def test_the_same_log_with_other_options_is_the_stored_run(client, synthetic_run) -> None:
@@ -61,13 +61,13 @@ def test_identical_concurrent_uploads_are_inverted_once(client, synthetic_run,
     """Eight identical uploads at once: one run stored, one inversion; the others answer the
     stored run as a duplicate."""
     calls = []
-    real = submit_module.invert
+    real = inversion_module.invert
 
     def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
         calls.append(1)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(submit_module, "invert", counting)
+    monkeypatch.setattr(inversion_module, "invert", counting)
     answers: list[tuple[int, int]] = []
 
     def one() -> None:

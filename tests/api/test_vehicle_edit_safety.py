@@ -198,12 +198,12 @@ def test_calibration_load_that_makes_no_vehicle_is_refused(client: TestClient, s
 def test_failed_calibration_stores_its_cause(client: TestClient, three_runs, monkeypatch) -> None:
     """A calibration whose work raises ends failed with the exception's message (not
     'interrupted repeatedly' after retries), readable in GET .../calibrations/{id}."""
-    import app.services.worker as worker
+    import app.services.run_lifecycle.jobs.calibrate as calibrate_job
 
     def broken(*_a: Any, **_k: Any) -> Any:
         raise RuntimeError("the stored runs could not be read")
 
-    monkeypatch.setattr(worker, "calibration_inputs", broken)
+    monkeypatch.setattr(calibrate_job, "calibration_inputs", broken)
     _upload_all(client, three_runs[:1])
     r = client.post(f"{V}/table1/calibrate", json={})
     assert r.status_code == 202, r.text

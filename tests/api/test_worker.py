@@ -11,7 +11,8 @@ import pytest
 from starlette.testclient import TestClient
 
 from api.api_support import assert_zones_match, row_counts, sql, stored_points, upload, wait_done
-from app.services.worker import Worker
+from app.services.run_lifecycle.jobs import RUNS
+from app.services.run_lifecycle.queue import Worker
 
 
 def _queue(c: TestClient, synthetic_run, **fields) -> dict:
@@ -108,7 +109,7 @@ def test_live_claim_is_not_taken(start_app, settings, synthetic_run) -> None:
     sql(settings, "UPDATE runs SET claimed_by='elsewhere:1:abc', heartbeat_at=:now "
         "WHERE id=:id", now=_now(), id=run["id"])  # fmt: skip
     w = Worker(c.app.state.ctx)
-    assert w.claim() is None
+    assert w.claim(RUNS) is None
 
 
 def test_run_interrupted_too_often_is_failed(start_app, settings, synthetic_run) -> None:
@@ -194,7 +195,7 @@ def test_each_run_is_claimed_by_exactly_one_worker(start_app, synthetic_run) -> 
     lock = threading.Lock()
 
     def grab(w: Worker) -> None:
-        while (rid := w.claim()) is not None:
+        while (rid := w.claim(RUNS)) is not None:
             with lock:
                 claims.append((w.id, rid))
 
@@ -211,18 +212,18 @@ def test_run_deleted_while_processing_leaves_nothing(start_app, settings, synthe
                                                      monkeypatch) -> None:  # fmt: skip
     """If the run is deleted while the engine works on it, the result is dropped: no orphan
     profile rows, no error."""
-    import app.services.worker as worker_mod
+    import app.services.run_lifecycle.inversion as inversion_mod
 
     c = start_app(inline_max_samples=0, start_worker=False)
     run = _queue(c, synthetic_run)
-    real_invert = worker_mod.invert
+    real_invert = inversion_mod.invert
 
     def invert_then_delete(*args, **kwargs):
         result = real_invert(*args, **kwargs)
         assert c.delete(f"/api/v1/runs/{run['id']}").status_code == 204
         return result
 
-    monkeypatch.setattr(worker_mod, "invert", invert_then_delete)
+    monkeypatch.setattr(inversion_mod, "invert", invert_then_delete)
     w = Worker(c.app.state.ctx)
     assert w.run_once() is True
     counts = row_counts(settings)

@@ -23,8 +23,8 @@ from app.schemas.stiffness import (
 )
 from app.services import exports
 from app.services.lookup import get_track
+from app.services.run_lifecycle.intake import clean_filename
 from app.services.stiffness import stiffness_with_vehicles
-from app.services.submit import clean_filename
 from app.services.surveys import (
     SurveyInput,
     delete_survey,
