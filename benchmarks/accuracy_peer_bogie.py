@@ -33,6 +33,7 @@ from engine.bogie import BogieParams  # noqa: E402
 from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.results import ProcessResult  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
 
@@ -150,9 +151,15 @@ def run_one(csv: Path, vehicle_kind: str) -> dict[str, object]:
     )
     t0 = time.perf_counter()
     res = process_run(
-        log, start_chainage_m=truth["start_chainage_m"], direction=truth["direction"],
-        vehicle=vehicle,
-    )  # fmt: skip
+        prepare_run(
+            log,
+            RunSetup(
+                start_chainage_m=truth["start_chainage_m"],
+                direction=truth["direction"],
+                vehicle=vehicle,
+            ),
+        )
+    )
     elapsed = time.perf_counter() - t0
     return {
         "run": csv.stem,

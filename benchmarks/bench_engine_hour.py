@@ -29,13 +29,14 @@ def main() -> int:
     from common import hour_log, machine
 
     from engine.pipeline import process_run
+    from engine.setup import RunSetup, prepare_run
 
     log, start = hour_log()
-    process_run(log, start_chainage_m=start)
+    process_run(prepare_run(log, RunSetup(start_chainage_m=start)))
     times = []
     for _ in range(ns.repeats):
         t0 = time.perf_counter()
-        res = process_run(log, start_chainage_m=start)
+        res = process_run(prepare_run(log, RunSetup(start_chainage_m=start)))
         times.append(time.perf_counter() - t0)
     print(f"machine: {machine()}; engine from {ns.engine_from}")
     print(f"process_run, 1-hour log ({log.n} samples, {len(res.soft_spots)} zones): "

@@ -27,11 +27,10 @@ from app.schemas.common import url_name_problem
 from app.schemas.tracks import TrackParamsFields
 from engine.budget import TimeBudget
 from engine.errors import EngineError, LogFormatError
-from engine.pipeline import RunCheck, check_run
 from engine.runlog import RunLog
+from engine.setup import PreparedRun, RunSetup, prepare_run
 from engine.track import TrackParams
 from engine.vehicle_kinds import KIND_PRESETS, vehicle_from_dict
-from engine.vehicle_kinds import Vehicle as EngineVehicle
 
 from .calibration import maybe_auto_calibrate
 from .centerlines import load_centerline, place_by_gnss
@@ -39,7 +38,7 @@ from .context import AppContext
 from .errors import Conflict, Invalid
 from .loads import declared_wheel_load, loaded_vehicle
 from .logs import pack_log, summarize
-from .processing import Processed, StartedInversion, invert, start_inversion, store_result
+from .processing import Processed, invert, start_inversion, store_result
 from .signals import log_signals, pack_signals
 from .vehicles import create_vehicle
 
@@ -261,10 +260,11 @@ def _new_track_columns(given: dict[str, Any]) -> dict[str, Any]:
     return columns
 
 
-def _preflight(sub: Submission, vehicle: EngineVehicle) -> RunCheck:
+def _preflight(sub: Submission, setup: RunSetup, placed: bool) -> PreparedRun:
     # Everything that can be known about a log without inverting it (the engine's O(n)
     # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
-    # queued run does not fail later for a reason the client could have been told now.
+    # queued run does not fail later for a reason the client could have been told now. The
+    # CSV reader made the log's plausibility checks ("csv" options) unless GNSS placed it.
     if sub.log.chainage_m is None and sub.start_chainage_m is None:
         gnss = (
             "the log has no GNSS fixes (latitude/longitude columns) to place it by"
@@ -279,12 +279,7 @@ def _preflight(sub: Submission, vehicle: EngineVehicle) -> RunCheck:
             field="start_chainage_m",
         )
     try:
-        return check_run(
-            sub.log,
-            start_chainage_m=sub.start_chainage_m,
-            direction=sub.direction,
-            vehicle=vehicle,
-        )
+        return prepare_run(sub.log, setup, log_checked="csv" in sub.options and not placed)
     except EngineError as exc:
         # JSON arrays are named like a CSV's lines; the request field is "columns".
         json_columns = isinstance(exc, LogFormatError) and "columns" in sub.options
@@ -362,16 +357,15 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
     new_track = _new_track_columns(sub.new_track) if track is None else {}
     tp = TrackParams.from_dict(track_fields or _track_params(new_track))
 
-    check = _preflight(sub, vp)
-    started: StartedInversion | None = None
+    prepared = _preflight(
+        sub, RunSetup(sub.start_chainage_m, sub.direction, vp, tp), positioning is not None
+    )
+    started = None
     if sub.log.n > settings.inline_max_samples and ctx.handover is not None:
         # Queued for this process's worker: its inversion starts now, beside the storing of
         # its input, and the worker takes the result (its claim and crash safety as for any
         # queued run).
-        started = start_inversion(
-            ctx.slots, sub.log, start_chainage_m=sub.start_chainage_m, direction=sub.direction,
-            vehicle=vp, track=tp, budget_s=settings.processing_budget_s, checked=check,
-        )  # fmt: skip
+        started = start_inversion(ctx.slots, prepared, settings.processing_budget_s)
     # The log is kept either way (reprocessing with a new vehicle version, calibration):
     # packed on a second thread meanwhile (Zstandard and numpy's copies release the GIL).
     with ThreadPoolExecutor(1, thread_name_prefix="pack-log") as pool:
@@ -384,15 +378,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         if sub.log.n <= settings.inline_max_samples:
             with ctx.slots:
                 try:
-                    processed = invert(
-                        sub.log,
-                        start_chainage_m=sub.start_chainage_m,
-                        direction=sub.direction,
-                        vehicle=vp,
-                        track=tp,
-                        budget_s=settings.processing_budget_s,
-                        checked=check,
-                    )
+                    processed = invert(prepared, settings.processing_budget_s)
                 except EngineError as exc:
                     raise Invalid.from_engine(exc) from None
         packed = packing.result()
@@ -451,7 +437,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         handover = ctx.handover if processed is None else None
         if handover is not None:
             # Before the commit: this process's worker may claim the run at once.
-            handover.put(run_id, identity, sub.log, check, started)
+            handover.put(run_id, prepared, started)
         try:
             s.commit()
         except BaseException:

@@ -27,6 +27,7 @@ from app.db.base import utcnow
 from app.db.models import Calibration, Run, RunInput
 from app.services.errors import engine_error_facts
 from engine.errors import EngineError
+from engine.setup import PreparedRun, RunSetup, prepare_run
 from engine.track import TrackParams
 from engine.vehicle_kinds import vehicle_from_dict
 from engine.vehicle_plausibility import ImplausibleResult
@@ -439,7 +440,7 @@ class Worker:
                 return
             # The log the request of this process parsed and checked, else the stored one.
             handover = self.ctx.handover
-            handed = None if handover is None else handover.take(run_id, run.content_hash)
+            handed = None if handover is None else handover.take(run_id)
             data = (
                 None
                 if handed is not None
@@ -451,7 +452,7 @@ class Worker:
             )  # fmt: skip
             vehicle_version, vehicle_id = run.vehicle.version, run.vehicle_id
             tp = TrackParams.from_dict(run.track.params_dict())
-            start, direction = run.start_chainage_m, run.direction
+            setup = RunSetup(run.start_chainage_m, run.direction, vp, tp)
         if data is None and handed is None:
             with self.ctx.db.session() as s:
                 self._fail(
@@ -463,28 +464,22 @@ class Worker:
 
         def work() -> Processed:
             with Heartbeat(self.ctx, run_id, self.id, max(0.5, settings.lease_s / 4)):
-                started = None if handed is None else handed.inversion
-                if started is not None and started.matches(start, direction, vp, tp):
-                    # The request's inversion (holding its own slot) of the same inputs;
-                    # a vehicle version or start changed since inverts again.
+                started = None if handed is None else handed.started_for(setup)
+                if started is not None:
+                    # The request's inversion (holding its own slot) of the same set-up; a
+                    # vehicle version or start changed since inverts again.
                     return started.result()
                 with self.ctx.slots:
-                    return inverted()
+                    return invert(prepared(), settings.processing_budget_s)
 
-        def inverted() -> Processed:
+        def prepared() -> PreparedRun:
             if handed is not None:
-                # Checked by the submission for these parameters (a changed vehicle version
-                # or start makes process_run check again).
-                runlog, checked = handed.log, handed.check
-            else:
-                packed = held.pop()
-                assert packed is not None
-                runlog, checked = unpack_log(packed), None
-                del packed
-            return invert(
-                runlog, start_chainage_m=start, direction=direction, vehicle=vp, track=tp,
-                budget_s=settings.processing_budget_s, checked=checked,
-            )  # fmt: skip
+                # Prepared by the submission (for another set-up: prepared again, the log's
+                # plausibility not checked twice).
+                return handed.prepared.with_setup(setup)
+            packed = held.pop()
+            assert packed is not None
+            return prepare_run(unpack_log(packed), setup)
 
         processed = self._attempt("processing", run_id, self._fail, work)
         if processed is None:
