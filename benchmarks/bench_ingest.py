@@ -86,8 +86,8 @@ def main() -> int:
     rows.append(("recorded_at (the file's clock)", best(lambda: recorded_at_of(data, {}), r)[0]))
     rows.append(
         (
-            "pre-flight (check_run)",
-            best(lambda: prepare_run(log, RunSetup(start_chainage_m=start)), r)[0],
+            "pre-flight (prepare_run of the read CSV)",
+            best(lambda: prepare_run(log, RunSetup(start), log_checked=True), r)[0],
         )
     )
     rows.append(
