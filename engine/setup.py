@@ -28,6 +28,9 @@ from .vehicle import TABLE1, VehicleModel
 
 Method = Literal["spectral", "filtered-direct", "least-squares", "direct", "wiener"]
 
+DIRECTIONS = ("increasing", "decreasing")
+"""Directions of travel, along increasing or decreasing chainage."""
+
 MIN_SPEED_MPS = 1.0
 """Slowest speed the inversion accepts, m/s (below it wavelengths map to sub-Hz frequencies)."""
 
@@ -116,6 +119,18 @@ class RunSetup:
     vehicle: VehicleModel = TABLE1
     track: TrackParams = field(default_factory=TrackParams)
     config: ProcessConfig = field(default_factory=ProcessConfig)
+
+    def __post_init__(self) -> None:
+        if self.direction not in DIRECTIONS:
+            raise ParameterError(
+                f"direction must be one of {DIRECTIONS}, got {self.direction!r}",
+                field="direction",
+            )
+        if self.start_chainage_m is not None and not np.isfinite(self.start_chainage_m):
+            raise ParameterError(
+                f"start_chainage_m must be a finite chainage in m, got {self.start_chainage_m}",
+                field="start_chainage_m",
+            )
 
 
 @dataclass(frozen=True)

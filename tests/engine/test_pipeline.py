@@ -212,6 +212,17 @@ def test_prepare_run_refuses_up_front_what_process_run_would():
     assert np.allclose(np.diff(chk.grid), chk.setup.config.grid_step_m)
 
 
+def test_a_setup_refuses_what_no_run_can_have():
+    """A direction other than along or against chainage, a start chainage that is no number:
+    refused when the set-up is made, naming the field."""
+    with pytest.raises(ParameterError) as exc:
+        RunSetup(start_chainage_m=0.0, direction="up")
+    assert exc.value.field == "direction"
+    with pytest.raises(ParameterError) as exc:
+        RunSetup(start_chainage_m=float("nan"))
+    assert exc.value.field == "start_chainage_m"
+
+
 def test_a_prepared_run_carries_its_check(monkeypatch):
     """The log's plausibility is checked by prepare_run, once per call and never by the
     processing of the prepared run; another set-up of a prepared run is prepared again
