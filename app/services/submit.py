@@ -31,6 +31,7 @@ from engine.runlog import RunLog
 from engine.setup import PreparedRun, RunSetup, prepare_run
 from engine.track import TrackParams
 from engine.vehicle_kinds import KIND_PRESETS, vehicle_from_dict
+from engine.vehicle_kinds import Vehicle as EngineVehicle
 
 from .calibration import maybe_auto_calibrate
 from .centerlines import load_centerline, place_by_gnss
@@ -260,7 +261,9 @@ def _new_track_columns(given: dict[str, Any]) -> dict[str, Any]:
     return columns
 
 
-def _preflight(sub: Submission, setup: RunSetup, placed: bool) -> PreparedRun:
+def _preflight(
+    sub: Submission, vehicle: EngineVehicle, track: TrackParams, placed: bool
+) -> PreparedRun:
     # Everything that can be known about a log without inverting it (the engine's O(n)
     # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
     # queued run does not fail later for a reason the client could have been told now. The
@@ -279,6 +282,7 @@ def _preflight(sub: Submission, setup: RunSetup, placed: bool) -> PreparedRun:
             field="start_chainage_m",
         )
     try:
+        setup = RunSetup(sub.start_chainage_m, sub.direction, vehicle, track)
         return prepare_run(sub.log, setup, log_checked="csv" in sub.options and not placed)
     except EngineError as exc:
         # JSON arrays are named like a CSV's lines; the request field is "columns".
@@ -357,9 +361,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
     new_track = _new_track_columns(sub.new_track) if track is None else {}
     tp = TrackParams.from_dict(track_fields or _track_params(new_track))
 
-    prepared = _preflight(
-        sub, RunSetup(sub.start_chainage_m, sub.direction, vp, tp), positioning is not None
-    )
+    prepared = _preflight(sub, vp, tp, placed=positioning is not None)
     started = None
     if sub.log.n > settings.inline_max_samples and ctx.handover is not None:
         # Queued for this process's worker: its inversion starts now, beside the storing of
