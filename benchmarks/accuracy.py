@@ -30,6 +30,7 @@ from common import machine  # noqa: E402
 
 from engine.pipeline import METHODS, ProcessConfig, process_run  # noqa: E402
 from engine.sensor import SensorModel  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run, score  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 
@@ -67,7 +68,11 @@ def method_table(rs: dict[str, object]) -> list[str]:
             best = float("inf")
             for _ in range(reps):
                 t0 = time.perf_counter()
-                res = process_run(run.log, start_chainage_m=run.start_chainage_m, config=cfg)
+                res = process_run(
+                    prepare_run(
+                        run.log, RunSetup(start_chainage_m=run.start_chainage_m, config=cfg)
+                    )
+                )
                 best = min(best, time.perf_counter() - t0)
             s = score(res, run)
             times.setdefault(m, best)
@@ -159,7 +164,9 @@ def spread_table(n_seeds: int) -> list[str]:
             direction=direction,
             start_chainage_m=start,
         )
-        res = process_run(run.log, start_chainage_m=start, direction=direction)
+        res = process_run(
+            prepare_run(run.log, RunSetup(start_chainage_m=start, direction=direction))
+        )
         s = score(res, run)
         worst = [
             max(worst[0], s.profile_rms_mm),

@@ -27,6 +27,7 @@ import numpy as np  # noqa: E402
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.sensor import SensorModel  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 
@@ -107,9 +108,15 @@ def main() -> None:
                 )  # fmt: skip
                 t0 = time.perf_counter()
                 res = process_run(
-                    run.log, start_chainage_m=run.logged_start_chainage_m,
-                    direction=run.direction, vehicle=registered[name],
-                )  # fmt: skip
+                    prepare_run(
+                        run.log,
+                        RunSetup(
+                            start_chainage_m=run.logged_start_chainage_m,
+                            direction=run.direction,
+                            vehicle=registered[name],
+                        ),
+                    )
+                )
                 dt = time.perf_counter() - t0
                 sc = score(res, zones)
                 cells, found = [], 0

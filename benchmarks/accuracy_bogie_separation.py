@@ -28,6 +28,7 @@ from engine.detect import robust_sigma  # noqa: E402
 from engine.passes import align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.separation import SeparationConfig, separate  # noqa: E402
+from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.synthetic import REALISTIC_SENSOR, make_run, make_track  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 
@@ -56,7 +57,8 @@ def main() -> None:
         passes = []
         for i, (f, run) in enumerate(zip(fleet, runs, strict=True)):
             veh = f[pick]
-            res = process_run(run.log, start_chainage_m=run.logged_start_chainage_m, vehicle=veh)
+            setup = RunSetup(run.logged_start_chainage_m, vehicle=veh)
+            res = process_run(prepare_run(run.log, setup))
             wheels = veh.axle_wheel_offsets_m[0]
             passes.append(pass_from_result(res, label=f"run {i}", wheel_offsets_m=wheels))
         passes, _ = align_passes(passes)

@@ -37,6 +37,7 @@ from common import machine, publish_section  # noqa: E402
 from engine.chainage import bandpass_distance  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.separation import align_passes, pass_from_result, separate  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, SyntheticRun, make_run, make_track  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 from engine.vehicle import HEAVY, TABLE1, VehicleParams  # noqa: E402
@@ -82,8 +83,11 @@ class Case:
             syn = make_run(track=self.track, vehicle=vehicle, speed=speed, sensor=SENSOR,
                            sim_rate_hz=RATE, seed=1000 * self.seed + 10 * i,
                            start_chainage_m=12.0, start_error_m=err)  # fmt: skip
-            res = process_run(syn.log, start_chainage_m=syn.logged_start_chainage_m,
-                              vehicle=vehicle)  # fmt: skip
+            res = process_run(
+                prepare_run(
+                    syn.log, RunSetup(start_chainage_m=syn.logged_start_chainage_m, vehicle=vehicle)
+                )
+            )
             self.runs[key] = (syn, res)
         return self.runs[key]
 

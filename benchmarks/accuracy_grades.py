@@ -36,6 +36,7 @@ from engine.detect import robust_baseline  # noqa: E402
 from engine.pipeline import ProcessConfig, process_run  # noqa: E402
 from engine.results import ProcessResult  # noqa: E402
 from engine.sensor import SENSOR_GRADES, sensor_for_grade  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import SyntheticRun, make_run, make_track, score, to_runlog  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 
@@ -121,8 +122,14 @@ def measure(
     """Every grade x method over every track, ``passes`` sensor draws each."""
     out: dict[tuple[str, str], Tally] = {}
     for method in methods:  # warm the caches (band-pass matrices, FFT plans) before timing
-        process_run(runs[0].log, start_chainage_m=runs[0].start_chainage_m,
-                    config=ProcessConfig(method=method))  # type: ignore[arg-type]  # fmt: skip
+        process_run(
+            prepare_run(
+                runs[0].log,
+                RunSetup(
+                    start_chainage_m=runs[0].start_chainage_m, config=ProcessConfig(method=method)
+                ),
+            )
+        )  # type: ignore[arg-type]
     for grade in SENSOR_GRADES:
         for method in methods:
             out[(grade, method)] = Tally()
@@ -133,9 +140,14 @@ def measure(
                 for method in methods:
                     t0 = time.perf_counter()
                     res = process_run(
-                        log, start_chainage_m=run.start_chainage_m,
-                        config=ProcessConfig(method=method),  # type: ignore[arg-type]
-                    )  # fmt: skip
+                        prepare_run(
+                            log,
+                            RunSetup(
+                                start_chainage_m=run.start_chainage_m,
+                                config=ProcessConfig(method=method),
+                            ),
+                        )
+                    )
                     dt = time.perf_counter() - t0
                     sc = score(res, run)
                     t = out[(grade, method)]

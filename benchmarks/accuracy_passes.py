@@ -44,6 +44,7 @@ from engine.chainage import bandpass_distance  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.sensor import SENSOR_GRADES, sensor_for_grade  # noqa: E402
 from engine.separation import Pass, pass_from_result, separate  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import SyntheticRun, make_run, make_track, to_runlog  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 from engine.vehicle import HEAVY, TABLE1, VehicleParams  # noqa: E402
@@ -130,7 +131,11 @@ class StraightSet:
                 syn = self.clean[i % len(SPEEDS)]
                 s = 1000 * self.seed + 37 * GRADES.index(grade) + i
                 log = to_runlog(syn.sim, sensor_for_grade(grade, RATE, seed=s), seed=s + 500)
-                res = process_run(log, start_chainage_m=syn.start_chainage_m + self.errors[i])
+                res = process_run(
+                    prepare_run(
+                        log, RunSetup(start_chainage_m=syn.start_chainage_m + self.errors[i])
+                    )
+                )
                 out.append((res.chainage_m, res.level_mm))
             self.levels[grade] = out
         return self.levels[grade][:n]
@@ -170,7 +175,9 @@ class TwoLoadSet:
             err = float(erng.uniform(-1.0, 1.0))
             s = 7000 * seed + 100 * (veh is HEAVY) + i
             log = to_runlog(syn.sim, sensor_for_grade(grade, RATE, seed=s), seed=s + 500)
-            res = process_run(log, start_chainage_m=syn.start_chainage_m + err, vehicle=veh)
+            res = process_run(
+                prepare_run(log, RunSetup(start_chainage_m=syn.start_chainage_m + err, vehicle=veh))
+            )
             self.passes.append(pass_from_result(res, label=f"{i}"))
             self.errors.append(err)
         self.truth_run = next(iter(clean.values()))

@@ -40,6 +40,7 @@ from engine.passes import align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.results import ProcessResult  # noqa: E402
 from engine.separation import separate  # noqa: E402
+from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
 
@@ -156,9 +157,11 @@ def process_one(csv: Path, vehicle_kind: str) -> tuple[ProcessResult, Vehicle, d
     )
     t0 = time.perf_counter()
     res = process_run(
-        read_run_csv(csv), start_chainage_m=truth["start_chainage_m"],
-        direction=truth["direction"], vehicle=vehicle,
-    )  # fmt: skip
+        prepare_run(
+            read_run_csv(csv),
+            RunSetup(truth["start_chainage_m"], truth["direction"], vehicle),
+        )
+    )
     return res, vehicle, truth, time.perf_counter() - t0
 
 

@@ -19,6 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from engine.logio import read_run_csv  # noqa: E402
 from engine.pipeline import ProcessConfig, process_run  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 
 METHODS = ("spectral", "wiener")
 
@@ -36,8 +37,14 @@ def main() -> None:
         log = read_run_csv(f)
         cells = []
         for m in METHODS:
-            res = process_run(log, start_chainage_m=truth["start_chainage_m"],
-                              config=ProcessConfig(method=m))  # fmt: skip
+            res = process_run(
+                prepare_run(
+                    log,
+                    RunSetup(
+                        start_chainage_m=truth["start_chainage_m"], config=ProcessConfig(method=m)
+                    ),
+                )
+            )
             zones = truth["zones"]
             hit = [any(s.end_m >= z["start_m"] and s.start_m <= z["end_m"]
                        for s in res.soft_spots) for z in zones]  # fmt: skip

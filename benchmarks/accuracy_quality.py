@@ -45,6 +45,7 @@ from engine.passes import on_grid  # noqa: E402
 from engine.pipeline import ProcessConfig, process_run  # noqa: E402
 from engine.quality_limits import QualityLimits, isolated_defects  # noqa: E402
 from engine.separation import SeparationConfig, align_passes, pass_from_result, separate  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run, make_track  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 from engine.track_quality import (  # noqa: E402
@@ -100,8 +101,17 @@ def score_track(seed: int) -> dict[str, dict[str, list[float]]]:
     made = {}
     for label, lam in BANDS_PROCESSED.items():
         cfg = ProcessConfig(lambda_max_m=lam)
-        res = [process_run(s.log, start_chainage_m=s.logged_start_chainage_m, vehicle=s.vehicle,
-                           config=cfg) for s in runs]  # fmt: skip
+        res = [
+            process_run(
+                prepare_run(
+                    s.log,
+                    RunSetup(
+                        start_chainage_m=s.logged_start_chainage_m, vehicle=s.vehicle, config=cfg
+                    ),
+                )
+            )
+            for s in runs
+        ]
         passes = [pass_from_result(r, label=str(i)) for i, r in enumerate(res)]
         made[label] = quality_level(passes, lam)
     frame = float(np.mean([s.logged_start_chainage_m - s.start_chainage_m for s in runs]))
@@ -135,8 +145,8 @@ def score_public(directory: Path) -> dict[str, dict[str, list[float]]]:
     made = {}
     for label, lam in BANDS_PROCESSED.items():
         cfg = ProcessConfig(lambda_max_m=lam)
-        res = [process_run(log, start_chainage_m=t["start_chainage_m"],
-                           vehicle=VehicleParams(**t["vehicle"]), config=cfg)
+        res = [process_run(prepare_run(log, RunSetup(
+                   t["start_chainage_m"], vehicle=VehicleParams(**t["vehicle"]), config=cfg)))
                for log, t in zip(logs, truths, strict=True)]  # fmt: skip
         passes = [pass_from_result(r, label=n) for r, n in zip(res, PUBLIC_RUNS, strict=True)]
         made[label] = quality_level(passes, lam)
@@ -209,8 +219,12 @@ def public_repeatability(directory: Path) -> list[str]:
         for name in pair:
             t = json.loads((directory / f"{name}.truth.json").read_text())
             veh = VehicleParams(**t["vehicle"])
-            res = process_run(read_run_csv(directory / f"{name}.csv"),
-                              start_chainage_m=t["start_chainage_m"], vehicle=veh)  # fmt: skip
+            res = process_run(
+                prepare_run(
+                    read_run_csv(directory / f"{name}.csv"),
+                    RunSetup(start_chainage_m=t["start_chainage_m"], vehicle=veh),
+                )
+            )
             passes.append(pass_from_result(res, label=name))
         aligned, _ = align_passes(passes)
         _, levels, _ = on_grid(aligned, STEP)

@@ -31,6 +31,7 @@ from engine.bogie import PASSENGER_COACH  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.runlog import RunLog  # noqa: E402
 from engine.sensor import SensorModel  # noqa: E402
+from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.simulate import simulate  # noqa: E402
 from engine.synthetic import to_runlog  # noqa: E402
 from engine.track import SoftZone, Track  # noqa: E402
@@ -82,11 +83,11 @@ def main() -> int:
     times: dict[str, list[float]] = {k: [] for k in logs}
     zones: dict[str, int] = {}
     for log, vehicle in logs.values():
-        process_run(log, start_chainage_m=START, vehicle=vehicle)  # warm-up
+        process_run(prepare_run(log, RunSetup(start_chainage_m=START, vehicle=vehicle)))  # warm-up
     for _ in range(ns.repeats):
         for name, (log, vehicle) in logs.items():
             t0 = time.perf_counter()
-            res = process_run(log, start_chainage_m=START, vehicle=vehicle)
+            res = process_run(prepare_run(log, RunSetup(start_chainage_m=START, vehicle=vehicle)))
             times[name].append(time.perf_counter() - t0)
             zones[name] = len(res.soft_spots)
     print(f"machine: {machine()}")

@@ -29,6 +29,7 @@ from common import best_of, hour_log, machine  # noqa: E402
 
 from engine.direct import direct_inverse, direct_inverse_loop  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.simulate import simulate  # noqa: E402
 from engine.track import SoftZone, Track  # noqa: E402
 
@@ -61,9 +62,14 @@ def bench_direct(loop_samples: int) -> None:
 def bench_pipeline() -> None:
     for dur in (1800.0, 3600.0):
         log, start = hour_log(dur)
-        t, res = best_of(lambda log=log, start=start: process_run(log, start_chainage_m=start), 3)
+        t, res = best_of(
+            lambda log=log, start=start: process_run(
+                prepare_run(log, RunSetup(start_chainage_m=start))
+            ),
+            3,
+        )
         tracemalloc.start()
-        process_run(log, start_chainage_m=start)
+        process_run(prepare_run(log, RunSetup(start_chainage_m=start)))
         _, peak = tracemalloc.get_traced_memory()
         tracemalloc.stop()
         size = 4 * log.n * 8

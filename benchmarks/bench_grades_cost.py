@@ -22,8 +22,9 @@ import numpy as np  # noqa: E402
 from common import machine  # noqa: E402
 
 from engine.methods import METHODS, MethodInput  # noqa: E402
-from engine.pipeline import ProcessConfig, check_run, process_run  # noqa: E402
+from engine.pipeline import ProcessConfig, process_run  # noqa: E402
 from engine.sensor import SENSOR_GRADES, sensor_for_grade  # noqa: E402
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import make_run, make_track, to_runlog  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 from engine.vehicle import TABLE1  # noqa: E402
@@ -43,8 +44,10 @@ def main() -> None:
         inputs = {}
         for m in methods:
             cfg = ProcessConfig(method=m)  # type: ignore[arg-type]
-            process_run(log, start_chainage_m=run.start_chainage_m, config=cfg)  # warm
-            chk = check_run(log, start_chainage_m=run.start_chainage_m, config=cfg)
+            process_run(
+                prepare_run(log, RunSetup(start_chainage_m=run.start_chainage_m, config=cfg))
+            )  # warm
+            chk = prepare_run(log, RunSetup(start_chainage_m=run.start_chainage_m, config=cfg))
             pos, step = chk.positions, cfg.grid_step_m
             lo, hi = min(pos.front.min(), pos.rear.min()), max(pos.front.max(), pos.rear.max())
             grid = np.arange(np.ceil(lo / step) * step, hi + 1e-9, step)
@@ -58,7 +61,9 @@ def main() -> None:
             for m in methods:
                 cfg, given = inputs[m]
                 t0 = time.perf_counter()
-                process_run(log, start_chainage_m=run.start_chainage_m, config=cfg)
+                process_run(
+                    prepare_run(log, RunSetup(start_chainage_m=run.start_chainage_m, config=cfg))
+                )
                 t1 = time.perf_counter()
                 METHODS[m](given)
                 t2 = time.perf_counter()

@@ -50,8 +50,8 @@ def main() -> int:
     from app.services.signals import log_signals
     from engine.logio import header as lheader
     from engine.logio import limits, parse_run_csv, source, table, threaded
-    from engine.pipeline import check_run
     from engine.plausibility import check_plausible
+    from engine.setup import RunSetup, prepare_run
 
     path, start = hour_csv()
     r = ns.repeats
@@ -85,7 +85,10 @@ def main() -> int:
     rows.append(("sha256 of the body", best(lambda: sha256_hex(data), r)[0]))
     rows.append(("recorded_at (the file's clock)", best(lambda: recorded_at_of(data, {}), r)[0]))
     rows.append(
-        ("pre-flight (check_run)", best(lambda: check_run(log, start_chainage_m=start), r)[0])
+        (
+            "pre-flight (prepare_run of the read CSV)",
+            best(lambda: prepare_run(log, RunSetup(start), log_checked=True), r)[0],
+        )
     )
     rows.append(
         ("summary + display signals", best(lambda: (summarize(log), log_signals(log)), r)[0])

@@ -5,9 +5,9 @@ each wheel, mapped to chainage, with soft spots and stiffness-loss estimates.
 
 Quick start::
 
-    from engine import read_run_csv, process_run
+    from engine import RunSetup, prepare_run, process_run, read_run_csv
     log = read_run_csv("run.csv")
-    result = process_run(log, start_chainage_m=24.13)
+    result = process_run(prepare_run(log, RunSetup(start_chainage_m=24.13)))
     for spot in result.soft_spots:
         print(spot.start_m, spot.end_m, spot.depth_mm, spot.stiffness_loss_pct)
 
@@ -20,11 +20,12 @@ from .detect import DetectionConfig
 from .direct import DirectResult, direct_inverse, direct_inverse_loop, filtered_direct_inverse
 from .errors import EngineError, InversionError, LogFormatError, ParameterError
 from .logio import CsvOptions, preview_csv, read_run_csv, write_run_csv
-from .pipeline import METHODS, ProcessConfig, process_run
+from .pipeline import METHODS, process_run
 from .register import Defect, Limits, Observation, RegisterConfig, RunCoverage, build_register
 from .results import ProcessResult, Quality, SoftSpot
 from .runlog import RunLog
 from .sensor import SensorModel
+from .setup import PreparedRun, ProcessConfig, RunSetup, prepare_run
 from .simulate import SimulationResult, simulate
 from .track import SoftZone, Track, TrackParams
 from .vehicle import GRAVITY, TABLE1, VehicleParams
@@ -32,10 +33,10 @@ from .vehicle import GRAVITY, TABLE1, VehicleParams
 __all__ = [
     "GRAVITY", "METHODS", "TABLE1", "AggregateProfile", "Alignment", "CsvOptions", "Defect",
     "DetectionConfig", "DirectResult", "EngineError", "InversionError", "Limits",
-    "LogFormatError", "Observation", "ParameterError", "ProcessConfig", "ProcessResult",
-    "Quality", "RegisterConfig", "RunCoverage", "RunLog", "SensorModel", "SimulationResult",
-    "SoftSpot", "SoftZone", "Track", "TrackParams", "VehicleParams", "aggregate_levels",
-    "align_profiles", "build_register", "direct_inverse", "direct_inverse_loop",
-    "filtered_direct_inverse", "preview_csv", "process_run", "read_run_csv", "simulate",
-    "write_run_csv",
+    "LogFormatError", "Observation", "ParameterError", "PreparedRun", "ProcessConfig",
+    "ProcessResult", "Quality", "RegisterConfig", "RunCoverage", "RunLog", "RunSetup",
+    "SensorModel", "SimulationResult", "SoftSpot", "SoftZone", "Track", "TrackParams",
+    "VehicleParams", "aggregate_levels", "align_profiles", "build_register", "direct_inverse",
+    "direct_inverse_loop", "filtered_direct_inverse", "prepare_run", "preview_csv",
+    "process_run", "read_run_csv", "simulate", "write_run_csv",
 ]  # fmt: skip

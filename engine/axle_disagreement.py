@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import scipy.fft as sfft
@@ -23,7 +23,8 @@ from numpy.typing import NDArray
 from scipy.signal import resample_poly
 
 from .errors import EngineError, ParameterError
-from .pipeline import ProcessConfig, check_run
+from .runlog import RunLog
+from .setup import ProcessConfig, RunSetup, prepare_run
 from .spectral import (
     band_window,
     edge_padding,
@@ -34,8 +35,34 @@ from .spectral import (
 )
 from .vehicle_kinds import Vehicle
 
-if TYPE_CHECKING:
-    from .calibration import CalibrationConfig, CalibrationRun
+
+class ComparedRun(Protocol):
+    """What :func:`prepare` reads of a run (:class:`engine.calibration.CalibrationRun`)."""
+
+    @property
+    def log(self) -> RunLog: ...
+    @property
+    def start_chainage_m(self) -> float | None: ...
+    @property
+    def direction(self) -> str: ...
+    @property
+    def label(self) -> str: ...
+    @property
+    def body_mass_kg(self) -> float | None: ...
+
+
+class Comparison(Protocol):
+    """What :func:`prepare` reads of the settings (:class:`engine.calibration.CalibrationConfig`):
+    the wavelength band (m), the segment length and the time used per run (s)."""
+
+    @property
+    def lambda_min_m(self) -> float: ...
+    @property
+    def lambda_max_m(self) -> float: ...
+    @property
+    def segment_s(self) -> float: ...
+    @property
+    def max_seconds_per_run(self) -> float | None: ...
 
 
 @dataclass
@@ -94,7 +121,7 @@ def cubic_weights(
 
 
 def prepare(
-    runs: Sequence[CalibrationRun], vehicle: Vehicle, cfg: CalibrationConfig
+    runs: Sequence[ComparedRun], vehicle: Vehicle, cfg: Comparison
 ) -> tuple[list[Group], list[tuple[str, str]], list[tuple[str, float]]]:
     """Decimate, segment and transform every usable run once."""
     pcfg = ProcessConfig(lambda_min_m=cfg.lambda_min_m, lambda_max_m=cfg.lambda_max_m)
@@ -111,10 +138,9 @@ def prepare(
                 skipped.append((label, f"its declared load: {exc}"))
                 continue
         try:
-            chk = check_run(
-                run.log, start_chainage_m=run.start_chainage_m, direction=run.direction,
-                vehicle=vehicle, config=pcfg,
-            )  # fmt: skip
+            chk = prepare_run(
+                run.log, RunSetup(run.start_chainage_m, run.direction, vehicle, config=pcfg)
+            )
         except EngineError as exc:
             skipped.append((label, str(exc)))
             continue

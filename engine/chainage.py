@@ -72,6 +72,19 @@ def axle_positions(
     )
 
 
+def axle_grid(
+    front: NDArray[np.float64], rear: NDArray[np.float64], step_m: float = GRID_STEP_M
+) -> NDArray[np.float64]:
+    """The chainage grid of a run's profile: the multiples of ``step_m`` (m) from the first at
+    or beyond the lowest chainage either axle reached (``front``, ``rear``, m) to the highest.
+
+    Multiples of the step, so that every run of a track lies on one grid.
+    """
+    lo = min(float(front.min()), float(rear.min()))
+    hi = max(float(front.max()), float(rear.max()))
+    return np.arange(np.ceil(lo / step_m) * step_m, hi + 1e-9, step_m)
+
+
 def to_grid(
     x: NDArray[np.float64], y: NDArray[np.float64], grid: NDArray[np.float64]
 ) -> NDArray[np.float64]:

@@ -27,7 +27,7 @@ from .logio import (
     read_run_csv,
     write_run_csv,
 )
-from .pipeline import METHODS, ProcessConfig, check_run, process_run
+from .pipeline import METHODS, ProcessConfig, RunSetup, prepare_run, process_run
 from .runlog import RunLog
 from .sensor import SENSOR_GRADES, SensorModel, sensor_for_grade
 from .simulate import simulate
@@ -249,11 +249,9 @@ def _cmd_invert(ns: argparse.Namespace) -> int:
         from .spectral import spectral_inverse
 
         cfg = ProcessConfig(lambda_min_m=ns.lambda_min, lambda_max_m=ns.lambda_max)
-        # the band is the pipeline's (check_run: speed percentiles), so both invert alike
-        chk = check_run(
-            log, start_chainage_m=ns.start_chainage, direction=ns.direction, vehicle=vehicle,
-            config=cfg,
-        )  # fmt: skip
+        # the band is the pipeline's (prepare_run: speed percentiles), so both invert alike
+        setup = RunSetup(ns.start_chainage, ns.direction, vehicle, config=cfg)
+        chk = prepare_run(log, setup, log_checked=True)  # read_run_csv checked it
         f_lo, f_hi = chk.f_lo_hz, chk.f_hi_hz
         if ns.method == "filtered-direct":
             fres = filtered_direct_inverse(a, q, dt, vehicle, f_lo, f_hi)
@@ -281,14 +279,8 @@ def _cmd_process(ns: argparse.Namespace) -> int:
         grid_step_m=ns.grid_step,
         detection=det,
     )
-    res = process_run(
-        log,
-        start_chainage_m=ns.start_chainage,
-        direction=ns.direction,
-        vehicle=_vehicle(ns),
-        track=_track_params(ns),
-        config=cfg,
-    )
+    setup = RunSetup(ns.start_chainage, ns.direction, _vehicle(ns), _track_params(ns), cfg)
+    res = process_run(prepare_run(log, setup, log_checked=True))  # read_run_csv checked it
     out = Path(ns.out)
     out.mkdir(parents=True, exist_ok=True)
     ok = np.isfinite(res.level_mm)

@@ -41,7 +41,7 @@ class MethodInput:
     vehicle : VehicleModel
         The logging vehicle.
     f_lo_hz, f_hi_hz : float
-        Time-frequency band of the inversion, Hz (from :func:`engine.pipeline.check_run`).
+        Time-frequency band of the inversion, Hz (from :func:`engine.setup.prepare_run`).
     lambda_min_m, lambda_max_m : float
         Wavelength band of the profile, m.
     taper : float

@@ -1,94 +1,31 @@
-"""From a run log to the fused loaded profile on chainage, soft spots and quality indicators."""
+"""From a prepared run (:mod:`engine.setup`) to the fused loaded profile on chainage, soft
+spots and quality indicators."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import Literal
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .budget import TimeBudget
-from .chainage import GRID_STEP_M, AxlePositions, axle_positions, to_grid
-from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
-from .errors import InversionError, ParameterError
+from .chainage import to_grid
+from .detect import Dip, find_dips, robust_baseline, robust_sigma
 from .geometry_check import is_smooth_rail
 from .intervals import merge_intervals
 from .methods import METHODS, MethodInput
-from .plausibility import check_plausible
 from .results import ProcessResult, Quality, SoftSpot
-from .runlog import RunLog
+from .setup import MIN_SPEED_MPS, Method, PreparedRun, ProcessConfig, RunSetup, prepare_run
 from .stiffness import fit_zone
 from .track import TrackParams
-from .vehicle import TABLE1, VehicleModel
 from .vehicle_plausibility import check_result
 from .visibility import detection_limit
 from .wheel_force import dynamic_wheel_forces, force_spectrum
 
-Method = Literal["spectral", "filtered-direct", "least-squares", "direct", "wiener"]
-
-MIN_SPEED_MPS = 1.0
-"""Slowest speed the inversion accepts, m/s (below it wavelengths map to sub-Hz frequencies)."""
-
-
-@dataclass(frozen=True)
-class ProcessConfig:
-    """Settings of the processing pipeline.
-
-    Parameters
-    ----------
-    method : {"spectral", "filtered-direct", "least-squares", "direct", "wiener"}
-        ``spectral``: band-limited frequency-domain inversion (default, for real logs).
-        ``filtered-direct``: band-passed inputs, then the direct integration with
-        numerically dissipative Newmark parameters. ``least-squares``: the optimisation
-        baseline (profile fitted so the simulated vehicle matches the log, window by
-        window; slow). ``direct``: the paper's direct integration, then the same band-pass
-        (the reference for exactness; wrong on noisy data). ``wiener``: the spectral inversion
-        with the log's own signal-to-noise ratio per bin as prior and both axles tied to one
-        track (better on noisy MEMS logs at steady speed; docs/accuracy.md).
-    lambda_min_m, lambda_max_m : float
-        Wavelength band of the profile, m. Default 3-40 m: all of EN 13848 D1 (3-25 m) and
-        enough of D2 that a soft zone up to ~15 m long keeps its depth (a 25 m cut-off
-        carves the middle out of a 10 m zone); see docs/method.md.
-    grid_step_m : float
-        Spacing of the chainage grid, m.
-    taper : float
-        Relative width of the band edges (raised cosine).
-    detection : DetectionConfig
-        Soft-spot thresholds.
-    fit_stiffness : bool
-        Fit each zone's extent and stiffness loss with the static beam model.
-    check_result : bool
-        Refuse a result beyond what a track can show
-        (:func:`~engine.vehicle_plausibility.check_result`). Off only to score methods
-        that are known to drift (benchmarks comparing candidates).
-    """
-
-    method: Method = "spectral"
-    lambda_min_m: float = 3.0
-    lambda_max_m: float = 40.0
-    grid_step_m: float = GRID_STEP_M
-    taper: float = 0.3
-    detection: DetectionConfig = field(default_factory=DetectionConfig)
-    fit_stiffness: bool = True
-    check_result: bool = True
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ParameterError(
-                f"method must be one of {tuple(METHODS)}, got {self.method!r}", field="method"
-            )
-        if not (0 < self.lambda_min_m < self.lambda_max_m):
-            raise ParameterError(
-                "wavelength band must satisfy 0 < lambda_min_m < lambda_max_m, got "
-                f"{self.lambda_min_m} m, {self.lambda_max_m} m"
-            )
-        if not (0 < self.grid_step_m <= GRID_STEP_M):
-            raise ParameterError(
-                f"grid_step_m must be in (0, {GRID_STEP_M}] m, got {self.grid_step_m}"
-            )
-        if not (0 < self.taper <= 1):
-            raise ParameterError(f"taper must be in (0, 1], got {self.taper}")
+__all__ = [
+    "METHODS", "MIN_SPEED_MPS", "Method", "PreparedRun", "ProcessConfig", "RunSetup",
+    "fuse_axles", "prepare_run", "process_run",
+]  # fmt: skip
 
 
 def _soft_spots(
@@ -164,129 +101,28 @@ def _agreement(
     return float(np.sqrt(np.mean((front[idx] - rear[idx]) ** 2)))
 
 
-@dataclass(frozen=True)
-class RunCheck:
-    """What :func:`check_run` found: the run can be inverted with these values.
-
-    Attributes
-    ----------
-    positions : AxlePositions
-        Chainage of body and axles at each sample, m.
-    speed : ndarray
-        Speed at each sample, m/s.
-    f_lo_hz, f_hi_hz : float
-        Time-frequency band the inversion will use, Hz.
-    travelled_m : float
-        Distance covered by the run, m.
-    log : RunLog
-        The log checked (this object).
-    inputs : tuple
-        ``(start_chainage_m, direction, vehicle, config)`` it was checked with.
-    """
-
-    positions: AxlePositions
-    speed: NDArray[np.float64]
-    f_lo_hz: float
-    f_hi_hz: float
-    travelled_m: float
-    log: RunLog = field(repr=False, compare=False)
-    inputs: tuple[object, ...] = field(repr=False, compare=False)
-
-    def is_for(
-        self,
-        log: RunLog,
-        start_chainage_m: float | None,
-        direction: str,
-        vehicle: VehicleModel,
-        config: ProcessConfig,
-    ) -> bool:
-        """Whether this check stands for ``log`` (the same object) with these parameters."""
-        return log is self.log and self.inputs == (start_chainage_m, direction, vehicle, config)
-
-
 def _no_budget(_stage: str) -> None:
     """The budget check of a computation without a budget."""
 
 
-def check_run(
-    log: RunLog,
-    *,
-    start_chainage_m: float | None = None,
-    direction: str = "increasing",
-    vehicle: VehicleModel = TABLE1,
-    config: ProcessConfig | None = None,
-) -> RunCheck:
-    """Check up front that a log can be inverted, without inverting it (cheap, O(n)).
-
-    Same parameters as :func:`process_run`. Raises :class:`InversionError` naming the
-    problem: a speed below ``MIN_SPEED_MPS``, a run shorter than twice the longest
-    wavelength, a sample rate too low for the shortest wavelength at the top speed, a
-    missing start chainage, a chainage column that does not move steadily.
-    """
-    check_plausible(log)
-    cfg = config or ProcessConfig()
-    dt = log.dt
-    pos = axle_positions(log, vehicle, start_chainage_m, direction)
-    speed = log.speed_mps if log.speed_mps is not None else np.abs(np.gradient(pos.body)) / dt
-    v_min, v_max = float(np.percentile(speed, 1)), float(np.percentile(speed, 99))
-    if v_min < MIN_SPEED_MPS:
-        raise InversionError(
-            f"speed drops to {v_min:.2f} m/s; the inversion needs >= {MIN_SPEED_MPS} m/s "
-            "throughout (split the log at stops)"
-        )
-    travelled = abs(pos.body[-1] - pos.body[0])
-    if travelled < 2 * cfg.lambda_max_m:
-        raise InversionError(
-            f"the run covers {travelled:.1f} m; at least {2 * cfg.lambda_max_m:.0f} m "
-            f"(twice the longest wavelength, {cfg.lambda_max_m} m) are needed"
-        )
-    tp = 1.0 + cfg.taper
-    f_lo = v_min / (cfg.lambda_max_m * tp)
-    f_hi = v_max * tp / cfg.lambda_min_m
-    if f_hi * tp >= 0.5 / dt:
-        raise InversionError(
-            f"a {1 / dt:.0f} Hz log cannot resolve {cfg.lambda_min_m} m wavelengths at "
-            f"{v_max:.1f} m/s (needs > {2 * f_hi * tp:.0f} Hz)"
-        )
-    return RunCheck(
-        pos, speed, f_lo, f_hi, float(travelled), log, (start_chainage_m, direction, vehicle, cfg)
-    )
+def fuse_axles(front: NDArray[np.float64], rear: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The fused value of the two axles' (same grid, NaN = axle did not pass): their mean
+    where both passed, else the one that did. The fused level is this of the axles' levels
+    (mm), the wheel force under it this of their forces (N)."""
+    both = np.isfinite(front) & np.isfinite(rear)
+    with np.errstate(invalid="ignore"):
+        return np.where(both, 0.5 * (front + rear), np.where(np.isfinite(front), front, rear))
 
 
-def process_run(
-    log: RunLog,
-    *,
-    start_chainage_m: float | None = None,
-    direction: str = "increasing",
-    vehicle: VehicleModel = TABLE1,
-    track: TrackParams | None = None,
-    config: ProcessConfig | None = None,
-    budget: TimeBudget | None = None,
-    checked: RunCheck | None = None,
-) -> ProcessResult:
-    """Invert a run log into a loaded profile along chainage and find its soft spots.
+def process_run(run: PreparedRun, *, budget: TimeBudget | None = None) -> ProcessResult:
+    """Invert a prepared run into a loaded profile along chainage and find its soft spots.
 
     Parameters
     ----------
-    log : RunLog
-        The run, canonical SI units.
-    start_chainage_m : float, optional
-        Chainage of the body centre at the first sample, m (needed without a chainage column).
-    direction : {"increasing", "decreasing"}
-        Direction of travel.
-    vehicle : VehicleModel
-        Parameters of the logging vehicle.
-    track : TrackParams, optional
-        Nominal track properties (for stiffness-loss estimates); default UIC60 on 80 kN/mm.
-    config : ProcessConfig, optional
-        Method, band, grid and thresholds.
+    run : PreparedRun
+        The log and its set-up, checked (:func:`~engine.setup.prepare_run`).
     budget : TimeBudget, optional
-        Wall-time budget, checked between the stages (checks, inversion, wheel forces,
-        detection).
-    checked : RunCheck, optional
-        What :func:`check_run` found for this log and these parameters (a service's
-        pre-flight): not checked again. Ignored (the log is checked) unless it
-        :meth:`~RunCheck.is_for` this very log, start chainage, direction, vehicle and config.
+        Wall-time budget, checked between the stages (inversion, wheel forces, detection).
 
     Returns
     -------
@@ -296,30 +132,18 @@ def process_run(
     Raises
     ------
     InversionError
-        If the log is too short for the band, too slow, or its sampling too coarse;
+        If an inversion method cannot treat the run;
         :class:`~engine.vehicle_plausibility.ImplausibleResult` if the level or a dip lies
         beyond what any track can show under the vehicle (its parameters are wrong).
     BudgetExceeded
         If ``budget`` is spent before the result is complete.
     """
     spent = budget.check if budget is not None else _no_budget
-    cfg = config or ProcessConfig()
-    trk = track or TrackParams()
+    log, setup = run.log, run.setup
+    cfg, trk, vehicle = setup.config, setup.track, setup.vehicle
     dt = log.dt
-    if checked is not None and checked.is_for(log, start_chainage_m, direction, vehicle, cfg):
-        chk = checked
-    else:
-        chk = check_run(
-            log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle,
-            config=cfg,
-        )  # fmt: skip
-    pos, speed, f_lo, f_hi = chk.positions, chk.speed, chk.f_lo_hz, chk.f_hi_hz
-    spent("the checks of the log")
-
-    step = cfg.grid_step_m
-    lo = min(pos.front.min(), pos.rear.min())
-    hi = max(pos.front.max(), pos.rear.max())
-    grid = np.arange(np.ceil(lo / step) * step, hi + 1e-9, step)
+    pos, speed, f_lo, f_hi = run.positions, run.speed, run.f_lo_hz, run.f_hi_hz
+    step, grid = cfg.grid_step_m, run.grid
     given = MethodInput(
         log=log, positions=pos, grid=grid, step_m=step, vehicle=vehicle, f_lo_hz=f_lo,
         f_hi_hz=f_hi, lambda_min_m=cfg.lambda_min_m, lambda_max_m=cfg.lambda_max_m,
@@ -340,8 +164,7 @@ def process_run(
     front_force = static[0] + dyn[0]
     rear_force = static[1] + dyn[1]
     both = np.isfinite(front) & np.isfinite(rear)
-    with np.errstate(invalid="ignore"):
-        fused = np.where(both, 0.5 * (front + rear), np.where(np.isfinite(front), front, rear))
+    fused = fuse_axles(front, rear)
     spent("the wheel forces")
     baseline = robust_baseline(fused, step, cfg.detection.baseline_window_m)
     residual = fused - baseline

@@ -15,8 +15,6 @@ Units: SI throughout (s, m/s², rad/s, m/s, m).
 
 from __future__ import annotations
 
-import threading
-import weakref
 from collections.abc import Callable, Mapping
 
 import numpy as np
@@ -68,36 +66,6 @@ CANONICAL_NAMES = {
 
 RowOf = Callable[[int], int]
 """Maps a 0-based sample index to the 1-based row reported to the user."""
-
-
-_passed: dict[int, weakref.ref[RunLog]] = {}
-_passed_lock = threading.Lock()
-
-
-def mark_plausible(log: RunLog) -> None:
-    """Record that ``log`` (this object) passed every check of :func:`check_plausible`.
-
-    For readers that made the same checks column by column with their own messages (the CSV
-    reader names the unit it read): a later :func:`check_plausible` of the same object then
-    returns at once, so that each check runs once per log. A log's arrays are not changed
-    after it is built; a log derived from it (``dataclasses.replace``, placement by GNSS) is
-    a new object and is checked again.
-    """
-    key = id(log)
-
-    def forget(_ref: object) -> None:
-        with _passed_lock:
-            if _passed.get(key) is _ref:
-                del _passed[key]
-
-    with _passed_lock:
-        _passed[key] = weakref.ref(log, forget)
-
-
-def is_marked_plausible(log: RunLog) -> bool:
-    """Whether this very object passed :func:`check_plausible` (or was marked so) before."""
-    ref = _passed.get(id(log))
-    return ref is not None and ref() is log
 
 
 def _default_row(i: int) -> int:
@@ -239,11 +207,10 @@ def check_plausible(
 
     Notes
     -----
-    A log that passed once (this object, :func:`mark_plausible`) is not checked again: the
-    upload's parse, its pre-flight and the inversion share one check.
+    Called once per log by :func:`engine.setup.prepare_run` (the way into processing); the
+    CSV reader makes the same checks column by column with its own names and hints, and its
+    logs are prepared without repeating them.
     """
-    if is_marked_plausible(log):
-        return
     n = {**CANONICAL_NAMES, **(names or {})}
     check_time_steps(log.time_s, n["time_s"], row_of)
     _magnitude(
@@ -285,4 +252,3 @@ def check_plausible(
                 f"{SPEED_MIN_MPS:g} to {SPEED_MAX_MPS:g} m/s",
                 column=n["chainage_m"],
             )
-    mark_plausible(log)

@@ -1,11 +1,13 @@
-"""Queued runs' parsed logs handed from the request to this process's worker in memory.
+"""Queued runs' prepared logs handed from the request to this process's worker in memory.
 
 A queued run's input is always stored (``run_inputs``) before the request is answered: a
 worker of any process, or this one after a restart, processes it from there. When this
-process's own worker claims the run soon after, it takes the log the request parsed and the
-pre-flight's :class:`~engine.pipeline.RunCheck` from here instead: no read-back and unpacking
-of the stored log, no second check of it; and the inversion the request started while it
-stored the input (:func:`app.services.processing.start_inversion`), when a slot was free.
+process's own worker claims the run soon after, it takes the request's
+:class:`~engine.setup.PreparedRun` (the parsed log, checked with the run's set-up) from here
+instead: no read-back and unpacking of the stored log, no second check of it; and the
+inversion the request started while it stored the input
+(:func:`app.services.processing.start_inversion`), when a slot was free. The entry is the
+run's: run ids are never reused (``AUTOINCREMENT`` on SQLite, a sequence on PostgreSQL).
 Bounded: at most ``capacity`` logs are held (each a few hundred MB for a long log), an entry
 is removed when taken, and dropped when newer ones push it out, it waited ``ttl_s``
 unclaimed, or the worker found no run it could claim (its run was claimed by another
@@ -18,12 +20,12 @@ from __future__ import annotations
 import threading
 import time
 from collections import OrderedDict
+from concurrent.futures import Future
 from dataclasses import dataclass
 
-from engine.pipeline import RunCheck
-from engine.runlog import RunLog
+from engine.setup import PreparedRun, RunSetup
 
-from .processing import StartedInversion
+from .processing import Processed
 
 CAPACITY = 2
 """Most logs held at once."""
@@ -34,16 +36,18 @@ TTL_S = 120.0
 
 @dataclass(frozen=True)
 class Handed:
-    """A queued run's log as the request parsed it, and what its pre-flight found."""
+    """A queued run as the request prepared it, and its inversion if one was started."""
 
-    identity: str
-    """The run's ``content_hash``: guards against another run stored under the same id."""
-    log: RunLog
-    check: RunCheck
+    prepared: PreparedRun
     at: float
     """``time.monotonic()`` when it was handed over, s."""
-    inversion: StartedInversion | None = None
-    """The inversion of this log already running (None: the worker inverts it)."""
+    inversion: Future[Processed] | None = None
+    """The inversion of ``prepared`` already running (None: the worker inverts it)."""
+
+    def started_for(self, setup: RunSetup) -> Future[Processed] | None:
+        """The started inversion when it is of ``setup`` (the run's set-up when claimed: a
+        vehicle version registered since changes it), else None."""
+        return self.inversion if setup == self.prepared.setup else None
 
 
 class Handover:
@@ -59,26 +63,21 @@ class Handover:
             return len(self._held)
 
     def put(
-        self, run_id: int, identity: str, log: RunLog, check: RunCheck,
-        inversion: StartedInversion | None = None,
-    ) -> None:  # fmt: skip
-        """Hold run ``run_id``'s log (its check, the inversion started) for the worker."""
+        self, run_id: int, prepared: PreparedRun, inversion: Future[Processed] | None = None
+    ) -> None:
+        """Hold run ``run_id``'s prepared log (and the inversion started) for the worker."""
         with self._lock:
             self._held.pop(run_id, None)
-            self._held[run_id] = Handed(identity, log, check, time.monotonic(), inversion)
+            self._held[run_id] = Handed(prepared, time.monotonic(), inversion)
             self._expire()
             while len(self._held) > self.capacity:
                 self._held.popitem(last=False)
 
-    def take(self, run_id: int, identity: str | None = None) -> Handed | None:
-        """Remove and return run ``run_id``'s entry (None when there is none, it expired, or
-        it was handed over for content other than ``identity``)."""
+    def take(self, run_id: int) -> Handed | None:
+        """Remove and return run ``run_id``'s entry (None when there is none or it expired)."""
         with self._lock:
             self._expire()
-            handed = self._held.pop(run_id, None)
-        if handed is None or (identity is not None and handed.identity != identity):
-            return None
-        return handed
+            return self._held.pop(run_id, None)
 
     def drop_before(self, t: float) -> int:
         """Drop the entries handed over before ``t`` (``time.monotonic()``, s); how many.

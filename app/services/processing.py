@@ -15,14 +15,11 @@ from sqlalchemy.orm import Session
 from app.db.base import utcnow
 from app.db.models import Run, SoftSpot
 from engine.budget import TimeBudget
-from engine.pipeline import RunCheck, process_run
+from engine.pipeline import PreparedRun, fuse_axles, process_run
 from engine.results import ProcessResult
-from engine.runlog import RunLog
-from engine.track import TrackParams
-from engine.vehicle_kinds import Vehicle as EngineVehicle
 
 from .integrate import Separation, add_run_to_track
-from .profiles import fuse_axles, insert_profile
+from .profiles import insert_profile
 
 
 @dataclass(frozen=True)
@@ -33,67 +30,24 @@ class Processed:
     seconds: float
 
 
-def invert(
-    log: RunLog,
-    *,
-    start_chainage_m: float | None,
-    direction: str,
-    vehicle: EngineVehicle,
-    track: TrackParams,
-    budget_s: float | None = None,
-    checked: RunCheck | None = None,
-) -> Processed:
+def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
     """Invert and detect (engine pipeline); raises the engine's errors unchanged, and
     :class:`~engine.errors.BudgetExceeded` past ``budget_s`` of wall time (s;
-    ``TRACKPROFILE_PROCESSING_BUDGET_S``). ``checked``: the submission's pre-flight of this
-    log with these parameters (not repeated; see :func:`engine.pipeline.process_run`)."""
+    ``TRACKPROFILE_PROCESSING_BUDGET_S``)."""
     t0 = time.perf_counter()
     budget = (
         TimeBudget(budget_s, "processing", "TRACKPROFILE_PROCESSING_BUDGET_S")
         if budget_s is not None
         else None
     )
-    result = process_run(
-        log, start_chainage_m=start_chainage_m, direction=direction, vehicle=vehicle,
-        track=track, budget=budget, checked=checked,
-    )  # fmt: skip
+    result = process_run(run, budget=budget)
     return Processed(result, time.perf_counter() - t0)
 
 
-@dataclass(frozen=True)
-class StartedInversion:
-    """An inversion started before its run was claimed (:func:`start_inversion`), with the
-    inputs it runs with: the worker that claims the run takes its result when its own inputs
-    are the same, and inverts again otherwise."""
-
-    future: Future[Processed]
-    inputs: tuple[float | None, str, EngineVehicle, TrackParams]
-    """``(start_chainage_m, direction, vehicle, track)``."""
-
-    def matches(
-        self, start_chainage_m: float | None, direction: str, vehicle: EngineVehicle,
-        track: TrackParams,
-    ) -> bool:  # fmt: skip
-        """Whether it inverts the log with these inputs."""
-        return self.inputs == (start_chainage_m, direction, vehicle, track)
-
-    def result(self) -> Processed:
-        """Its result once done (waits); raises what the inversion raised."""
-        return self.future.result()
-
-
 def start_inversion(
-    slots: threading.BoundedSemaphore,
-    log: RunLog,
-    *,
-    start_chainage_m: float | None,
-    direction: str,
-    vehicle: EngineVehicle,
-    track: TrackParams,
-    budget_s: float | None,
-    checked: RunCheck,
-) -> StartedInversion | None:
-    """Invert a queued run's log on a thread of its own now, while its input is still being
+    slots: threading.BoundedSemaphore, run: PreparedRun, budget_s: float | None
+) -> Future[Processed] | None:
+    """Invert a queued run now, on a thread of its own, while its input is still being
     stored, instead of after a worker has claimed it; None when no processing slot is free
     (the worker inverts it then, as any queued run).
 
@@ -105,27 +59,17 @@ def start_inversion(
         return None
     future: Future[Processed] = Future()
 
-    def run() -> None:
+    def work() -> None:
         try:
             if future.set_running_or_notify_cancel():
-                future.set_result(
-                    invert(
-                        log,
-                        start_chainage_m=start_chainage_m,
-                        direction=direction,
-                        vehicle=vehicle,
-                        track=track,
-                        budget_s=budget_s,
-                        checked=checked,
-                    )
-                )
+                future.set_result(invert(run, budget_s))
         except BaseException as exc:  # handed to whoever takes the result
             future.set_exception(exc)
         finally:
             slots.release()
 
-    threading.Thread(target=run, name="early-inversion", daemon=True).start()
-    return StartedInversion(future, (start_chainage_m, direction, vehicle, track))
+    threading.Thread(target=work, name="early-inversion", daemon=True).start()
+    return future
 
 
 def finite_or_none(value: Any) -> float | None:
@@ -170,10 +114,8 @@ def store_result(
         front_force,
         rear_force,
     )
-    # Where the rail is not smooth at the noise level geometry could have made these dips:
-    # they are kept by depth only, no stiffness-loss figure is stored for them.
+    # The engine gives no stiffness-loss figure where the rail is rough (NaN, stored NULL).
     check = res.geometry_check
-    valid = True if check is None else bool(check.smooth)
     for spot in res.soft_spots:
         session.add(
             SoftSpot(
@@ -182,7 +124,7 @@ def store_result(
                 end_m=float(spot.end_m),
                 peak_m=float(spot.peak_m),
                 depth_mm=float(spot.depth_mm),
-                stiffness_loss_pct=finite_or_none(spot.stiffness_loss_pct) if valid else None,
+                stiffness_loss_pct=finite_or_none(spot.stiffness_loss_pct),
             )
         )
     covered = res.chainage_m[np.isfinite(res.level_mm)]
@@ -196,7 +138,7 @@ def store_result(
     force = fuse_axles(front_force, rear_force)
     under_level = force[np.isfinite(res.level_mm) & np.isfinite(force)]
     run.mean_wheel_force_n = float(under_level.mean()) if under_level.size else None
-    run.single_pass_valid = None if check is None else valid
+    run.single_pass_valid = None if check is None else bool(check.smooth)
     run.status = "done"
     run.stage = None
     run.error = None

@@ -4,7 +4,7 @@ A run's profile lives on the engine's 0.25 m grid (chainage = grid index x 0.25 
 processed). Block ``b`` of a run holds its grid points ``b * BLOCK_POINTS`` to
 ``(b + 1) * BLOCK_POINTS - 1`` (``app.db.models.RunProfileBlock``), the columns packed by
 ``app.services.packing``: levels rounded to 0.0001 mm, wheel forces to 1 N. The fused level is
-not stored: it is :func:`fuse_axles` of the axles' levels (as the engine makes it). A window
+not stored: it is the engine's :func:`~engine.pipeline.fuse_axles` of the axles' levels. A window
 read is one range scan of the ``(run_id, block)`` key; a 2 km window touches three rows.
 """
 
@@ -20,6 +20,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import RunProfileBlock
 from engine.chainage import GRID_STEP_M
+from engine.pipeline import fuse_axles
 
 from .packing import FORCE_RESOLUTION_N, LEVEL_RESOLUTION_MM, decode_block, encode_block
 
@@ -50,14 +51,6 @@ def nullable(a: NDArray[np.float64]) -> list[float | None]:
     for i in bad:
         values[i] = None
     return values
-
-
-def fuse_axles(front: NDArray[np.float64], rear: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The fused value of the two axles' (same grid, NaN = axle did not pass): their mean
-    where both passed, else the one that did. The engine's fused level is this of the axles'
-    levels (mm), the wheel force under it this of their forces (N)."""
-    both = np.isfinite(front) & np.isfinite(rear)
-    return np.where(both, 0.5 * (front + rear), np.where(np.isfinite(front), front, rear))
 
 
 def grid_index(chainage_m: NDArray[np.float64]) -> int:
@@ -107,7 +100,7 @@ def insert_profile(
 ) -> int:
     """Insert a run's profile (chainage in m on the 0.25 m grid, each axle's level and the
     baseline in mm, each axle's wheel force in N) in the session's transaction; the fused
-    level is :func:`fuse_axles` of the axles' levels.
+    level is :func:`~engine.pipeline.fuse_axles` of the axles' levels.
 
     Returns the number of grid points written.
     """

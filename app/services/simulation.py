@@ -8,9 +8,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-import numpy as np
-
-from engine.chainage import GRID_STEP_M
+from engine.chainage import axle_grid
 from engine.errors import ParameterError
 from engine.irregularity import SPECTRA
 from engine.sensor import SensorModel
@@ -134,10 +132,7 @@ def simulate_and_submit(ctx: AppContext, spec: SimulationSpec) -> tuple[int, boo
             )
     except ParameterError as exc:
         raise Invalid.from_engine(exc) from None
-    step = GRID_STEP_M
-    lo = min(float(syn.sim.x_front.min()), float(syn.sim.x_rear.min()))
-    hi = max(float(syn.sim.x_front.max()), float(syn.sim.x_rear.max()))
-    grid = np.arange(math.ceil(lo / step) * step, hi + 1e-9, step)
+    grid = axle_grid(syn.sim.x_front, syn.sim.x_rear)
     level = syn.true_profile(grid)
     stride = max(1, math.ceil(grid.size / TRUTH_POINTS))
     truth = Truth(

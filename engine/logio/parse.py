@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import LogFormatError, ParameterError
-from ..plausibility import check_chainage, check_time_steps, mark_plausible
+from ..plausibility import check_chainage, check_time_steps
 from ..runlog import RunLog
 from ..scan import first_at_most, first_beyond, first_nonfinite, first_outside, first_true
 from ..vehicle import GRAVITY
@@ -423,9 +423,8 @@ def parse_run_csv(
         lon_deg=lon,
     )
     # The columns' checks above are every check of check_plausible (the one check each input
-    # path shares: same limits, same file lines) with unit hints in their messages: the log is
-    # recorded as checked, and the pre-flight and the inversion do not check it again.
-    mark_plausible(log)
+    # path shares: same limits, same file lines) with unit hints in their messages: a service
+    # prepares this log with prepare_run(..., log_checked=True) and they are not repeated.
     return ParsedRun(
         log=log,
         delimiter=header.delimiter,

@@ -20,6 +20,7 @@ from api.api_support import row_counts, sql, stored_points
 from api.live_server import LiveServer, wait_status
 from engine.logio import read_run_csv
 from engine.pipeline import process_run
+from engine.setup import RunSetup, prepare_run
 
 N_SAMPLES = 600_000
 """10 minutes at 1 kHz, 15 km at 25 m/s: ~60 000 profile rows, long enough to kill mid-run."""
@@ -47,7 +48,7 @@ def long_log() -> dict[str, Any]:
     np.savetxt(buf, np.column_stack([t, accel, pitch, np.full(N_SAMPLES, 25.0)]),
                fmt=["%.3f", "%.6f", "%.7f", "%.1f"], delimiter=",")  # fmt: skip
     data = buf.getvalue().encode()
-    result = process_run(read_run_csv(data), start_chainage_m=START_M)
+    result = process_run(prepare_run(read_run_csv(data), RunSetup(start_chainage_m=START_M)))
     return {
         "csv": data,
         "n_points": int(result.chainage_m.size),

@@ -1,31 +1,33 @@
-"""A queued upload is checked once and handed to this process's worker in memory; other
-processes' workers and reprocessing read the stored log and check it again."""
+"""A queued upload is prepared (checked) once and handed to this process's worker in memory as
+a PreparedRun; other processes' workers and reprocessing read the stored log and prepare it
+again."""
 
 from __future__ import annotations
 
 import time
 from collections import Counter
+from dataclasses import replace
 
 import pytest
 
 import app.services.processing as processing_mod
 import app.services.run_lifecycle.accept as accept_mod
 import app.services.run_lifecycle.inversion as inversion_mod
-import engine.pipeline as pipeline_mod
 import engine.plausibility as plausibility_mod
+import engine.setup as setup_mod
 from api.api_support import row_counts, upload, wait_done
 from app.services.handover import Handover
 from app.services.logs import pack_log
 from app.services.run_lifecycle.jobs.process import HANDOVER_GRACE_S
 from app.services.run_lifecycle.queue import Worker
-from engine.pipeline import check_run
 from engine.runlog import RunLog
+from engine.setup import PreparedRun, RunSetup, prepare_run
 from engine.vehicle import TABLE1
 
 
 @pytest.fixture
 def calls(monkeypatch) -> Counter:
-    """Counts of check_run (pre-flight and inversion), of full plausibility checks (not the
+    """Counts of prepare_run (pre-flight and worker), of full plausibility checks (not the
     CSV reader's own column checks) and of stored logs unpacked by the worker."""
     seen: Counter = Counter()
 
@@ -36,9 +38,9 @@ def calls(monkeypatch) -> Counter:
 
         return wrapped
 
-    check = spy("check_run", pipeline_mod.check_run)
-    monkeypatch.setattr(pipeline_mod, "check_run", check)
-    monkeypatch.setattr(accept_mod, "check_run", check)
+    prepare = spy("prepare_run", setup_mod.prepare_run)
+    for module in (setup_mod, accept_mod, inversion_mod):
+        monkeypatch.setattr(module, "prepare_run", prepare)
     monkeypatch.setattr(
         plausibility_mod, "check_time_steps", spy("plausible", plausibility_mod.check_time_steps)
     )
@@ -65,7 +67,7 @@ def test_queued_upload_is_checked_once_and_reprocessing_checks_again(
     assert r.status_code == 201, r.text
     run_id = _queue(c, synthetic_run, vehicle="coach")
     assert wait_done(c, run_id)["status"] == "done"
-    assert calls == {"check_run": 1}
+    assert calls == {"prepare_run": 1}
     assert row_counts(settings)["run_inputs"] == 1
     assert len(c.app.state.ctx.handover) == 0
 
@@ -76,7 +78,7 @@ def test_queued_upload_is_checked_once_and_reprocessing_checks_again(
         assert time.monotonic() < deadline, run
         time.sleep(0.05)
     assert run["status"] == "done"
-    assert calls == {"check_run": 2, "plausible": 1, "unpack": 1}
+    assert calls == {"prepare_run": 2, "plausible": 1, "unpack": 1}
 
 
 def test_short_upload_processed_inline_is_checked_once(start_app, synthetic_run, calls) -> None:
@@ -84,7 +86,7 @@ def test_short_upload_processed_inline_is_checked_once(start_app, synthetic_run,
     r = upload(c, synthetic_run["csv"], track="T",
                start_chainage_m=synthetic_run["start_chainage_m"])  # fmt: skip
     assert r.status_code == 201, r.text
-    assert calls == {"check_run": 1}
+    assert calls == {"prepare_run": 1}
 
 
 def test_json_columns_are_checked_once(start_app, synthetic_run, calls) -> None:
@@ -101,7 +103,7 @@ def test_json_columns_are_checked_once(start_app, synthetic_run, calls) -> None:
     r = c.post("/api/v1/runs", json={"track": "T", "columns": columns, "start_chainage_m": start})
     assert r.status_code == 202, r.text
     assert wait_done(c, r.json()["id"])["status"] == "done"
-    assert calls == {"check_run": 1, "plausible": 1}
+    assert calls == {"prepare_run": 1, "plausible": 1}
 
 
 def test_another_process_processes_from_the_stored_input(start_app, synthetic_run, calls) -> None:
@@ -112,11 +114,11 @@ def test_another_process_processes_from_the_stored_input(start_app, synthetic_ru
     run_id = _queue(c, synthetic_run)
     other = start_app(inline_max_samples=0)
     assert wait_done(other, run_id)["status"] == "done"
-    assert calls == {"check_run": 2, "plausible": 1, "unpack": 1}
+    assert calls == {"prepare_run": 2, "plausible": 1, "unpack": 1}
 
 
-def _check(log: RunLog):
-    return check_run(log, start_chainage_m=12.0)
+def _check(log: RunLog) -> PreparedRun:
+    return prepare_run(log, RunSetup(start_chainage_m=12.0))
 
 
 def _small_log() -> RunLog:
@@ -127,23 +129,39 @@ def _small_log() -> RunLog:
                   speed_mps=np.full_like(t, 20.0))  # fmt: skip
 
 
-def test_handover_is_bounded_taken_once_and_guarded_by_identity(monkeypatch) -> None:
+def test_handover_is_bounded_and_taken_once(monkeypatch) -> None:
     log = _small_log()
     chk = _check(log)
     h = Handover(capacity=2, ttl_s=60.0)
     for run_id in (1, 2, 3):
-        h.put(run_id, f"id{run_id}", log, chk)
+        h.put(run_id, chk)
     assert len(h) == 2
-    assert h.take(1, "id1") is None  # pushed out by newer ones
-    assert h.take(2, "other content") is None  # another run stored under the same id
-    assert h.take(2, "id2") is None  # ... and the entry is gone
-    handed = h.take(3, "id3")
-    assert handed is not None and handed.log is log and handed.check is chk
-    assert h.take(3, "id3") is None and len(h) == 0
-    h.put(4, "id4", log, chk)
+    assert h.take(1) is None  # pushed out by newer ones
+    handed = h.take(3)
+    assert handed is not None and handed.prepared is chk and handed.inversion is None
+    assert h.take(3) is None and len(h) == 1
+    h.put(4, chk)
     now = time.monotonic()
     monkeypatch.setattr(time, "monotonic", lambda: now + 61.0)
-    assert h.take(4, "id4") is None  # waited too long
+    assert h.take(4) is None and h.take(2) is None  # waited too long
+
+
+def test_a_started_inversion_serves_only_its_set_up(synthetic_run) -> None:
+    """The worker takes the upload's started inversion only for the set-up it was prepared
+    with (the run's set-up when claimed); another set-up is prepared again from the handed
+    log."""
+    from concurrent.futures import Future
+
+    from app.services.handover import Handed
+
+    log = _small_log()
+    chk = _check(log)
+    handed = Handed(chk, time.monotonic(), Future())
+    assert handed.started_for(RunSetup(start_chainage_m=12.0)) is handed.inversion
+    assert handed.started_for(RunSetup(start_chainage_m=13.0)) is None
+    heavier = RunSetup(start_chainage_m=12.0, vehicle=replace(TABLE1, ms=17000.0))
+    assert handed.started_for(heavier) is None
+    assert handed.prepared.with_setup(heavier).setup == heavier
 
 
 def test_logs_of_runs_claimed_elsewhere_are_freed_when_the_worker_finds_nothing(
@@ -157,11 +175,11 @@ def test_logs_of_runs_claimed_elsewhere_are_freed_when_the_worker_finds_nothing(
     worker = c.app.state.worker
     log = _small_log()
     chk = _check(log)
-    ctx.handover.put(10_001, "elsewhere", log, chk)  # no such queued run here
+    ctx.handover.put(10_001, chk)  # no such queued run here
     assert worker.run_once() is False and len(ctx.handover) == 1  # within the grace
     now = time.monotonic()
     monkeypatch.setattr(time, "monotonic", lambda: now + HANDOVER_GRACE_S + 1)
-    ctx.handover.put(10_002, "just handed", log, chk)
+    ctx.handover.put(10_002, chk)
     assert worker.run_once() is False
     assert ctx.handover.take(10_001) is None and ctx.handover.take(10_002) is not None
 
@@ -173,11 +191,11 @@ def inversions(monkeypatch) -> list[tuple[str, float]]:
     seen: list[tuple[str, float]] = []
     real = processing_mod.process_run
 
-    def spy(log, **kwargs):
+    def spy(run, **kwargs):
         import threading
 
-        seen.append((threading.current_thread().name, kwargs["vehicle"].ms))
-        return real(log, **kwargs)
+        seen.append((threading.current_thread().name, run.setup.vehicle.ms))
+        return real(run, **kwargs)
 
     monkeypatch.setattr(processing_mod, "process_run", spy)
     return seen

@@ -23,6 +23,7 @@ from app.db.migrate import alembic_config, current_revision, upgrade
 from app.db.session import Database
 from app.services.logs import LOG_COLUMNS, parse_csv
 from app.services.processing import invert
+from engine.setup import RunSetup, prepare_run
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams
 
@@ -64,9 +65,7 @@ def _engine_profile(client: Any, rid: int, csv: bytes, start: float) -> Any:
         run = s.get(Run, rid)
         vp = VehicleParams.from_dict(run.vehicle.params_dict())
         tp = TrackParams.from_dict(run.track.params_dict())
-    return invert(
-        parse_csv(csv, {}), start_chainage_m=start, direction="increasing", vehicle=vp, track=tp
-    ).result
+    return invert(prepare_run(parse_csv(csv, {}), RunSetup(start, "increasing", vp, tp))).result
 
 
 def _as_legacy(settings: Any, rid: int, res: Any) -> None:

@@ -30,7 +30,7 @@ def test_a_run_over_its_budget_fails_clearly_and_frees_the_slot(start_app, synth
         error = run["error"]
         assert error["kind"] == "BudgetExceeded" and error["limit_s"] == 1e-6
         assert "TRACKPROFILE_PROCESSING_BUDGET_S" in error["message"]
-        assert "stopped after the checks of the log" in error["message"]
+        assert "stopped after the spectral inversion" in error["message"]
     assert c.app.state.ctx.slots.acquire(blocking=False)  # the slot is free again
     c.app.state.ctx.slots.release()
 

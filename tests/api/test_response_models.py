@@ -25,9 +25,9 @@ from pydantic import BaseModel, TypeAdapter
 from starlette.testclient import TestClient
 
 from app.main import create_app
+from support.app_fixtures import make_settings
 
 from .api_support import upload
-from .conftest import make_settings
 
 TRACK = "answers"
 

@@ -23,8 +23,7 @@ from app.db.models import Run, TrackSeparationHistory, TrackStiffnessSpot, Vehic
 from app.db.session import Database
 from app.main import create_app
 from app.services.separation_history import record_separation
-
-from .conftest import make_settings
+from support.app_fixtures import make_settings
 
 T0 = datetime(2026, 1, 5, 7, 0, tzinfo=UTC)
 LOADS = (50_000.0, 80_000.0)

@@ -138,6 +138,7 @@ def test_stored_profile_keeps_levels_to_the_stated_resolution(client, settings, 
     where an axle did not pass its level is missing (null), never NaN in the JSON."""
     from app.services.logs import parse_csv
     from app.services.processing import invert
+    from engine.setup import RunSetup, prepare_run
     from engine.track import TrackParams
     from engine.vehicle import VehicleParams
 
@@ -150,10 +151,8 @@ def test_stored_profile_keeps_levels_to_the_stated_resolution(client, settings, 
         run = s.get(Run, rid)
         vp = VehicleParams.from_dict(run.vehicle.params_dict())
         tp = TrackParams.from_dict(run.track.params_dict())
-    res = invert(
-        parse_csv(synthetic_run["csv"], {}), start_chainage_m=synthetic_run["start_chainage_m"],
-        direction="increasing", vehicle=vp, track=tp,
-    ).result  # fmt: skip
+    setup = RunSetup(synthetic_run["start_chainage_m"], "increasing", vp, tp)
+    res = invert(prepare_run(parse_csv(synthetic_run["csv"], {}), setup)).result
     assert prof["n"] == res.chainage_m.size
     np.testing.assert_array_equal(np.asarray(prof["chainage_m"]), res.chainage_m)
     tolerance = {"front_force_n": 0.5, "rear_force_n": 0.5}  # N; levels 0.00005 mm

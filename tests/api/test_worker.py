@@ -127,7 +127,7 @@ def test_run_interrupted_too_often_is_failed(start_app, settings, synthetic_run)
 
 
 def test_log_that_cannot_be_inverted_is_refused_before_it_is_queued(start_app, settings) -> None:
-    """A log over the inline limit that the engine's pre-flight (check_run) rejects (speed
+    """A log over the inline limit that the engine's pre-flight (prepare_run) rejects (speed
     below 1 m/s) is answered 422 at once, naming the speed, instead of being queued to fail
     later; nothing is stored."""
     rows = "\n".join(f"{i / 1000:.3f},0.0,0.0,0.8" for i in range(3000))

@@ -12,7 +12,8 @@ import pytest
 
 from engine.chainage import to_grid
 from engine.methods import METHODS, MethodInput
-from engine.pipeline import ProcessConfig, check_run, process_run
+from engine.pipeline import ProcessConfig, process_run
+from engine.setup import RunSetup, prepare_run
 from engine.spectral import SPLINE_OVERSAMPLING, decimation_step, spectral_inverse
 from engine.synthetic import REALISTIC_SENSOR, make_run, make_track
 from engine.vehicle import TABLE1
@@ -33,7 +34,9 @@ def inverted(request, track):
     run = make_run(track=track, vehicle=TABLE1, speed=speed, sensor=REALISTIC_SENSOR, seed=31,
                    start_chainage_m=start, start_error_m=1.5, direction=direction)  # fmt: skip
     log = run.log
-    chk = check_run(log, start_chainage_m=run.logged_start_chainage_m, direction=direction)
+    chk = prepare_run(
+        log, RunSetup(start_chainage_m=run.logged_start_chainage_m, direction=direction)
+    )
     inv = spectral_inverse(
         log.accel_z_mps2, log.pitch_rate_radps, log.dt, TABLE1, chk.f_lo_hz, chk.f_hi_hz
     )
@@ -105,7 +108,11 @@ def test_pipeline_forces_match_the_full_rate_forces_gridded(inverted):
 
     run, chk, inv = inverted
     direction = "increasing" if chk.positions.sign > 0 else "decreasing"
-    res = process_run(run.log, start_chainage_m=run.logged_start_chainage_m, direction=direction)
+    res = process_run(
+        prepare_run(
+            run.log, RunSetup(start_chainage_m=run.logged_start_chainage_m, direction=direction)
+        )
+    )
     f1, f2 = force_spectrum(inv.band, TABLE1).to_time()
     static = TABLE1.static_axle_loads()
     pos = chk.positions

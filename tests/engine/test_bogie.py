@@ -12,6 +12,7 @@ from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams
 from engine.chainage import bandpass_distance
 from engine.errors import ParameterError
 from engine.pipeline import ProcessConfig, process_run
+from engine.setup import RunSetup, prepare_run
 from engine.simulate import simulate
 from engine.spectral import vehicle_response
 from engine.stiffness import QuasiStaticModel
@@ -173,7 +174,9 @@ def test_bogie_run_gives_the_bogie_mean_level_and_its_zones(coach_run: Synthetic
     """The spectral inversion of a bogie vehicle's body signals returns the mean level under
     each bogie's wheels, and the fit with both wheel loads finds each zone (ends within half
     a bay of the reported convention, loss within 5 points)."""
-    res = process_run(coach_run.log, start_chainage_m=30.0, vehicle=PASSENGER_COACH)
+    res = process_run(
+        prepare_run(coach_run.log, RunSetup(start_chainage_m=30.0, vehicle=PASSENGER_COACH))
+    )
     truth = bandpass_distance(coach_run.true_profile(res.chainage_m), 0.25, 3.0, 40.0)
     ok = np.isfinite(truth) & np.isfinite(res.level_mm)
     ok[:200] = ok[-200:] = False  # the band-pass's ends
@@ -190,9 +193,15 @@ def test_half_car_only_methods_refuse_a_bogie_vehicle(coach_run: SyntheticRun) -
     """The paper's recursion is the half car's algebra: a bogie vehicle gets a clear error."""
     with pytest.raises(ParameterError, match="needs a half-car vehicle") as e:
         process_run(
-            coach_run.log, start_chainage_m=30.0, vehicle=PASSENGER_COACH,
-            config=ProcessConfig(method="direct"),
-        )  # fmt: skip
+            prepare_run(
+                coach_run.log,
+                RunSetup(
+                    start_chainage_m=30.0,
+                    vehicle=PASSENGER_COACH,
+                    config=ProcessConfig(method="direct"),
+                ),
+            )
+        )
     assert e.value.field == "method"
 
 
@@ -203,7 +212,9 @@ def test_agreement_indicator_is_not_the_band_pass_ends() -> None:
     edge effect alone reads millimetres."""
     run = make_run(length=300.0, speed=28.0, start_chainage_m=30.0, vehicle=PASSENGER_COACH,
                    irregularity="german-low", seed=4)  # fmt: skip
-    res = process_run(run.log, start_chainage_m=30.0, vehicle=PASSENGER_COACH)
+    res = process_run(
+        prepare_run(run.log, RunSetup(start_chainage_m=30.0, vehicle=PASSENGER_COACH))
+    )
     f, r = res.front_level_mm, res.rear_level_mm
     both = np.isfinite(f) & np.isfinite(r)
     whole = float(np.sqrt(np.mean((f[both] - r[both]) ** 2)))

@@ -14,6 +14,7 @@ from engine.calibration import CalibrationConfig, CalibrationRun, calibrate
 from engine.errors import ParameterError
 from engine.health import ParameterEstimate, health_alerts
 from engine.pipeline import process_run
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run, score
 from engine.track import SoftZone
 from engine.vehicle import TABLE1
@@ -80,11 +81,18 @@ def test_calibration_fixes_a_wrong_vehicle(wrong_runs):
     assert all(f.identified and f.significant for f in res.fitted)
     worst_registered = 0.0
     for run in wrong_runs:
-        s = score(process_run(run.log, start_chainage_m=run.start_chainage_m, vehicle=p), run)
+        s = score(
+            process_run(
+                prepare_run(run.log, RunSetup(start_chainage_m=run.start_chainage_m, vehicle=p))
+            ),
+            run,
+        )
         assert s.zones_found == s.zones_true == 4, s
         assert s.false_alarms == 0 and s.max_edge_error_m <= 1.5, s
         assert s.max_loss_error_pct <= 10, s
-        before = score(process_run(run.log, start_chainage_m=run.start_chainage_m), run)
+        before = score(
+            process_run(prepare_run(run.log, RunSetup(start_chainage_m=run.start_chainage_m))), run
+        )
         worst_registered = max(worst_registered, before.max_edge_error_m)
     assert worst_registered > 1.5  # the test can fail: the registered vehicle is wrong
 

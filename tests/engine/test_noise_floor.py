@@ -7,6 +7,7 @@ import numpy as np
 
 from engine.pipeline import process_run
 from engine.sensor import SensorModel
+from engine.setup import RunSetup, prepare_run
 from engine.spectral import NOISE_RATIO_RANGE, noise_weights_sigma
 from engine.synthetic import make_run
 from engine.track import SoftZone
@@ -19,7 +20,7 @@ def test_a_clean_gyro_beside_a_noisy_accelerometer_inverts() -> None:
         run = make_run(length=200.0, zones=[SoftZone(90.0, 95.0, 0.5)], speed=20.0,
                        start_chainage_m=12.0, sensor=SensorModel(accel_noise=accel_noise),
                        seed=1)  # fmt: skip
-        result = process_run(run.log, start_chainage_m=12.0)
+        result = process_run(prepare_run(run.log, RunSetup(start_chainage_m=12.0)))
         assert np.isfinite(result.level_mm[np.isfinite(result.level_mm)]).all()
         assert np.isfinite(result.level_mm).mean() > 0.5
     assert any(s.start_m <= 96 and s.end_m >= 89 for s in result.soft_spots)

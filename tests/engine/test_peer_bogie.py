@@ -17,6 +17,7 @@ from engine.bogie import BogieParams
 from engine.logio.parse import read_run_csv
 from engine.pipeline import process_run
 from engine.results import ProcessResult
+from engine.setup import RunSetup, prepare_run
 from support.samples import shared_data_dir
 
 
@@ -55,9 +56,15 @@ def _band(y: np.ndarray, step: float) -> np.ndarray:
 def coach_smooth() -> tuple[ProcessResult, dict, dict]:
     csv, truth = _peer("pub_coach_smooth")
     res = process_run(
-        read_run_csv(csv), start_chainage_m=truth["start_chainage_m"],
-        direction=truth["direction"], vehicle=_datasheet(truth),
-    )  # fmt: skip
+        prepare_run(
+            read_run_csv(csv),
+            RunSetup(
+                start_chainage_m=truth["start_chainage_m"],
+                direction=truth["direction"],
+                vehicle=_datasheet(truth),
+            ),
+        )
+    )
     return res, truth, dict(np.load(csv.with_suffix(".truth.npz")))
 
 

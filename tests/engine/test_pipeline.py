@@ -15,6 +15,7 @@ import pytest
 from engine.errors import InversionError, ParameterError
 from engine.pipeline import ProcessConfig, process_run
 from engine.runlog import RunLog
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run, score, to_runlog
 from engine.track import SoftZone
 from engine.vehicle_plausibility import ImplausibleResult
@@ -41,8 +42,11 @@ SCENARIOS = {
 def noisy_run(request):
     kw = SCENARIOS[request.param]
     run = make_run(length=320.0, jitter=0.05, sensor=SENSOR_1KHZ, sim_rate_hz=2000.0, **kw)
-    return run, process_run(run.log, start_chainage_m=run.start_chainage_m,
-                            direction=run.direction)  # fmt: skip
+    return run, process_run(
+        prepare_run(
+            run.log, RunSetup(start_chainage_m=run.start_chainage_m, direction=run.direction)
+        )
+    )
 
 
 def test_profile_within_005mm_rms_of_truth(noisy_run):
@@ -96,7 +100,7 @@ def test_sound_track_gives_no_false_alarm(seed):
     """Sound track with scattered supports and realistic noise: no zone at all."""
     run = make_run(length=320.0, jitter=0.05, sensor=SENSOR_1KHZ, sim_rate_hz=2000.0,
                    speed=20.0 + 4 * (seed - 21), seed=seed)  # fmt: skip
-    res = process_run(run.log, start_chainage_m=run.start_chainage_m)
+    res = process_run(prepare_run(run.log, RunSetup(start_chainage_m=run.start_chainage_m)))
     assert res.soft_spots == []
 
 
@@ -105,7 +109,7 @@ def test_sensor_drift_is_removed():
     sensor = dataclasses.replace(SENSOR_1KHZ, accel_drift=1e-3, gyro_drift=1e-5)
     run = make_run(length=320.0, jitter=0.05, sensor=sensor, sim_rate_hz=2000.0, speed=25.0,
                    zones=[SoftZone(150, 155, 0.5)], seed=31)  # fmt: skip
-    res = process_run(run.log, start_chainage_m=run.start_chainage_m)
+    res = process_run(prepare_run(run.log, RunSetup(start_chainage_m=run.start_chainage_m)))
     s = score(res, run)
     assert s.profile_rms_mm <= 0.05 and s.zones_found == 1 and s.false_alarms == 0
 
@@ -116,11 +120,24 @@ def test_paper_method_fails_where_robust_succeeds():
     run = make_run(length=320.0, sensor=SENSOR_1KHZ, sim_rate_hz=2000.0, speed=22.0,
                    zones=[SoftZone(150, 155, 0.5)], seed=41)  # fmt: skip
     with pytest.raises(ImplausibleResult, match="not physically plausible"):
-        process_run(run.log, start_chainage_m=run.start_chainage_m,
-                    config=ProcessConfig(method="direct"))  # fmt: skip
-    direct = process_run(run.log, start_chainage_m=run.start_chainage_m,
-                         config=ProcessConfig(method="direct", check_result=False))  # fmt: skip
-    robust = process_run(run.log, start_chainage_m=run.start_chainage_m)
+        process_run(
+            prepare_run(
+                run.log,
+                RunSetup(
+                    start_chainage_m=run.start_chainage_m, config=ProcessConfig(method="direct")
+                ),
+            )
+        )
+    direct = process_run(
+        prepare_run(
+            run.log,
+            RunSetup(
+                start_chainage_m=run.start_chainage_m,
+                config=ProcessConfig(method="direct", check_result=False),
+            ),
+        )
+    )
+    robust = process_run(prepare_run(run.log, RunSetup(start_chainage_m=run.start_chainage_m)))
     assert score(direct, run).profile_rms_mm > 10.0
     assert score(robust, run).profile_rms_mm < 0.05
 
@@ -130,8 +147,12 @@ def test_other_candidates_recover_the_zone(method):
     """The other robust candidates also work on noisy data (they are compared in accuracy.md)."""
     run = make_run(length=250.0, sensor=SENSOR_1KHZ, sim_rate_hz=2000.0, speed=25.0,
                    zones=[SoftZone(120, 125, 0.5)], seed=51)  # fmt: skip
-    res = process_run(run.log, start_chainage_m=run.start_chainage_m,
-                      config=ProcessConfig(method=method))  # fmt: skip
+    res = process_run(
+        prepare_run(
+            run.log,
+            RunSetup(start_chainage_m=run.start_chainage_m, config=ProcessConfig(method=method)),
+        )
+    )
     s = score(res, run)
     assert s.profile_rms_mm < 0.05 and s.zones_found == 1 and s.max_edge_error_m <= 1.5
 
@@ -141,7 +162,7 @@ def test_sample_noisy_zones():
     raw, _ = sample("sample_noisy")
     meta = json.loads((shared_data_dir() / "sample_noisy.truth.json").read_text())
     log = RunLog(raw[:, 0], raw[:, 1], raw[:, 2], raw[:, 3])
-    res = process_run(log, start_chainage_m=meta["start_chainage_m"])
+    res = process_run(prepare_run(log, RunSetup(start_chainage_m=meta["start_chainage_m"])))
     assert len(res.soft_spots) == len(meta["zones"])
     for z, s in zip(meta["zones"], res.soft_spots, strict=True):
         assert abs(s.start_m - z["start_m"]) <= 1.5 and abs(s.end_m - z["end_m"]) <= 1.5
@@ -154,7 +175,7 @@ def test_chainage_column_used_instead_of_speed():
                    zones=[SoftZone(120, 125, 0.5)], seed=61)  # fmt: skip
     log = to_runlog(run.sim, SENSOR_1KHZ, seed=1, chainage=True)
     log = RunLog(log.time_s, log.accel_z_mps2, log.pitch_rate_radps, None, log.chainage_m)
-    res = process_run(log)
+    res = process_run(prepare_run(log, RunSetup()))
     assert len(res.soft_spots) == 1
     assert abs(res.soft_spots[0].start_m - 120) <= 1.5
 
@@ -164,58 +185,71 @@ def test_too_short_and_too_coarse_logs_are_refused():
     t = np.arange(0, 2.0, 1e-3)
     short = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 20.0))
     with pytest.raises(InversionError, match="covers"):
-        process_run(short, start_chainage_m=0.0)
+        process_run(prepare_run(short, RunSetup(start_chainage_m=0.0)))
     t = np.arange(0, 20.0, 0.05)  # 20 Hz cannot see 3 m at 30 m/s
     coarse = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 30.0))
     with pytest.raises(InversionError, match="Hz"):
-        process_run(coarse, start_chainage_m=0.0)
+        process_run(prepare_run(coarse, RunSetup(start_chainage_m=0.0)))
     with pytest.raises(InversionError, match="start_chainage_m"):
-        process_run(RunLog(t, t * 0, t * 0, t * 0 + 30.0))
+        process_run(prepare_run(RunLog(t, t * 0, t * 0, t * 0 + 30.0), RunSetup()))
     with pytest.raises(ParameterError):
         ProcessConfig(lambda_min_m=30, lambda_max_m=3)
 
 
-def test_check_run_refuses_up_front_what_process_run_would():
-    """check_run raises the same errors as the full pipeline, without inverting."""
-    from engine.pipeline import check_run
+def test_prepare_run_refuses_up_front_what_process_run_would():
+    """prepare_run raises the same errors as the full pipeline, without inverting."""
 
     t = np.arange(0, 20.0, 0.05)
     coarse = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 30.0))
     with pytest.raises(InversionError, match="Hz"):
-        check_run(coarse, start_chainage_m=0.0)
+        prepare_run(coarse, RunSetup(start_chainage_m=0.0))
     t = np.arange(0, 20.0, 1e-3)
     ok = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 25.0))
-    chk = check_run(ok, start_chainage_m=10.0)
+    chk = prepare_run(ok, RunSetup(start_chainage_m=10.0))
     assert chk.travelled_m == pytest.approx(25.0 * t[-1])
     assert 0 < chk.f_lo_hz < chk.f_hi_hz < 500
+    assert chk.grid[0] >= min(chk.positions.front.min(), chk.positions.rear.min())
+    assert np.allclose(np.diff(chk.grid), chk.setup.config.grid_step_m)
 
 
-def test_a_check_is_reused_only_for_its_log_and_parameters(monkeypatch):
-    """process_run takes the pre-flight's RunCheck instead of checking again, but only for
-    the very log and parameters it was made with (a new vehicle version, another start or
-    another log is checked again)."""
-    import engine.pipeline as pipeline_mod
+def test_a_setup_refuses_what_no_run_can_have():
+    """A direction other than along or against chainage, a start chainage that is no number:
+    refused when the set-up is made, naming the field."""
+    with pytest.raises(ParameterError) as exc:
+        RunSetup(start_chainage_m=0.0, direction="up")
+    assert exc.value.field == "direction"
+    with pytest.raises(ParameterError) as exc:
+        RunSetup(start_chainage_m=float("nan"))
+    assert exc.value.field == "start_chainage_m"
+
+
+def test_a_prepared_run_carries_its_check(monkeypatch):
+    """The log's plausibility is checked by prepare_run, once per call and never by the
+    processing of the prepared run; another set-up of a prepared run is prepared again
+    (its positions and band change) without checking the log again; a log prepared twice is
+    checked twice (no memory of logs seen before)."""
+    import engine.setup as setup_mod
     from engine.vehicle import TABLE1
 
+    calls: list[int] = []
+    real = setup_mod.check_plausible
+    monkeypatch.setattr(setup_mod, "check_plausible",
+                        lambda *a, **k: calls.append(1) or real(*a, **k))  # fmt: skip
     t = np.arange(0, 20.0, 1e-3)
     log = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 25.0))
-    chk = pipeline_mod.check_run(log, start_chainage_m=10.0)
-    calls: list[int] = []
-    real = pipeline_mod.check_run
-    monkeypatch.setattr(pipeline_mod, "check_run",
-                        lambda *a, **k: calls.append(1) or real(*a, **k))  # fmt: skip
-    process_run(log, start_chainage_m=10.0, checked=chk)
-    assert calls == []
+    run = prepare_run(log, RunSetup(start_chainage_m=10.0))
+    assert calls == [1]
+    process_run(run)
+    assert calls == [1]
+    assert run.with_setup(RunSetup(start_chainage_m=10.0)) is run
     heavier = dataclasses.replace(TABLE1, ms=TABLE1.ms * 1.1)
-    copy = RunLog(log.time_s, log.accel_z_mps2, log.pitch_rate_radps, log.speed_mps)
-    for kwargs in (
-        {"start_chainage_m": 11.0},
-        {"start_chainage_m": 10.0, "vehicle": heavier},
-        {"start_chainage_m": 10.0, "config": ProcessConfig(lambda_max_m=30.0)},
-    ):
-        process_run(log, checked=chk, **kwargs)  # type: ignore[arg-type]
-    process_run(copy, start_chainage_m=10.0, checked=chk)
-    assert len(calls) == 4
+    moved = run.with_setup(RunSetup(start_chainage_m=11.0, vehicle=heavier))
+    assert calls == [1] and moved.setup.vehicle == heavier
+    assert moved.positions.body[0] == pytest.approx(11.0)
+    prepare_run(log, RunSetup(start_chainage_m=10.0))
+    assert calls == [1, 1]
+    prepare_run(log, RunSetup(start_chainage_m=10.0), log_checked=True)
+    assert calls == [1, 1]
 
 
 def test_csv_option_errors_name_the_option():
@@ -236,7 +270,7 @@ def test_slower_loggers_still_work(rate):
     sensor = dataclasses.replace(REALISTIC_SENSOR, sample_rate_hz=rate)
     run = make_run(length=320.0, zones=[SoftZone(150, 155, 0.5)], speed=25.0, sensor=sensor,
                    sim_rate_hz=2000.0, jitter=0.05, seed=3)  # fmt: skip
-    res = process_run(run.log, start_chainage_m=run.start_chainage_m)
+    res = process_run(prepare_run(run.log, RunSetup(start_chainage_m=run.start_chainage_m)))
     s = score(res, run)
     assert s.profile_rms_mm < 0.05 and s.zones_found == 1 and s.false_alarms == 0
     assert s.max_edge_error_m <= 1.5 and s.max_loss_error_pct <= 10

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import io
 
 import numpy as np
@@ -11,9 +10,9 @@ import pytest
 import engine.plausibility as plausibility_mod
 from engine.errors import LogFormatError
 from engine.logio import read_run_csv, write_run_csv
-from engine.pipeline import check_run
 from engine.plausibility import check_plausible
 from engine.runlog import RunLog
+from engine.setup import RunSetup, prepare_run
 
 
 def _log(n: int = 4000, rate: float = 1000.0, v: float = 25.0, chainage: bool = False) -> RunLog:
@@ -64,7 +63,7 @@ def test_implausible_logs_are_refused_naming_column_and_row(make, column, row, w
     """The probe's JSON logs (a 100 s gap, 1e308 samples, a 1e6 m chainage jump) are refused
     by the check every path shares, and by the inversion's pre-flight which calls it."""
     log = make()
-    for check in (check_plausible, lambda lg: check_run(lg, start_chainage_m=12.0)):
+    for check in (check_plausible, lambda lg: prepare_run(lg, RunSetup(start_chainage_m=12.0))):
         with pytest.raises(LogFormatError) as e:
             check(log)
         assert (e.value.column, e.value.row) == (column, row)
@@ -78,9 +77,9 @@ def test_implausible_logs_are_refused_naming_column_and_row(make, column, row, w
     assert (e.value.column, e.value.row) == (column, row)
 
 
-def test_a_log_is_checked_once(monkeypatch) -> None:
-    """A log that passed (or was read from a CSV, whose column checks are the same) is not
-    checked again; a log derived from it is."""
+def test_a_log_is_checked_once_per_preparation(monkeypatch) -> None:
+    """check_plausible keeps no memory of logs it saw (each call checks); prepare_run checks
+    the log once, unless its reader made the same checks (the CSV reader: log_checked)."""
     calls: list[int] = []
     real = plausibility_mod.check_time_steps
     monkeypatch.setattr(plausibility_mod, "check_time_steps",
@@ -88,15 +87,15 @@ def test_a_log_is_checked_once(monkeypatch) -> None:
     log = _log()
     check_plausible(log)
     check_plausible(log)
-    check_run(log, start_chainage_m=12.0)
-    assert len(calls) == 1
+    assert len(calls) == 2
+    run = prepare_run(log, RunSetup(start_chainage_m=12.0))
+    assert len(calls) == 3 and run.log is log
     buf = io.StringIO()
     write_run_csv(log, buf)
     parsed = read_run_csv(buf.getvalue().encode())
-    check_run(parsed, start_chainage_m=12.0)
-    assert len(calls) == 1
-    check_plausible(dataclasses.replace(parsed, chainage_m=12.0 + 25.0 * parsed.time_s))
-    assert len(calls) == 2
+    calls.clear()
+    prepare_run(parsed, RunSetup(start_chainage_m=12.0), log_checked=True)
+    assert calls == []
 
 
 def test_names_and_rows_can_be_the_files() -> None:

@@ -14,6 +14,7 @@ import pytest
 from engine.direct import direct_inverse, direct_inverse_loop
 from engine.errors import ParameterError
 from engine.pipeline import ProcessConfig, process_run
+from engine.setup import RunSetup, prepare_run
 from engine.simulate import simulate
 from engine.synthetic import REALISTIC_SENSOR, make_run, score
 from engine.track import SoftZone, Track
@@ -38,14 +39,26 @@ def test_registered_position_gives_the_accuracy_of_a_sensor_at_the_cg(run_3m_ahe
     false; registered at the CG (0), the pitch signal shows up as false zones."""
     run = run_3m_ahead
     cfg = ProcessConfig(method=method)
-    right = score(process_run(run.log, start_chainage_m=run.start_chainage_m, vehicle=AHEAD,
-                              config=cfg), run)  # fmt: skip
+    right = score(
+        process_run(
+            prepare_run(
+                run.log, RunSetup(start_chainage_m=run.start_chainage_m, vehicle=AHEAD, config=cfg)
+            )
+        ),
+        run,
+    )
     assert right.profile_rms_mm <= 0.05, right
     assert right.zones_found == right.zones_true == 4, right
     assert right.max_edge_error_m <= 1.5 and right.false_alarms == 0, right
     assert right.max_loss_error_pct <= 10, right
-    wrong = score(process_run(run.log, start_chainage_m=run.start_chainage_m, vehicle=TABLE1,
-                              config=cfg), run)  # fmt: skip
+    wrong = score(
+        process_run(
+            prepare_run(
+                run.log, RunSetup(start_chainage_m=run.start_chainage_m, vehicle=TABLE1, config=cfg)
+            )
+        ),
+        run,
+    )
     assert wrong.false_alarms >= 2 and wrong.profile_rms_mm > 2 * right.profile_rms_mm, wrong
 
 
@@ -54,10 +67,22 @@ def test_least_squares_uses_the_sensor_position():
     run = make_run(length=250.0, sensor=SENSOR_1KHZ, sim_rate_hz=2000.0, speed=25.0,
                    zones=[SoftZone(120, 125, 0.5)], seed=51, vehicle=AHEAD)  # fmt: skip
     cfg = ProcessConfig(method="least-squares")
-    right = score(process_run(run.log, start_chainage_m=run.start_chainage_m, vehicle=AHEAD,
-                              config=cfg), run)  # fmt: skip
-    wrong = score(process_run(run.log, start_chainage_m=run.start_chainage_m, vehicle=TABLE1,
-                              config=cfg), run)  # fmt: skip
+    right = score(
+        process_run(
+            prepare_run(
+                run.log, RunSetup(start_chainage_m=run.start_chainage_m, vehicle=AHEAD, config=cfg)
+            )
+        ),
+        run,
+    )
+    wrong = score(
+        process_run(
+            prepare_run(
+                run.log, RunSetup(start_chainage_m=run.start_chainage_m, vehicle=TABLE1, config=cfg)
+            )
+        ),
+        run,
+    )
     assert right.profile_rms_mm < 0.05 and right.zones_found == 1 and right.false_alarms == 0
     assert wrong.profile_rms_mm > 2 * right.profile_rms_mm
 

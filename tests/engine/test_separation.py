@@ -29,6 +29,7 @@ from engine.separation import (
     pass_from_result,
     separate,
 )
+from engine.setup import RunSetup, prepare_run
 from engine.stiffness import QuasiStaticModel
 from engine.synthetic import REALISTIC_SENSOR, make_run, make_track
 from engine.track import SoftZone, TrackParams
@@ -55,8 +56,13 @@ def fleet():
         run = make_run(track=track, vehicle=veh, speed=v, sensor=sensor, sim_rate_hz=500.0,
                        seed=60 + i, start_chainage_m=12.0, start_error_m=err)  # fmt: skip
         runs.append(run)
-        results.append(process_run(run.log, start_chainage_m=run.logged_start_chainage_m,
-                                   vehicle=veh))  # fmt: skip
+        results.append(
+            process_run(
+                prepare_run(
+                    run.log, RunSetup(start_chainage_m=run.logged_start_chainage_m, vehicle=veh)
+                )
+            )
+        )
     return runs, results
 
 
@@ -211,7 +217,9 @@ def test_smooth_rail_criterion_keeps_straight_rail_figures():
     if d is None:
         pytest.skip("shared samples not available")
     for name in ("sample_clean_exact", "sample_noisy"):
-        res = process_run(read_run_csv(d / f"{name}.csv"), start_chainage_m=24.13)
+        res = process_run(
+            prepare_run(read_run_csv(d / f"{name}.csv"), RunSetup(start_chainage_m=24.13))
+        )
         chk = is_smooth_rail(res)
         assert chk.smooth and chk.message is None
         assert chk.residual_sigma_mm < 0.5 * SMOOTH_RAIL_SIGMA_MM

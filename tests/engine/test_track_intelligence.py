@@ -12,6 +12,7 @@ from engine.align import align_profiles
 from engine.errors import ParameterError
 from engine.pipeline import process_run
 from engine.register import Limits, Observation, RunCoverage, build_register
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run
 from engine.track import SoftZone
 
@@ -37,7 +38,9 @@ def _campaign(losses_of_run, n_runs, seed):
             seed=seed * 100 + i,
             track_seed=seed,
         )
-        res = process_run(run.log, start_chainage_m=run.start_chainage_m + err)
+        res = process_run(
+            prepare_run(run.log, RunSetup(start_chainage_m=run.start_chainage_m + err))
+        )
         out.append((err, res, T0 + dtm.timedelta(days=10 * i)))  # fmt: skip
     return out
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from engine.pipeline import process_run
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run
 from engine.track import SoftZone, TrackParams
 from engine.vehicle import GRAVITY, PRESETS, TABLE1
@@ -106,7 +107,11 @@ def test_wrong_vehicle_inversion_fails_instead_of_inventing_dips() -> None:
     levels hundreds of mm deep: process_run raises ImplausibleResult; the right vehicle passes."""
     run = make_run(length=160.0, zones=[SoftZone(70.0, 75.0, 0.5)], speed=25.0,
                    start_chainage_m=12.0, jitter=0.03, sensor=REALISTIC_SENSOR, seed=3)  # fmt: skip
-    ok = process_run(run.log, start_chainage_m=12.0, vehicle=TABLE1)
+    ok = process_run(prepare_run(run.log, RunSetup(start_chainage_m=12.0, vehicle=TABLE1)))
     assert len(ok.soft_spots) == 1
     with pytest.raises(ImplausibleResult, match="not physically plausible"):
-        process_run(run.log, start_chainage_m=12.0, vehicle=TABLE1.replace(ms=500.0, Is=1e8))
+        process_run(
+            prepare_run(
+                run.log, RunSetup(start_chainage_m=12.0, vehicle=TABLE1.replace(ms=500.0, Is=1e8))
+            )
+        )

@@ -10,6 +10,7 @@ import pytest
 from engine.errors import ParameterError
 from engine.pipeline import process_run
 from engine.sensor import sensor_for_grade
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import make_run, to_runlog
 from engine.track import SoftZone, TrackParams
 from engine.vehicle import TABLE1
@@ -52,7 +53,7 @@ def test_a_pass_reports_a_limit_that_falls_as_its_noise_falls() -> None:
     limits = {}
     for grade in ("consumer-mems", "industrial-mems", "tactical-mems", "fibre-optic"):
         log = to_runlog(run.sim, sensor_for_grade(grade, 1000.0, seed=2), seed=11)
-        res = process_run(log, start_chainage_m=run.start_chainage_m)
+        res = process_run(prepare_run(log, RunSetup(start_chainage_m=run.start_chainage_m)))
         assert res.detection_limit is not None
         limits[grade] = res.detection_limit.min_loss_pct[0]
         found = {

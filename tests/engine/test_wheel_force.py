@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from engine.pipeline import check_run
+from engine.setup import RunSetup, prepare_run
 from engine.spectral import spectral_inverse
 from engine.synthetic import REALISTIC_SENSOR, make_run, make_track
 from engine.track import SoftZone
@@ -29,7 +29,7 @@ def inverted(request):
     run = make_run(track=track, vehicle=vehicle, speed=24.0, sensor=sensor, sim_rate_hz=500.0,
                    seed=23, start_chainage_m=15.0, start_error_m=1.2)  # fmt: skip
     log = run.log
-    chk = check_run(log, start_chainage_m=run.logged_start_chainage_m, vehicle=vehicle)
+    chk = prepare_run(log, RunSetup(start_chainage_m=run.logged_start_chainage_m, vehicle=vehicle))
     inv = spectral_inverse(
         log.accel_z_mps2, log.pitch_rate_radps, log.dt, vehicle, chk.f_lo_hz, chk.f_hi_hz
     )

@@ -8,6 +8,7 @@ import pytest
 from engine.methods import METHODS
 from engine.pipeline import ProcessConfig, process_run
 from engine.sensor import sensor_for_grade
+from engine.setup import RunSetup, prepare_run
 from engine.synthetic import make_run, score, to_runlog
 from engine.track import SoftZone
 
@@ -23,8 +24,14 @@ def test_wiener_weighs_noisy_logs_better_and_leaves_exact_ones() -> None:
     )
 
     def rms(log, method: str) -> float:
-        res = process_run(log, start_chainage_m=run.start_chainage_m,
-                          config=ProcessConfig(method=method))  # fmt: skip
+        res = process_run(
+            prepare_run(
+                log,
+                RunSetup(
+                    start_chainage_m=run.start_chainage_m, config=ProcessConfig(method=method)
+                ),
+            )
+        )
         return score(res, run).profile_rms_mm
 
     for grade in ("industrial-mems", "consumer-mems"):

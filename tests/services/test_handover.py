@@ -6,9 +6,7 @@ import pytest
 
 from app.services.processing import start_inversion
 from engine.errors import BudgetExceeded
-from engine.pipeline import check_run
-from engine.track import TrackParams
-from engine.vehicle import TABLE1
+from engine.setup import RunSetup, prepare_run
 
 
 def test_an_inversion_is_started_only_in_a_free_slot_and_frees_it(synthetic_run) -> None:
@@ -21,21 +19,15 @@ def test_an_inversion_is_started_only_in_a_free_slot_and_frees_it(synthetic_run)
 
     slots = threading.BoundedSemaphore(1)
     log = read_run_csv(synthetic_run["csv"])
-    start = synthetic_run["start_chainage_m"]
-    inputs = dict(start_chainage_m=start, direction="increasing", vehicle=TABLE1,
-                  track=TrackParams(), budget_s=None)  # fmt: skip
+    run = prepare_run(log, RunSetup(start_chainage_m=synthetic_run["start_chainage_m"]))
     with slots:
-        assert start_inversion(slots, log, checked=check_run(log, start_chainage_m=start),
-                               **inputs) is None  # fmt: skip
+        assert start_inversion(slots, run, None) is None
     # a processing budget it cannot meet: the inversion fails (BudgetExceeded)
-    started = start_inversion(slots, log, checked=check_run(log, start_chainage_m=start),
-                              **{**inputs, "budget_s": 1e-9})  # fmt: skip
+    started = start_inversion(slots, run, 1e-9)
     assert started is not None
     with pytest.raises(BudgetExceeded):
         started.result()
     assert slots.acquire(timeout=5)  # freed
     slots.release()
-    ok = start_inversion(slots, log, checked=check_run(log, start_chainage_m=start), **inputs)
-    assert ok is not None and ok.matches(start, "increasing", TABLE1, TrackParams())
-    assert not ok.matches(start + 1.0, "increasing", TABLE1, TrackParams())
-    assert ok.result().result.soft_spots
+    ok = start_inversion(slots, run, None)
+    assert ok is not None and ok.result().result.soft_spots

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
@@ -23,8 +23,8 @@ from sqlalchemy.orm import Session
 from app.db.models import Run, Track
 from engine.budget import TimeBudget
 from engine.errors import EngineError, LogFormatError
-from engine.pipeline import RunCheck, check_run
 from engine.positioning import Centerline
+from engine.setup import PreparedRun, RunSetup, prepare_run
 from engine.track import TrackParams
 from engine.vehicle_kinds import Vehicle as EngineVehicle
 from engine.vehicle_kinds import vehicle_from_dict
@@ -36,7 +36,7 @@ from ..loads import declared_wheel_load, loaded_vehicle
 from ..logs import pack_log, summarize
 from ..lookup import check_new_track_name, new_track_columns, resolve_track, resolve_vehicle
 from ..lookup import track_params as _track_params
-from ..processing import Processed, StartedInversion
+from ..processing import Processed
 from ..signals import log_signals
 from .intake import Submission
 from .inversion import invert_now, start_early
@@ -81,10 +81,13 @@ def _existing(session: Session, sub: Submission, track: Track | None) -> Run | N
     return None
 
 
-def _preflight(sub: Submission, vehicle: EngineVehicle) -> RunCheck:
+def _preflight(
+    sub: Submission, vehicle: EngineVehicle, track: TrackParams, placed: bool
+) -> PreparedRun:
     # Everything that can be known about a log without inverting it (the engine's O(n)
     # pre-flight: speed, distance covered, sampling against the wavelength band), so that a
-    # queued run does not fail later for a reason the client could have been told now.
+    # queued run does not fail later for a reason the client could have been told now. The
+    # CSV reader made the log's plausibility checks ("csv" options) unless GNSS placed it.
     if sub.log.chainage_m is None and sub.start_chainage_m is None:
         gnss = (
             "the log has no GNSS fixes (latitude/longitude columns) to place it by"
@@ -99,12 +102,8 @@ def _preflight(sub: Submission, vehicle: EngineVehicle) -> RunCheck:
             field="start_chainage_m",
         )
     try:
-        return check_run(
-            sub.log,
-            start_chainage_m=sub.start_chainage_m,
-            direction=sub.direction,
-            vehicle=vehicle,
-        )
+        setup = RunSetup(sub.start_chainage_m, sub.direction, vehicle, track)
+        return prepare_run(sub.log, setup, log_checked="csv" in sub.options and not placed)
     except EngineError as exc:
         # JSON arrays are named like a CSV's lines; the request field is "columns".
         json_columns = isinstance(exc, LogFormatError) and "columns" in sub.options
@@ -206,7 +205,7 @@ def _place(
 
 def _new_run(
     ctx: AppContext, sub: Submission, found: _Found, positioning: dict[str, Any] | None,
-    track: TrackParams, check: RunCheck,
+    prepared: PreparedRun,
 ) -> tuple[NewRun, Processed | None]:  # fmt: skip
     """What the new run's rows hold (its packed log, summary, display signals), and its
     inversion when the log is short enough to be inverted in the request."""
@@ -219,7 +218,7 @@ def _new_run(
         signals |= sub.extra_signals
         processed = None
         if sub.log.n <= ctx.settings.inline_max_samples:
-            processed = invert_now(ctx, sub, found.vehicle, track, check)
+            processed = invert_now(ctx, prepared)
         packed = packing.result()
     row = NewRun(
         sub, sub.identity, found.vehicle_id, found.wheel_load_n, positioning, summary,
@@ -229,14 +228,14 @@ def _new_run(
 
 
 def _queue(
-    ctx: AppContext, s: Session, run_id: int, sub: Submission, check: RunCheck,
-    started: StartedInversion | None,
+    ctx: AppContext, s: Session, run_id: int, prepared: PreparedRun,
+    started: Future[Processed] | None,
 ) -> None:  # fmt: skip
     """Commit a queued run, its parsed log handed to this process's worker (if it has one)."""
     handover = ctx.handover
     if handover is not None:
         # Before the commit: this process's worker may claim the run at once.
-        handover.put(run_id, sub.identity, sub.log, check, started)
+        handover.put(run_id, prepared, started)
     try:
         s.commit()
     except BaseException:
@@ -255,14 +254,14 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
         check_new_track_name(sub.track)
     new_track = new_track_columns(sub.new_track) if found.track_fields is None else {}
     tp = TrackParams.from_dict(found.track_fields or _track_params(new_track))
-    check = _preflight(sub, found.vehicle)
+    prepared = _preflight(sub, found.vehicle, tp, placed=positioning is not None)
     started = None
     if sub.log.n > settings.inline_max_samples and ctx.handover is not None:
         # Queued for this process's worker: its inversion starts now, beside the storing of
         # its input, and the worker takes the result (its claim and crash safety as for any
         # queued run).
-        started = start_early(ctx, sub, found.vehicle, tp, check)
-    row, processed = _new_run(ctx, sub, found, positioning, tp, check)
+        started = start_early(ctx, prepared)
+    row, processed = _new_run(ctx, sub, found, positioning, prepared)
     with ctx.db.session() as s:
         if found.failed_id is not None:
             # A failed run of the same content is replaced by the new attempt.
@@ -276,7 +275,7 @@ def _submit_once(ctx: AppContext, sub: Submission) -> tuple[int, bool]:
             complete_run(s, run, processed, found.vehicle_version,
                          auto_calibrate_runs=settings.auto_calibrate_runs)  # fmt: skip
         else:
-            _queue(ctx, s, run_id, sub, check, started)
+            _queue(ctx, s, run_id, prepared, started)
     if processed is None or settings.auto_calibrate_runs:
         ctx.wake_worker()
     return run_id, True

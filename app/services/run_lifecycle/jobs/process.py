@@ -75,7 +75,7 @@ class ProcessJob(Job):
                 return None
             # The log the request of this process parsed and checked, else the stored one.
             handover = self.ctx.handover
-            handed = None if handover is None else handover.take(run_id, run.content_hash)
+            handed = None if handover is None else handover.take(run_id)
             packed = None
             if handed is None:
                 packed = s.scalar(select(RunInput.data).where(RunInput.run_id == run_id))

@@ -3,11 +3,11 @@ from the vehicle version that made each run's results."""
 
 from __future__ import annotations
 
-from api.test_newest_passes import _add_run, _track, db  # noqa: F401 (the fixture)
 from app.db.models import Run, Vehicle, VehicleVersion
 from app.db.session import Database
 from app.services.stiffness import read_passes
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH
+from services.test_newest_passes import _add_run, _track, db  # noqa: F401 (the fixture)
 
 
 def test_each_pass_has_the_wheels_of_the_vehicle_version_behind_it(db: Database) -> None:  # noqa: F811
