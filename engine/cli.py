@@ -439,8 +439,8 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument(
         "--method",
         choices=list(METHODS),
-        default="spectral",
-        help="inversion method (default spectral; see docs/method.md)",
+        default=next(iter(METHODS)),
+        help=f"inversion method (default {next(iter(METHODS))}; see docs/method.md)",
     )
     pr.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
     pr.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")

@@ -122,7 +122,8 @@ def _noise(log: RunLog) -> tuple[float, float]:
 
 
 def spectral(m: MethodInput) -> Inversion:
-    """Frequency-domain inversion of the vehicle's transfer functions (the default)."""
+    """Frequency-domain inversion of the vehicle's transfer functions, a flat noise-matched
+    prior per bin."""
     log = m.log
     inv = spectral_inverse(
         log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
@@ -149,7 +150,8 @@ def _axle_delays(m: MethodInput, most: int = 64) -> NDArray[np.float64]:
 
 def wiener(m: MethodInput) -> Inversion:
     """The spectral inversion with each bin weighted by the log's own signal-to-noise ratio:
-    the measured sensor noise against the levels' measured power spectrum (Wiener)."""
+    the measured sensor noise against the levels' measured power spectrum (Wiener); the
+    default."""
     log = m.log
     inv = spectral_inverse(
         log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
@@ -209,10 +211,10 @@ def least_squares(m: MethodInput) -> Inversion:
 
 
 METHODS: dict[str, Inverter] = {
+    "wiener": wiener,
     "spectral": spectral,
     "filtered-direct": filtered_direct,
     "least-squares": least_squares,
     "direct": direct,
-    "wiener": wiener,
 }
 """The inversion methods by name (the first is the default)."""
