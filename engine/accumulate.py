@@ -97,7 +97,8 @@ def pass_noise(
         nn = float(np.mean(n[use])) if use.any() else 1.0
         out[j] = robust_sigma(d) * nn / max(nn - 1.0, 1.0) if d.size >= 20 else float("nan")
     fallback = np.nanmedian(out) if np.isfinite(out).any() else 1.0
-    return np.where(np.isfinite(out) & (out > 0), out, fallback)
+    # identical passes (no noise to measure) still weigh finitely: the one-pass floor
+    return np.maximum(np.where(np.isfinite(out) & (out > 0), out, fallback), 1e-6)
 
 
 def residuals(
