@@ -68,7 +68,11 @@ class PassPlacement:
 
 
 def pass_noise(
-    levels_mm: NDArray[np.float64], step_m: float, window_m: float
+    levels_mm: NDArray[np.float64],
+    step_m: float,
+    window_m: float,
+    *,
+    res: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Each pass's measured noise, mm: the robust spread of its residual (level minus its
     baseline) around the median residual of all passes. With one pass, the spread of its own
@@ -82,8 +86,11 @@ def pass_noise(
         Grid step, m.
     window_m : float
         Baseline window, m (as the detector's).
+    res : ndarray, optional
+        The levels' :func:`residuals` when already at hand (the running medians are most of
+        the cost).
     """
-    res = residuals(levels_mm, step_m, window_m)
+    res = residuals(levels_mm, step_m, window_m) if res is None else res
     if res.shape[0] == 1:
         return np.array([max(robust_sigma(res[0]), 1e-6)])
     n = np.isfinite(res).sum(axis=0)
@@ -301,7 +308,7 @@ def detect_on_aggregate(
         raise ParameterError("load_n must be a positive wheel load, N", field="load_n")
     step = float(grid[1] - grid[0])
     res = residuals(lv, step, cfg.baseline_window_m)
-    sigma = pass_noise(lv, step, cfg.baseline_window_m)
+    sigma = pass_noise(lv, step, cfg.baseline_window_m, res=res)
     mean, _ = weighted_mean(res, 1.0 / sigma**2)
     noise = combined_noise(res, sigma)
     if config is None and noise.halves:
