@@ -347,7 +347,9 @@ def detect_on_aggregate(
             inside = np.abs(grid - peak) <= step
         k = int(np.argmin(np.abs(grid - peak)))
         depth = float(-mean[k]) if np.isfinite(mean[k]) else float("nan")
-        sig = depth / float(noise.noise_mm[k]) if np.isfinite(noise.noise_mm[k]) else math.nan
+        nk = float(noise.noise_mm[k])
+        # passes that agree exactly (the same log twice) leave no noise: infinitely significant
+        sig = math.nan if not math.isfinite(nk) else depth / nk if nk > 0 else math.inf
         covering = tuple(int(j) for j in np.flatnonzero(np.isfinite(res[:, inside]).all(axis=1)))
         m_all = float(np.nanmean(mean[inside]))
         supporting = tuple(

@@ -266,15 +266,20 @@ class CombinedSpot:
     covering: tuple[int, ...]
 
     def to_json(self) -> dict[str, Any]:
-        """A JSON-ready dict (``track_profile_chunks.spots`` entries)."""
-        out = asdict(self)
+        """A JSON-ready dict (``track_profile_chunks.spots`` entries; a number that is not
+        finite is null, as strict JSON wants)."""
+        out = {k: v if not isinstance(v, float) or math.isfinite(v) else None
+               for k, v in asdict(self).items()}  # fmt: skip
         out["supporting"], out["covering"] = list(self.supporting), list(self.covering)
         return out
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> CombinedSpot:
-        """Inverse of :meth:`to_json`."""
-        return cls(**{**d, "supporting": tuple(d["supporting"]), "covering": tuple(d["covering"])})
+        """Inverse of :meth:`to_json` (a null measure back to NaN, the loss stays None)."""
+        nums = {k: math.nan if d[k] is None else float(d[k])
+                for k in ("start_m", "end_m", "peak_m", "depth_mm", "significance")}  # fmt: skip
+        return cls(**nums, loss_pct=d["loss_pct"], supporting=tuple(d["supporting"]),
+                   covering=tuple(d["covering"]))  # fmt: skip
 
 
 def _chunk_of(chainage_m: float) -> int:
