@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
 from common import machine  # noqa: E402
-from sqlalchemy import update  # noqa: E402
+from sqlalchemy import select, update  # noqa: E402
 
 from app.db.migrate import upgrade  # noqa: E402
 from app.db.models import Run, Track, TrackProfileChunk, Vehicle  # noqa: E402
@@ -38,6 +38,7 @@ from app.services.aggregate import (  # noqa: E402
 )
 from app.services.register import track_register  # noqa: E402
 from engine.chainage import GRID_STEP_M  # noqa: E402
+from engine.track import TrackParams  # noqa: E402
 
 
 def best(fn, repeat: int) -> float:  # type: ignore[no-untyped-def]
@@ -67,15 +68,14 @@ def main() -> None:
         t0 = datetime(2026, 3, 1, tzinfo=UTC)
         integrate = []
         with db.session() as s:
-            vehicle = s.query(Vehicle).order_by(Vehicle.id).first()
-            assert vehicle is not None
-            track = Track(name="B", k_nominal=8e7, spacing=0.6, EI=6.4e6, mass_per_m=60.0,
-                          c_support=5e4)  # fmt: skip
+            vehicle_id = s.scalar(select(Vehicle.id).order_by(Vehicle.id).limit(1))
+            # the nominal UIC60 track on 80 kN/mm supports
+            track = Track(name="B", **TrackParams().to_dict())
             s.add(track)
             s.flush()
             for i in range(ns.runs):
                 run = Run(
-                    track_id=track.id, vehicle_id=vehicle.id, source="upload",
+                    track_id=track.id, vehicle_id=vehicle_id, source="upload",
                     recorded_at=t0 + timedelta(days=i), start_chainage_m=0.0,
                     direction="increasing", sample_rate_hz=1000.0, n_samples=1000,
                     duration_s=1.0, speed_min_mps=25.0, speed_max_mps=25.0, status="done",
