@@ -223,7 +223,7 @@ def main() -> None:
         "",
         *inversion_only(rs["noisy"]),
         "",
-        "## Default method (spectral) on a spread of runs (fibre-optic grade)",
+        f"## Default method ({next(iter(METHODS))}) on a spread of runs (fibre-optic grade)",
         "",
         *spread_table(ns.seeds),
         "",

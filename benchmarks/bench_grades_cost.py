@@ -1,11 +1,17 @@
 """Processing cost per pass, inversion methods side by side on every IMU grade.
 
-Run: ``python benchmarks/bench_grades_cost.py [--methods spectral,wiener] [--repeat 15]``
-(about 30 s). One 1 km track (three zones, supports +-5 %), table1 at 24 m/s, logged at 1 kHz
-by each grade of ``engine.sensor.SENSOR_GRADES``; for each log and method the best of
+Run: ``python benchmarks/bench_grades_cost.py [--methods spectral,wiener] [--repeat 15]
+[--passes 12]`` (about a minute). One 1 km track (three zones, supports +-5 %), table1 at
+24 m/s, logged at 1 kHz by each grade of ``engine.sensor.SENSOR_GRADES``; for each log and
+method the best of
 ``--repeat`` calls of ``process_run`` (everything a pass costs: checks, inversion, wheel forces,
 detection, stiffness fits, detection limit) and of the inversion step alone, methods
-interleaved so that a busy machine slows them alike. Prints a markdown table.
+interleaved so that a busy machine slows them alike. Then what integrating a pass adds since
+the combined passes' soft spots are kept per chunk: one detection on the combination of
+``--passes`` industrial-MEMS passes (``engine.accumulate.detect_on_aggregate``, the 1 km unit
+and its 250 m margins as ``app.services.aggregate.detect_combined`` reads them), so the cost
+per pass before (the first method) and now (the last method plus that detection) stand side
+by side. Prints markdown tables.
 """
 
 from __future__ import annotations
@@ -21,10 +27,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np  # noqa: E402
 from common import machine  # noqa: E402
 
+from engine.accumulate import accumulate, detect_on_aggregate  # noqa: E402
 from engine.methods import METHODS, MethodInput  # noqa: E402
 from engine.pipeline import ProcessConfig, process_run  # noqa: E402
 from engine.sensor import SENSOR_GRADES, sensor_for_grade  # noqa: E402
-from engine.setup import RunSetup, prepare_run
+from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.synthetic import make_run, make_track, to_runlog  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 from engine.vehicle import TABLE1  # noqa: E402
@@ -34,6 +41,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--methods", default="spectral,wiener")
     p.add_argument("--repeat", type=int, default=15)
+    p.add_argument("--passes", type=int, default=12, help="passes combined per detection")
     ns = p.parse_args()
     methods = ns.methods.split(",")
     zones = [SoftZone(200, 203, 0.4), SoftZone(500, 506, 0.35), SoftZone(760, 770, 0.5)]
@@ -78,6 +86,34 @@ def main() -> None:
     tot = {m: sum(best[(g, m)][0] for g in SENSOR_GRADES) for m in methods}
     ratio = [f"{m} {1e3 * tot[m]:.1f} ms ({tot[m] / tot[methods[0]]:.2f}x)" for m in methods]
     print("\nPer pass, summed over the grades: " + ", ".join(ratio))
+
+    cfg = ProcessConfig(method=methods[-1])  # type: ignore[arg-type]
+    got = []
+    for i in range(ns.passes):
+        log = to_runlog(run.sim, sensor_for_grade("industrial-mems", 1000.0, seed=10 + i), seed=i)
+        setup = RunSetup(run.start_chainage_m + 0.1 * i, config=cfg)
+        res = process_run(prepare_run(log, setup))
+        got.append((res.chainage_m, res.level_mm))
+    grid, levels, _ = accumulate([c for c, _ in got], [lv for _, lv in got])
+    # the unit and its margins: 1.5 km of grid, the passes covering their 1 km of it
+    wide = np.arange(grid[0] - 250.0, grid[0] + 1250.0, grid[1] - grid[0])
+    lv = np.full((levels.shape[0], wide.size), np.nan)
+    lv[:, 1000 : 1000 + levels.shape[1]] = levels[:, : max(0, wide.size - 1000)]
+    load = float(np.mean(TABLE1.static_axle_loads()))
+    t_det = np.inf
+    for _ in range(ns.repeat):
+        t0 = time.perf_counter()
+        detect_on_aggregate(wide, lv, load_n=load)
+        t_det = min(t_det, time.perf_counter() - t0)
+    before = {g: best[(g, methods[0])][0] for g in SENSOR_GRADES}
+    after = {g: best[(g, methods[-1])][0] + t_det for g in SENSOR_GRADES}
+    print(f"\nCombined detection of {ns.passes} passes over one unit: {1e3 * t_det:.1f} ms.\n")
+    print(f"| grade | before: {methods[0]} pass, ms | now: {methods[-1]} pass + combined "
+          "detection, ms | ratio |")  # fmt: skip
+    print("|---|---|---|---|")
+    for g in SENSOR_GRADES:
+        print(f"| {g} | {1e3 * before[g]:.1f} | {1e3 * after[g]:.1f} | "
+              f"{after[g] / before[g]:.2f}x |")  # fmt: skip
 
 
 if __name__ == "__main__":

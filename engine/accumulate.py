@@ -68,7 +68,11 @@ class PassPlacement:
 
 
 def pass_noise(
-    levels_mm: NDArray[np.float64], step_m: float, window_m: float
+    levels_mm: NDArray[np.float64],
+    step_m: float,
+    window_m: float,
+    *,
+    res: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Each pass's measured noise, mm: the robust spread of its residual (level minus its
     baseline) around the median residual of all passes. With one pass, the spread of its own
@@ -82,8 +86,11 @@ def pass_noise(
         Grid step, m.
     window_m : float
         Baseline window, m (as the detector's).
+    res : ndarray, optional
+        The levels' :func:`residuals` when already at hand (the running medians are most of
+        the cost).
     """
-    res = residuals(levels_mm, step_m, window_m)
+    res = residuals(levels_mm, step_m, window_m) if res is None else res
     if res.shape[0] == 1:
         return np.array([max(robust_sigma(res[0]), 1e-6)])
     n = np.isfinite(res).sum(axis=0)
@@ -97,7 +104,8 @@ def pass_noise(
         nn = float(np.mean(n[use])) if use.any() else 1.0
         out[j] = robust_sigma(d) * nn / max(nn - 1.0, 1.0) if d.size >= 20 else float("nan")
     fallback = np.nanmedian(out) if np.isfinite(out).any() else 1.0
-    return np.where(np.isfinite(out) & (out > 0), out, fallback)
+    # identical passes (no noise to measure) still weigh finitely: the one-pass floor
+    return np.maximum(np.where(np.isfinite(out) & (out > 0), out, fallback), 1e-6)
 
 
 def residuals(
@@ -300,7 +308,7 @@ def detect_on_aggregate(
         raise ParameterError("load_n must be a positive wheel load, N", field="load_n")
     step = float(grid[1] - grid[0])
     res = residuals(lv, step, cfg.baseline_window_m)
-    sigma = pass_noise(lv, step, cfg.baseline_window_m)
+    sigma = pass_noise(lv, step, cfg.baseline_window_m, res=res)
     mean, _ = weighted_mean(res, 1.0 / sigma**2)
     noise = combined_noise(res, sigma)
     if config is None and noise.halves:
@@ -339,7 +347,9 @@ def detect_on_aggregate(
             inside = np.abs(grid - peak) <= step
         k = int(np.argmin(np.abs(grid - peak)))
         depth = float(-mean[k]) if np.isfinite(mean[k]) else float("nan")
-        sig = depth / float(noise.noise_mm[k]) if np.isfinite(noise.noise_mm[k]) else math.nan
+        nk = float(noise.noise_mm[k])
+        # passes that agree exactly (the same log twice) leave no noise: infinitely significant
+        sig = math.nan if not math.isfinite(nk) else depth / nk if nk > 0 else math.inf
         covering = tuple(int(j) for j in np.flatnonzero(np.isfinite(res[:, inside]).all(axis=1)))
         m_all = float(np.nanmean(mean[inside]))
         supporting = tuple(

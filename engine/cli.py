@@ -431,8 +431,8 @@ def build_parser() -> argparse.ArgumentParser:
     pr.add_argument(
         "--method",
         choices=list(METHODS),
-        default="spectral",
-        help="inversion method (default spectral; see docs/method.md)",
+        default=next(iter(METHODS)),
+        help=f"inversion method (default {next(iter(METHODS))}; see docs/method.md)",
     )
     _add_band(pr)
     pr.add_argument("--grid-step", type=float, default=GRID_STEP_M, help="chainage grid step, m")

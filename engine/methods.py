@@ -156,7 +156,8 @@ def _axle_delays(m: MethodInput, most: int = 64) -> NDArray[np.float64]:
 
 def wiener(m: MethodInput) -> Inversion:
     """The spectral inversion with each bin weighted by the log's own signal-to-noise ratio:
-    the measured sensor noise against the levels' measured power spectrum (Wiener)."""
+    the measured sensor noise against the levels' measured power spectrum (Wiener); the
+    default."""
     return _from_band(m, wiener=True, axle_delay_s=_axle_delays(m))
 
 
@@ -207,10 +208,10 @@ def least_squares(m: MethodInput) -> Inversion:
 
 
 METHODS: dict[str, Inverter] = {
+    "wiener": wiener,
     "spectral": spectral,
     "filtered-direct": filtered_direct,
     "least-squares": least_squares,
     "direct": direct,
-    "wiener": wiener,
 }
 """The inversion methods by name (the first is the default)."""

@@ -312,47 +312,39 @@ class SensorGrade:
         )
 
 
-def _grades(*grades: SensorGrade) -> dict[str, SensorGrade]:
-    return {g.name: g for g in grades}
+_Figures = tuple[float, float, float, float, float, float, float, float, float]
 
+
+def _grades(*rows: tuple[str, str, _Figures, str]) -> dict[str, SensorGrade]:
+    """Grades by name from rows ``(name, label, figures, source)``, the figures in
+    :class:`SensorGrade`'s field order (``accel_density_ug`` to ``time_jitter_us``)."""
+    out = {}
+    for name, label, (a, g, ba, bg, wa, wg, la, lg, jit), src in rows:
+        out[name] = SensorGrade(name, label, a, g, ba, bg, wa, wg, la, lg, jit, src)
+    return out
+
+
+_FIBRE_ACCEL_UG = 0.005 / (1e-6 * STANDARD_GRAVITY * math.sqrt(500.0))
+_FIBRE_GYRO_DEG_RTH = math.degrees(1e-4 / math.sqrt(500.0)) * 60.0
 
 SENSOR_GRADES: dict[str, SensorGrade] = _grades(
-    SensorGrade(
-        # the noise of the earlier sample sets at 1 kHz (0.005 m/s², 1e-4 rad/s) as densities
-        name="fibre-optic", label="fibre-optic gyro, navigation-grade accelerometer",
-        accel_density_ug=0.005 / (1e-6 * STANDARD_GRAVITY * math.sqrt(500.0)),
-        gyro_arw_deg_rth=math.degrees(1e-4 / math.sqrt(500.0)) * 60.0,
-        accel_bias_mps2=0.02, gyro_bias_radps=2e-4,
-        accel_bias_instability_ug=5.0, gyro_bias_instability_deg_h=0.05,
-        accel_lsb_mg=0.0, gyro_lsb_dps=0.0, time_jitter_us=1.0,
-        source="the earlier sample sets (shared docs/sensors.md); wander and jitter assumed",
-    ),
-    SensorGrade(
-        name="tactical-mems", label="tactical MEMS (ADIS16495 class)",
-        accel_density_ug=25.0, gyro_arw_deg_rth=0.09,
-        accel_bias_mps2=0.02, gyro_bias_radps=math.radians(0.002),
-        accel_bias_instability_ug=3.2, gyro_bias_instability_deg_h=0.8,
-        accel_lsb_mg=0.25, gyro_lsb_dps=0.00625, time_jitter_us=1.0,
-        source="ADIS16495-1 data sheet Rev. C (ARW, in-run bias stability, 16-bit scales)",
-    ),
-    SensorGrade(
-        name="industrial-mems", label="industrial MEMS",
-        accel_density_ug=60.0, gyro_arw_deg_rth=0.2,
-        accel_bias_mps2=0.03, gyro_bias_radps=math.radians(0.005),
-        accel_bias_instability_ug=15.0, gyro_bias_instability_deg_h=5.0,
-        accel_lsb_mg=0.25, gyro_lsb_dps=0.0125, time_jitter_us=5.0,
-        source="shared docs/sensors.md; wander, resolution and jitter assumed between the "
-        "two data sheets",
-    ),
-    SensorGrade(
-        name="consumer-mems", label="consumer MEMS (ADIS16448 class)",
-        accel_density_ug=230.0, gyro_arw_deg_rth=0.66,
-        accel_bias_mps2=0.05, gyro_bias_radps=math.radians(0.02),
-        accel_bias_instability_ug=250.0, gyro_bias_instability_deg_h=14.5,
-        accel_lsb_mg=0.833, gyro_lsb_dps=0.04, time_jitter_us=20.0,
-        source="ADIS16448 data sheet (noise density 0.23 mg/√Hz, ARW 0.66 °/√h, in-run "
-        "bias stability, 16-bit scales)",
-    ),
+    # figures: accel µg/√Hz, gyro °/√h, biases m/s² and rad/s, bias wander µg and °/h,
+    # resolution mg and °/s, jitter µs
+    # the earlier sample sets' noise at 1 kHz (0.005 m/s², 1e-4 rad/s) as densities
+    ("fibre-optic", "fibre-optic gyro, navigation-grade accelerometer",
+     (_FIBRE_ACCEL_UG, _FIBRE_GYRO_DEG_RTH, 0.02, 2e-4, 5.0, 0.05, 0.0, 0.0, 1.0),
+     "the earlier sample sets (shared docs/sensors.md); wander and jitter assumed"),
+    ("tactical-mems", "tactical MEMS (ADIS16495 class)",
+     (25.0, 0.09, 0.02, math.radians(0.002), 3.2, 0.8, 0.25, 0.00625, 1.0),
+     "ADIS16495-1 data sheet Rev. C (ARW, in-run bias stability, 16-bit scales)"),
+    ("industrial-mems", "industrial MEMS",
+     (60.0, 0.2, 0.03, math.radians(0.005), 15.0, 5.0, 0.25, 0.0125, 5.0),
+     "shared docs/sensors.md; wander, resolution and jitter assumed between the two data "
+     "sheets"),
+    ("consumer-mems", "consumer MEMS (ADIS16448 class)",
+     (230.0, 0.66, 0.05, math.radians(0.02), 250.0, 14.5, 0.833, 0.04, 20.0),
+     "ADIS16448 data sheet (noise density 0.23 mg/√Hz, ARW 0.66 °/√h, in-run bias stability, "
+     "16-bit scales)"),
 )  # fmt: skip
 """The IMU classes a fleet fits, best first (figures and sources in docs/sensors.md)."""
 

@@ -26,7 +26,7 @@ from .runlog import RunLog
 from .track import TrackParams
 from .vehicle import TABLE1, VehicleModel
 
-Method = Literal["spectral", "filtered-direct", "least-squares", "direct", "wiener"]
+Method = Literal["wiener", "spectral", "filtered-direct", "least-squares", "direct"]
 
 DIRECTIONS = ("increasing", "decreasing")
 """Directions of travel, along increasing or decreasing chainage."""
@@ -41,15 +41,16 @@ class ProcessConfig:
 
     Parameters
     ----------
-    method : {"spectral", "filtered-direct", "least-squares", "direct", "wiener"}
-        ``spectral``: band-limited frequency-domain inversion (default, for real logs).
+    method : {"wiener", "spectral", "filtered-direct", "least-squares", "direct"}
+        ``wiener`` (default): the band-limited frequency-domain inversion with the log's own
+        signal-to-noise ratio per bin as prior and both axles tied to one track (as good as
+        ``spectral`` on exact logs, better on noisy MEMS logs; docs/accuracy.md).
+        ``spectral``: the same inversion with a flat noise-matched prior per bin.
         ``filtered-direct``: band-passed inputs, then the direct integration with
         numerically dissipative Newmark parameters. ``least-squares``: the optimisation
         baseline (profile fitted so the simulated vehicle matches the log, window by
         window; slow). ``direct``: the paper's direct integration, then the same band-pass
-        (the reference for exactness; wrong on noisy data). ``wiener``: the spectral inversion
-        with the log's own signal-to-noise ratio per bin as prior and both axles tied to one
-        track (better on noisy MEMS logs at steady speed; docs/accuracy.md).
+        (the reference for exactness; wrong on noisy data).
     lambda_min_m, lambda_max_m : float
         Wavelength band of the profile, m. Default 3-40 m: all of EN 13848 D1 (3-25 m) and
         enough of D2 that a soft zone up to ~15 m long keeps its depth (a 25 m cut-off
@@ -68,7 +69,7 @@ class ProcessConfig:
         that are known to drift (benchmarks comparing candidates).
     """
 
-    method: Method = "spectral"
+    method: Method = "wiener"
     lambda_min_m: float = 3.0
     lambda_max_m: float = 40.0
     grid_step_m: float = GRID_STEP_M

@@ -461,9 +461,11 @@ def wiener_bins(
     p_tot = (csum_p[hi] - csum_p[lo]) / cnt
     p_noise = (csum_n[hi] - csum_n[lo]) / cnt
     # the track's share, never below a hundredth of what is there (no bin is zeroed outright)
-    prior = np.maximum(p_tot - p_noise, 1e-2 * p_tot) + 1e-300
+    prior = np.maximum(p_tot - p_noise, 1e-2 * p_tot)
+    # (P N + C^-1)^-1 P b, the same estimate as (N + C^-1 / P)^-1 b, stays finite where a
+    # silent log has no power at all (P = 0: the estimate is 0)
     if axle_delay_s is None:
-        G = N + (1.0 / prior)[:, None, None] * np.eye(2)[None]
+        Cinv = np.broadcast_to(np.eye(2, dtype=np.complex128), (omega.size, 2, 2))
     else:
         c = np.exp(-1j * omega[:, None] * axle_delay_s[None, :]).mean(axis=1)
         d = 1.0 + independent
@@ -472,8 +474,8 @@ def wiener_bins(
         Cinv[:, 0, 0] = Cinv[:, 1, 1] = d / det
         Cinv[:, 0, 1] = -np.conj(c) / det
         Cinv[:, 1, 0] = -c / det
-        G = N + Cinv / prior[:, None, None]
-    out: NDArray[np.complex128] = np.einsum("mij,mj->mi", _inv2(G), b)
+    G = prior[:, None, None] * N + Cinv
+    out: NDArray[np.complex128] = np.einsum("mij,mj->mi", _inv2(G), prior[:, None] * b)
     return out
 
 

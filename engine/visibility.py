@@ -13,6 +13,7 @@ that weak is found about half the time; weaker ones are not seen, stronger ones 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -31,25 +32,45 @@ the accuracy requirements (3-10 m)."""
 _LOSSES = np.linspace(0.0, MAX_LOSS, 48)
 
 
+@dataclass(frozen=True)
+class DipModel:
+    """How a zone's dip is modelled and measured, as a processed profile is.
+
+    Attributes
+    ----------
+    params : TrackParams
+        Nominal rail and supports.
+    load : float
+        Static wheel load, N.
+    lambda_min_m, lambda_max_m, taper : float
+        The profile's wavelength band, m, and its tapers.
+    step_m : float
+        Grid step of the profile, m.
+    baseline_window_m : float
+        The detector's baseline window, m.
+    """
+
+    params: TrackParams
+    load: float
+    lambda_min_m: float
+    lambda_max_m: float
+    taper: float
+    step_m: float
+    baseline_window_m: float
+
+
 def zone_dip_depths(
-    zone_length_m: float,
-    losses: NDArray[np.float64],
-    *,
-    params: TrackParams,
-    load: float,
-    lambda_min_m: float,
-    lambda_max_m: float,
-    taper: float,
-    step_m: float,
-    baseline_window_m: float,
+    zone_length_m: float, losses: NDArray[np.float64], model: DipModel
 ) -> NDArray[np.float64]:
     """Depth of the dip a zone of ``zone_length_m`` (m) makes for each loss, mm (positive).
 
     The zone softens the ``round(length / spacing)`` supports (at least one) it covers; its
-    modelled loaded-level change under the static wheel ``load`` (N) is band-passed to
-    ``[lambda_min_m, lambda_max_m]`` (m) and measured against the detector's running-median
-    baseline of ``baseline_window_m`` (m), as a measured profile is.
+    modelled loaded-level change under the static wheel load is band-passed and measured
+    against the detector's running-median baseline, as ``model`` says.
     """
+    params, step_m = model.params, model.step_m
+    lambda_min_m, lambda_max_m, taper = model.lambda_min_m, model.lambda_max_m, model.taper
+    baseline_window_m = model.baseline_window_m
     s = params.spacing
     n = max(1, int(round(zone_length_m / s)))
     sup = (np.arange(n) - 0.5 * (n - 1)) * s
@@ -61,7 +82,7 @@ def zone_dip_depths(
     lam, Q = np.linalg.eigh(infl(sup[:, None] - sup[None, :]))
     C = Q.T @ infl(g[None, :] - sup[:, None])
     E = _bandpass_rows(C * C, step_m, lambda_min_m, lambda_max_m, taper)
-    dips = modal_dips(lam, E, losses, params.k_nominal, load)
+    dips = modal_dips(lam, E, losses, params.k_nominal, model.load)
     near = np.abs(g) <= 0.5 * n * s + 2 * lambda_min_m
     depth = np.empty(losses.size)
     for i, d in enumerate(dips):
@@ -72,23 +93,10 @@ def zone_dip_depths(
 
 
 @lru_cache(maxsize=64)
-def _depth_curve(
-    zone_length_m: float,
-    params: TrackParams,
-    load: float,
-    lambda_min_m: float,
-    lambda_max_m: float,
-    taper: float,
-    step_m: float,
-    baseline_window_m: float,
-) -> NDArray[np.float64]:
+def _depth_curve(zone_length_m: float, model: DipModel) -> NDArray[np.float64]:
     """Dip depth against :data:`_LOSSES`, made non-decreasing, mm: one per vehicle and band,
     so a service's runs reuse it."""
-    depth = zone_dip_depths(
-        zone_length_m, _LOSSES, params=params, load=load, lambda_min_m=lambda_min_m,
-        lambda_max_m=lambda_max_m, taper=taper, step_m=step_m,
-        baseline_window_m=baseline_window_m,
-    )  # fmt: skip
+    depth = zone_dip_depths(zone_length_m, _LOSSES, model)
     # the dip deepens with the loss (the maximum smooths the baseline's small wobbles)
     out: NDArray[np.float64] = np.maximum.accumulate(depth)
     out.flags.writeable = False
@@ -117,14 +125,9 @@ def detection_limit(
         Zone lengths, m.
     params : TrackParams, optional
         Nominal rail and supports (default UIC60 on 80 kN/mm).
-    load : float
-        Static wheel load, N.
-    lambda_min_m, lambda_max_m, taper : float
-        The profile's wavelength band, m, and its tapers.
-    step_m : float
-        Grid step of the profile, m.
-    baseline_window_m : float
-        The detector's baseline window, m.
+    load, lambda_min_m, lambda_max_m, taper, step_m, baseline_window_m : float
+        The wheel load (N), the profile's band (m) and tapers, its grid step (m) and the
+        detector's baseline window (m): a :class:`DipModel`.
 
     Returns
     -------
@@ -141,13 +144,13 @@ def detection_limit(
             raise ParameterError(
                 f"zone lengths must be positive numbers of m, got {z}", field="zone_lengths_m"
             )
-    trk = params or TrackParams()
+    model = DipModel(
+        params or TrackParams(), float(load), float(lambda_min_m), float(lambda_max_m),
+        float(taper), float(step_m), float(baseline_window_m),
+    )  # fmt: skip
     out = []
     for z in zone_lengths_m:
-        deepest = _depth_curve(
-            float(z), trk, float(load), float(lambda_min_m), float(lambda_max_m), float(taper),
-            float(step_m), float(baseline_window_m),
-        )  # fmt: skip
+        deepest = _depth_curve(float(z), model)
         if threshold_mm > deepest[-1]:
             out.append(float("nan"))
         else:

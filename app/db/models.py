@@ -392,6 +392,8 @@ class TrackProfileChunk(Base):
     robust spread (1.4826 x MAD), ``n_runs`` how many there are (0 and NaN: no run). The
     chunks are those of ``track_run_levels`` they are computed from; a chainage window is one
     range scan over a few rows. Only chunks with at least one covered point are stored.
+    ``spots`` holds the soft spots of the combined passes peaking in the chunk
+    (``app.services.aggregate.CombinedSpot`` as dicts; NULL: not computed, stored before).
     """
 
     __tablename__ = "track_profile_chunks"
@@ -401,6 +403,7 @@ class TrackProfileChunk(Base):
     )
     chunk: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
     data: Mapped[bytes] = mapped_column(LargeBinary)
+    spots: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON, nullable=True)
 
 
 class TrackLimits(Base):

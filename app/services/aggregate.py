@@ -6,6 +6,9 @@ chunks it covers are recomputed (``engine.aggregate.aggregate_levels``) and rewr
 ``track_profile_chunks`` (the same chunks, one packed row each), inside the caller's
 transaction. A chunk's aggregate is made of its :data:`NEWEST_PASSES` newest runs
 (:func:`newest_runs`), as is the geometry/stiffness separation (``app.services.stiffness``).
+The soft spots of the same runs combined (``engine.accumulate.detect_on_aggregate``) are
+found then too and kept with the chunk their deepest point lies in (:func:`store_combined_spots`),
+so the register reads them instead of detecting on every request.
 Chainage in m, levels in mm.
 """
 
@@ -13,15 +16,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Subquery, delete, func, insert, select
+from sqlalchemy import Subquery, delete, func, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
+from engine.accumulate import detect_on_aggregate
 from engine.aggregate import AggregateProfile, aggregate_levels
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
@@ -219,7 +223,150 @@ def recompute_aggregate(session: Session, track_id: int, c_lo: int, c_hi: int) -
                 written += covered
         if rows:
             session.execute(insert(TrackProfileChunk), rows)
+    store_combined_spots(session, track_id, c_lo, c_hi)
     return written
+
+
+DETECTION_CHUNKS = 4
+"""Chunks searched together for the combined passes' soft spots (1 km): the stretch whose
+measured noise and roughness set the threshold, and what a run arriving makes detect again
+(every unit within :data:`DETECTION_MARGIN_CHUNKS` of the chunks it changed)."""
+
+DETECTION_MARGIN_CHUNKS = 1
+"""Chunks of context read either side of a detection unit (250 m: far more than the 40 m
+baseline and any zone); a spot belongs to the unit its deepest point lies in."""
+
+
+@dataclass(frozen=True)
+class CombinedSpot:
+    """A soft spot of the combined passes, as kept with its chunk.
+
+    Attributes
+    ----------
+    start_m, end_m, peak_m : float
+        Extent and deepest point on the track's chainage, m.
+    depth_mm : float
+        Depth of the combined level there, mm.
+    loss_pct : float or None
+        Fitted stiffness loss, % (None: no figure).
+    significance : float
+        Depth over the combination's measured noise there.
+    supporting, covering : tuple of int
+        Run ids that cover the spot and dip there themselves; run ids that cover it.
+    """
+
+    start_m: float
+    end_m: float
+    peak_m: float
+    depth_mm: float
+    loss_pct: float | None
+    significance: float
+    supporting: tuple[int, ...]
+    covering: tuple[int, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-ready dict (``track_profile_chunks.spots`` entries; a number that is not
+        finite is null, as strict JSON wants)."""
+        out = {k: v if not isinstance(v, float) or math.isfinite(v) else None
+               for k, v in asdict(self).items()}  # fmt: skip
+        out["supporting"], out["covering"] = list(self.supporting), list(self.covering)
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> CombinedSpot:
+        """Inverse of :meth:`to_json` (a null measure back to NaN, the loss stays None)."""
+        nums = {k: math.nan if d[k] is None else float(d[k])
+                for k in ("start_m", "end_m", "peak_m", "depth_mm", "significance")}  # fmt: skip
+        return cls(**nums, loss_pct=d["loss_pct"], supporting=tuple(d["supporting"]),
+                   covering=tuple(d["covering"]))  # fmt: skip
+
+
+def _chunk_of(chainage_m: float) -> int:
+    return math.floor(chainage_m / GRID_STEP_M) // CHUNK_POINTS
+
+
+def detect_combined(session: Session, track_id: int, unit: int) -> dict[int, list[CombinedSpot]]:
+    """The soft spots of detection unit ``unit`` (chunks ``unit * DETECTION_CHUNKS`` on) found
+    on the combination of each chunk's newest runs, with the margin either side as context;
+    by the chunk of their deepest point. Only spots at least two runs cover. Read only."""
+    a = unit * DETECTION_CHUNKS
+    b = a + DETECTION_CHUNKS - 1
+    lo, hi = a - DETECTION_MARGIN_CHUNKS, b + DETECTION_MARGIN_CHUNKS
+    grid, run_ids, levels, forces = newest_levels(session, track_id, lo, hi, with_force=True)
+    out: dict[int, list[CombinedSpot]] = {}
+    if len(run_ids) < 2 or not (np.isfinite(levels).sum(axis=0) >= 2).any():
+        return out
+    keep = np.flatnonzero(np.isfinite(levels).any(axis=0))
+    sl = slice(int(keep[0]), int(keep[-1]) + 1)
+    load = (
+        float(np.nanmean(forces[:, sl]))
+        if forces is not None and np.isfinite(forces[:, sl]).any()
+        else None
+    )
+    det = detect_on_aggregate(grid[sl], levels[:, sl], load_n=load)
+    for spot in det.spots:
+        chunk = _chunk_of(spot.peak_m)
+        if not (a <= chunk <= b) or len(spot.covering) < 2:
+            continue
+        loss = spot.stiffness_loss_pct if math.isfinite(spot.stiffness_loss_pct) else None
+        out.setdefault(chunk, []).append(
+            CombinedSpot(spot.start_m, spot.end_m, spot.peak_m, spot.depth_mm, loss,
+                         spot.significance, tuple(run_ids[j] for j in spot.supporting),
+                         tuple(run_ids[j] for j in spot.covering))
+        )  # fmt: skip
+    return out
+
+
+def _units_near(c_lo: int, c_hi: int) -> range:
+    """Detection units whose chunks or margin reach chunks ``c_lo..c_hi``."""
+    return range(
+        (c_lo - DETECTION_MARGIN_CHUNKS) // DETECTION_CHUNKS,
+        (c_hi + DETECTION_MARGIN_CHUNKS) // DETECTION_CHUNKS + 1,
+    )
+
+
+def store_combined_spots(session: Session, track_id: int, c_lo: int, c_hi: int) -> None:
+    """Detect again on every unit the changed chunks ``c_lo..c_hi`` reach and keep the spots
+    with the stored aggregate chunks (an empty list where a chunk has none)."""
+    t = TrackProfileChunk.__table__
+    for unit in _units_near(c_lo, c_hi):
+        a = unit * DETECTION_CHUNKS
+        chunks = session.scalars(
+            select(t.c.chunk).where(
+                t.c.track_id == track_id, t.c.chunk.between(a, a + DETECTION_CHUNKS - 1)
+            )
+        ).all()
+        if not chunks:
+            continue
+        found = detect_combined(session, track_id, unit)
+        session.execute(
+            update(TrackProfileChunk),
+            [
+                {"track_id": track_id, "chunk": c,
+                 "spots": [s.to_json() for s in found.get(c, [])]}
+                for c in chunks
+            ],
+        )  # fmt: skip
+
+
+def read_combined_spots(session: Session, track_id: int) -> list[CombinedSpot]:
+    """The track's combined-pass soft spots as kept with its chunks, by chainage; a unit with
+    a chunk stored before they were kept is detected on here (not stored: a read)."""
+    t = TrackProfileChunk.__table__
+    rows = session.execute(
+        select(t.c.chunk, t.c.spots).where(t.c.track_id == track_id).order_by(t.c.chunk)
+    ).all()
+    stale = {chunk // DETECTION_CHUNKS for chunk, spots in rows if spots is None}
+    out = [
+        CombinedSpot.from_json(d)
+        for chunk, spots in rows
+        if chunk // DETECTION_CHUNKS not in stale
+        for d in spots or ()
+    ]
+    for unit in sorted(stale):
+        for spots in detect_combined(session, track_id, unit).values():
+            out.extend(spots)
+    return sorted(out, key=lambda s: s.peak_m)
 
 
 @dataclass(frozen=True)

@@ -18,12 +18,10 @@ from dataclasses import fields
 from datetime import datetime
 from typing import Any
 
-import numpy as np
 from sqlalchemy import ColumnElement, func, select
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, SoftSpot, Survey, TrackLimits, TrackStiffness, TrackStiffnessSpot
-from engine.accumulate import detect_on_aggregate
 from engine.register import (
     Defect,
     Limits,
@@ -36,7 +34,7 @@ from engine.register import (
 )
 from engine.separation import SeparationConfig
 
-from .aggregate import CHUNK_POINTS, _batches, aggregate_chunk_range, newest_levels
+from .aggregate import CHUNK_POINTS, read_combined_spots
 from .alignment import GRID_STEP_M, MERGED_STATUSES
 from .quality_register import isolated_register
 from .separation_history import pass_key, read_history
@@ -117,11 +115,6 @@ def track_observations(
     return observations, coverage
 
 
-AGGREGATE_MARGIN_CHUNKS = 1
-"""Chunks of context read either side of a batch for the detection on the combined passes
-(250 m: far more than the 40 m baseline and any zone)."""
-
-
 def with_aggregate_sightings(
     session: Session,
     track_id: int,
@@ -131,57 +124,36 @@ def with_aggregate_sightings(
 ) -> list[Observation]:
     """The runs' dips plus what the combined passes show (``engine.accumulate``).
 
-    The track's merged runs are combined per stretch (their aligned levels, weighted by each
-    one's measured noise) and the soft spots of the combination are found against its own
-    measured noise: many MEMS passes see what none of them sees alone. A combined spot is
-    evidence from the passes that support it (cover it and dip there themselves): each such
-    run that did not report a dip there gets an observation of the combined spot; a run's own
-    dip there without a stiffness-loss figure takes the combined one. Only stretches with at
-    least two runs are combined.
+    The track's runs are combined per stretch (their aligned levels, weighted by each one's
+    measured noise) and the soft spots of the combination are found against its own measured
+    noise when a run is integrated (``app.services.aggregate.read_combined_spots``): many MEMS
+    passes see what none of them sees alone. A combined spot is evidence from the passes that
+    support it (cover it and dip there themselves): each such merged run that did not report
+    a dip there gets an observation of the combined spot; a run's own dip there without a
+    stiffness-loss figure takes the combined one. Only stretches with at least two runs are
+    combined.
     """
-    stored = aggregate_chunk_range(session, track_id)
-    if stored is None:
-        return observations
     when = {c.run_id: c.recorded_at for c in coverage}
     out = list(observations)
     by_run: dict[int, list[int]] = {}
     for i, o in enumerate(out):
         by_run.setdefault(o.run_id, []).append(i)
-    for a, b in _batches(*stored):
-        lo, hi = a - AGGREGATE_MARGIN_CHUNKS, b + AGGREGATE_MARGIN_CHUNKS
-        grid, run_ids, levels, forces = newest_levels(session, track_id, lo, hi, with_force=True)
-        covered = np.isfinite(levels).sum(axis=0) >= 2 if run_ids else np.zeros(0, dtype=bool)
-        if len(run_ids) < 2 or not covered.any():
-            continue
-        keep = np.flatnonzero(np.isfinite(levels).any(axis=0))
-        sl = slice(int(keep[0]), int(keep[-1]) + 1)
-        load = (
-            float(np.nanmean(forces[:, sl]))
-            if forces is not None and np.isfinite(forces[:, sl]).any()
-            else None
-        )
-        det = detect_on_aggregate(grid[sl], levels[:, sl], load_n=load)
-        core_lo, core_hi = a * CHUNK_POINTS * GRID_STEP_M, (b + 1) * CHUNK_POINTS * GRID_STEP_M
-        for spot in det.spots:
-            if not (core_lo <= spot.peak_m < core_hi) or len(spot.covering) < 2:
+    for spot in read_combined_spots(session, track_id):
+        loss = spot.loss_pct
+        for rid in spot.supporting:
+            if rid not in when:
                 continue
-            loss = spot.stiffness_loss_pct if math.isfinite(spot.stiffness_loss_pct) else None
-            for j in spot.supporting:
-                rid = run_ids[j]
-                if rid not in when:
-                    continue
-                own = [
-                    i for i in by_run.get(rid, [])
-                    if out[i].start_m <= spot.end_m and out[i].end_m >= spot.start_m
-                ]  # fmt: skip
-                for i in own:
-                    v = out[i].stiffness_loss_pct
-                    if loss is not None and (v is None or not math.isfinite(v)):
-                        out[i] = dataclasses.replace(out[i], stiffness_loss_pct=loss)
-                if not own:
-                    out.append(Observation(rid, when[rid], spot.start_m, spot.end_m, spot.peak_m,
-                                           spot.depth_mm, loss,
-                                           support=_one(passes, rid)))  # fmt: skip
+            own = [
+                i for i in by_run.get(rid, [])
+                if out[i].start_m <= spot.end_m and out[i].end_m >= spot.start_m
+            ]  # fmt: skip
+            for i in own:
+                v = out[i].stiffness_loss_pct
+                if loss is not None and (v is None or not math.isfinite(v)):
+                    out[i] = dataclasses.replace(out[i], stiffness_loss_pct=loss)
+            if not own:
+                out.append(Observation(rid, when[rid], spot.start_m, spot.end_m, spot.peak_m,
+                                       spot.depth_mm, loss, support=_one(passes, rid)))  # fmt: skip
     return out
 
 

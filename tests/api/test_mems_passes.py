@@ -16,8 +16,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sqlalchemy import select, update
 from starlette.testclient import TestClient
 
+from app.db.models import TrackProfileChunk
+from app.db.session import Database
 from app.main import create_app
 from engine.logio import write_run_csv
 from engine.sensor import sensor_for_grade
@@ -88,22 +91,34 @@ def test_industrial_mems_passes_accumulate_and_the_register_finds_the_zones(
     tmp_path: Path,
 ) -> None:
     """Twelve industrial-MEMS passes (start errors +-1 m) over an 800 m track with four zones
-    of 30-50 % loss: passes that cannot be aligned against the first few are placed, not
-    dropped, and are aligned later against the grown aggregate (every run ends aligned); the
+    of 30-50 % loss: none is dropped (one that cannot be aligned against the first few is
+    placed and aligned later against the grown aggregate; every run ends aligned); the
     aggregate counts all twelve, and the register holds every zone within 1.5 m of the truth
     (in the first pass's frame) with its loss within 10 percentage points, and nothing else.
-    Without the combined passes the register found 2 of the 4 zones, with no loss."""
+    Without the combined passes the register found 2 of the 4 zones, with no loss.
+    The combined passes' spots are kept with the aggregate chunks as the runs arrive; a chunk
+    stored before they were kept (spots NULL) is detected on when read, to the same defects."""
     trk = make_track(800.0, zones=LONG_ZONES, jitter=0.05, seed=3)
     clean = [make_run(track=trk, speed=v, sim_rate_hz=RATE, seed=2) for v in (21.0, 26.0)]
     errors = np.random.default_rng(1).uniform(-1.0, 1.0, 12)
-    with TestClient(create_app(make_settings(tmp_path))) as client:
+    settings = make_settings(tmp_path)
+    with TestClient(create_app(settings)) as client:
         statuses = upload_passes(client, clean, "industrial-mems", errors, "Mems line")
-        assert "unaligned" not in statuses and "placed" in statuses, statuses
+        assert "unaligned" not in statuses, statuses
         final = [client.get(f"/api/v1/runs/{i}").json()["alignment"] for i in range(2, 13)]
         assert all(a["status"] == "aligned" for a in final), final
         profile = client.get("/api/v1/tracks/Mems line/profile").json()
         assert max(profile["n_runs"]) == 12
         defects = client.get("/api/v1/tracks/Mems line/defects").json()
+        db = Database(settings.database_url)
+        with db.session() as s:
+            kept = s.scalars(select(TrackProfileChunk.spots)).all()
+            assert kept and all(k is not None for k in kept), kept
+            assert sum(len(k) for k in kept) >= len(LONG_ZONES), kept
+            s.execute(update(TrackProfileChunk).values(spots=None))
+            s.commit()
+        db.dispose()
+        assert client.get("/api/v1/tracks/Mems line/defects").json() == defects
     ref_err = float(errors[0])
     found = []
     for z in LONG_ZONES:

@@ -123,3 +123,15 @@ def test_detect_on_aggregate_rejects_bad_input_naming_the_field() -> None:
     with pytest.raises(ParameterError) as e:
         detect_on_aggregate(grid, np.zeros((2, 100)), load_n=-1.0)
     assert e.value.field == "load_n"
+
+
+def test_identical_passes_are_detected_on_with_finite_weights() -> None:
+    """The same level twice (one log stored for two runs): no noise to measure, yet the
+    combination is searched without error, its dip found, infinitely significant."""
+    grid = np.arange(3200) * STEP
+    level = dips(grid, (400.0,), 0.3, 6.0)
+    with np.errstate(divide="raise", invalid="raise", over="raise"):
+        det = detect_on_aggregate(grid, np.stack([level, level]))
+    assert np.all(np.isfinite(det.pass_noise_mm)) and np.all(det.pass_noise_mm > 0)
+    assert [round(s.peak_m) for s in det.spots] == [400]
+    assert det.spots[0].significance > 1e3

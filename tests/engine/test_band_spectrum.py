@@ -102,17 +102,17 @@ def test_profile_on_the_grid_matches_the_full_rate_levels_gridded(inverted):
 
 
 def test_pipeline_forces_match_the_full_rate_forces_gridded(inverted):
-    """process_run's wheel forces (band spectrum, decimated) are the full-rate forces on the
-    grid within 5 N (their dynamic part spreads over ~1 kN)."""
+    """process_run's wheel forces with the spectral method (band spectrum, decimated) are its
+    full-rate forces on the grid within 5 N (their dynamic part spreads over ~1 kN)."""
     from engine.wheel_force import force_spectrum
 
     run, chk, inv = inverted
     direction = "increasing" if chk.positions.sign > 0 else "decreasing"
-    res = process_run(
-        prepare_run(
-            run.log, RunSetup(start_chainage_m=run.logged_start_chainage_m, direction=direction)
-        )
-    )
+    setup = RunSetup(
+        start_chainage_m=run.logged_start_chainage_m, direction=direction,
+        config=ProcessConfig(method="spectral"),
+    )  # fmt: skip
+    res = process_run(prepare_run(run.log, setup))
     f1, f2 = force_spectrum(inv.band, TABLE1).to_time()
     static = TABLE1.static_axle_loads()
     pos = chk.positions

@@ -14,7 +14,7 @@ from engine.setup import RunSetup, prepare_run
 from engine.synthetic import make_run, to_runlog
 from engine.track import SoftZone, TrackParams
 from engine.vehicle import TABLE1
-from engine.visibility import detection_limit, zone_dip_depths
+from engine.visibility import DipModel, detection_limit, zone_dip_depths
 
 LOADS = TABLE1.static_axle_loads()
 BAND = {
@@ -32,7 +32,7 @@ def test_limit_is_the_loss_whose_dip_reaches_the_threshold() -> None:
         assert all(a < b for a, b in zip(col, col[1:], strict=False)), col
     lim = detection_limit(0.15, **BAND)
     for length, loss in zip(lim.zone_length_m, lim.min_loss_pct, strict=True):
-        depth = zone_dip_depths(length, np.array([loss / 100]), params=TrackParams(), **BAND)
+        depth = zone_dip_depths(length, np.array([loss / 100]), DipModel(TrackParams(), **BAND))
         assert depth[0] == pytest.approx(0.15, rel=0.03)
     assert math.isnan(detection_limit(50.0, **BAND).min_loss_pct[0])
     d = detection_limit(0.2, zone_lengths_m=(2.0, 4.0, 8.0), **BAND).to_dict()

@@ -4,6 +4,8 @@ windows that start, end or lie between stored chunks give exactly the points ins
 
 from __future__ import annotations
 
+import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +16,7 @@ from app.db.models import Track, TrackProfileChunk
 from app.db.session import Database
 from app.services.aggregate import (
     CHUNK_POINTS,
+    CombinedSpot,
     aggregate_chunk_range,
     pack_chunk,
     read_aggregate_grid,
@@ -50,6 +53,17 @@ def stored(tmp_path: Path):
         track_id = track.id
     yield db, track_id, want
     db.dispose()
+
+
+def test_a_combined_spot_is_kept_as_strict_json_and_read_back() -> None:
+    """A combined spot's figures that are not finite (no loss, infinite significance) are
+    kept as null, which strict JSON (PostgreSQL) accepts, and read back as NaN / None."""
+    spot = CombinedSpot(10.0, 16.0, 13.0, 0.3, None, math.inf, (3, 4), (3, 4, 5))
+    kept = json.loads(json.dumps(spot.to_json(), allow_nan=False))
+    back = CombinedSpot.from_json(kept)
+    assert kept["significance"] is None and kept["supporting"] == [3, 4]
+    assert back.loss_pct is None and math.isnan(back.significance)
+    assert (back.start_m, back.end_m, back.covering) == (10.0, 16.0, (3, 4, 5))
 
 
 def test_a_chunk_packs_and_unpacks_exactly() -> None:
