@@ -37,12 +37,12 @@ from app.db.migrate import upgrade
 from app.db.models import ApiKey, Track
 from app.db.session import Database
 from app.schemas.simulate import SimulateRequest
-from app.services.consistency import check_aggregate, rebuild_aggregate
 from app.services.context import AppContext
 from app.services.errors import DomainError
-from app.services.integrate import realign_track
-from app.services.simulation import simulate_and_submit
-from app.services.surveys import realign_surveys
+from app.services.run_lifecycle.simulation import simulate_and_submit
+from app.services.track.consistency import check_aggregate, rebuild_aggregate
+from app.services.track.integrate import realign_track
+from app.services.track.surveys import realign_surveys
 from engine.errors import EngineError
 
 
@@ -195,7 +195,7 @@ def cmd_worker(_ns: argparse.Namespace) -> int:
 
 
 def cmd_sweep(_ns: argparse.Namespace) -> int:
-    from app.services.retention import RetentionPolicy, sweep
+    from app.services.storage.retention import RetentionPolicy, sweep
 
     settings = get_settings()
     db = _db()

@@ -9,7 +9,7 @@ detection, stiffness fits, detection limit) and of the inversion step alone, met
 interleaved so that a busy machine slows them alike. Then what integrating a pass adds since
 the combined passes' soft spots are kept per chunk: one detection on the combination of
 ``--passes`` industrial-MEMS passes (``engine.accumulate.detect_on_aggregate``, the 1 km unit
-and its 250 m margins as ``app.services.aggregate.detect_combined`` reads them), so the cost
+and its 250 m margins as ``app.services.track.aggregate.detect_combined`` reads them), so the cost
 per pass before (the first method) and now (the last method plus that detection) stand side
 by side. Prints markdown tables.
 """

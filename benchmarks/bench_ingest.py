@@ -46,8 +46,14 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ns = ap.parse_args()
 
-    from app.services.logs import pack_log, recorded_at_of, sha256_hex, summarize, unpack_log
-    from app.services.signals import log_signals
+    from app.services.run_lifecycle.logs import (
+        pack_log,
+        recorded_at_of,
+        sha256_hex,
+        summarize,
+        unpack_log,
+    )
+    from app.services.views.signals import log_signals
     from engine.logio import header as lheader
     from engine.logio import limits, parse_run_csv, source, table, threaded
     from engine.plausibility import check_plausible

@@ -5,8 +5,8 @@ Run: ``python benchmarks/bench_register_combined.py [--runs 12] [--length 800] [
 (about half a minute). A SQLite database with one track and ``--runs`` merged runs whose
 aligned levels (0.25 m grid over ``--length`` m) are four 0.3 mm soft-zone dips plus each
 run's own 0.03 mm noise, stored as the service stores them; the aggregate rebuilt run by run
-(:func:`app.services.aggregate.recompute_aggregate`, which now also detects). Timed, best of
-``--repeat``: ``app.services.register.track_register`` with the spots kept, then with them
+(:func:`app.services.track.aggregate.recompute_aggregate`, which now also detects). Timed, best of
+``--repeat``: ``app.services.track.register.track_register`` with the spots kept, then with them
 cleared (NULL: detected on the request, as before), and the cost a run's integration adds.
 """
 
@@ -30,13 +30,13 @@ from sqlalchemy import select, update  # noqa: E402
 from app.db.migrate import upgrade  # noqa: E402
 from app.db.models import Run, Track, TrackProfileChunk, Vehicle  # noqa: E402
 from app.db.session import Database  # noqa: E402
-from app.services.aggregate import (  # noqa: E402
+from app.services.track.aggregate import (  # noqa: E402
     CHUNK_POINTS,
     recompute_aggregate,
     store_combined_spots,
     store_run_levels,
 )
-from app.services.register import track_register  # noqa: E402
+from app.services.track.register import track_register  # noqa: E402
 from engine.chainage import GRID_STEP_M  # noqa: E402
 from engine.track import TrackParams  # noqa: E402
 

@@ -36,8 +36,8 @@ from app.db.models import (  # noqa: E402
     Vehicle,
 )
 from app.db.session import Database  # noqa: E402
-from app.services.register import track_register  # noqa: E402
-from app.services.separation_history import record_separation  # noqa: E402
+from app.services.track.register import track_register  # noqa: E402
+from app.services.track.separation_history import record_separation  # noqa: E402
 
 LENGTH_M = 100_000.0
 LOADS = (50_000.0, 80_000.0)

@@ -179,7 +179,7 @@ def main() -> int:
         # The same window read in-process: the storage layer's single indexed query.
         from app.core.config import Settings
         from app.db.session import Database
-        from app.services.profiles import read_profile
+        from app.services.storage.profiles import read_profile
 
         db = Database(Settings(data_dir=Path(data_dir)).sqlalchemy_url)
         gc.collect()

@@ -9,7 +9,8 @@
    (band-limited, 1 mm SD) plus the wheel force times the track's compliance (nominal, with a
    40 % soft zone every 500 m), plus 0.04 mm of per-run noise; three of every five runs are
    coaches (88 kN), two heavy (196 kN), each run's force varying +-3 % along the track.
-2. The separation of the whole track is timed (``app.services.stiffness.recompute_all``:
+2. The separation of the whole track is timed
+(``app.services.track.separation_store.recompute_all``:
    what the worker pays when a 10 km run joins a track of ``--runs`` runs, since its chunks
    are the whole track), then ``GET /api/v1/tracks/{id}/stiffness?from_m=&to_m=`` for a
    2 km window at random places ``--repeats`` times through the full ASGI stack (Starlette's
@@ -37,9 +38,9 @@ from sqlalchemy import insert  # noqa: E402
 from app.db.migrate import upgrade  # noqa: E402
 from app.db.models import Run, Track, TrackRunLevels, Vehicle  # noqa: E402
 from app.db.session import Database  # noqa: E402
-from app.services.aggregate import chunked  # noqa: E402
-from app.services.packing import pack_f4  # noqa: E402
-from app.services.stiffness import read_stiffness, recompute_all  # noqa: E402
+from app.services.storage.packing import pack_f4  # noqa: E402
+from app.services.track.aggregate import chunked  # noqa: E402
+from app.services.track.separation_store import read_stiffness, recompute_all  # noqa: E402
 from engine.chainage import GRID_STEP_M, bandpass_distance  # noqa: E402
 
 C_NOM_MM_PER_N = 0.49 / 88e3

@@ -4,7 +4,8 @@
 
 1. A fresh SQLite database (migrated like the app does) gets one track and ``--runs`` runs of
    ``--length-km`` each, stored through the service's own storage function
-   (``app.services.processing.store_result``: profile rows, soft spots, then alignment to the
+   (``app.services.run_lifecycle.processing.store_result``: profile rows, soft spots, then
+   alignment to the
    track's aggregate and the incremental aggregate update), one transaction per run. The
    processed results are generated rather than inverted from 50 simulated 10 km logs (that
    would take hours of forward simulation), with realistic content: a fixed track "fingerprint"
@@ -42,7 +43,7 @@ from common import database_with_track, machine, median_p95  # noqa: E402
 
 from app.db.models import Run  # noqa: E402
 from app.db.session import Database  # noqa: E402
-from app.services.processing import Processed, store_result  # noqa: E402
+from app.services.run_lifecycle.processing import Processed, store_result  # noqa: E402
 from engine.results import ProcessResult, Quality, SoftSpot  # noqa: E402
 
 STEP_M = 0.25
@@ -154,8 +155,8 @@ def main() -> int:
 
         from app.core.config import Settings
         from app.main import create_app
-        from app.services.aggregate import read_track_profile
-        from app.services.register import track_register
+        from app.services.track.aggregate import read_track_profile
+        from app.services.track.register import track_register
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

@@ -47,9 +47,9 @@ from sqlalchemy import text  # noqa: E402
 
 from app.db.models import Run, RunSignals  # noqa: E402
 from app.db.session import Database  # noqa: E402
-from app.services.processing import Processed, store_result  # noqa: E402
-from app.services.retention import RetentionPolicy, sweep  # noqa: E402
-from app.services.signals import pack_signals  # noqa: E402
+from app.services.run_lifecycle.processing import Processed, store_result  # noqa: E402
+from app.services.storage.retention import RetentionPolicy, sweep  # noqa: E402
+from app.services.views.signals import pack_signals  # noqa: E402
 from engine.decimate import minmax_indices  # noqa: E402
 from engine.results import ProcessResult, Quality, SoftSpot  # noqa: E402
 

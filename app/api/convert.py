@@ -21,11 +21,11 @@ from app.schemas.vehicles import (
     FittedParameterPublic,
     VehiclePublic,
 )
-from app.services.alignment import GRID_STEP_M
 from app.services.errors import Invalid
-from app.services.simulation import SimulationSpec
-from app.services.stiffness import StiffnessWindow, run_stiffness_basis
-from app.services.window import Window
+from app.services.run_lifecycle.simulation import SimulationSpec
+from app.services.track.alignment import GRID_STEP_M
+from app.services.track.separation_store import StiffnessWindow, run_stiffness_basis
+from app.services.views.window import Window
 from engine.sensor import SensorModel, sensor_for_grade
 from engine.synthetic import REALISTIC_SENSOR
 from engine.track import SoftZone

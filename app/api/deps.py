@@ -12,9 +12,9 @@ from sqlalchemy.orm import Session
 from app.api.access import Caller
 from app.db.models import ApiKey
 from app.schemas.common import CHAINAGE_LIMIT_M
-from app.services.chart_views import HEATMAP_MAX_SPAN_M
 from app.services.context import AppContext
-from app.services.window import Window
+from app.services.views.charts import HEATMAP_MAX_SPAN_M
+from app.services.views.window import Window
 
 api_key_header = APIKeyHeader(name="X-API-Key", auto_error=False, description="Pipeline API key")
 bearer = HTTPBearer(auto_error=False, description="The API key as a bearer token")
@@ -74,7 +74,7 @@ ToM = Annotated[float | None, Query(**_CHAINAGE, description=TO_DOC)]
 
 def chainage_window(from_m: FromM = None, to_m: ToM = None) -> Window:
     """``?from_m=&to_m=``: an inclusive window of aligned chainage, either end open (the one
-    rule of :class:`app.services.window.Window`: ``to_m`` not before ``from_m``)."""
+    rule of :class:`app.services.views.window.Window`: ``to_m`` not before ``from_m``)."""
     return Window(from_m, to_m)
 
 
@@ -90,7 +90,7 @@ def closed_chainage_window(
     ],
 ) -> Window:
     """``?from_m=&to_m=``, both required (same rule as :func:`chainage_window`), at most
-    :data:`~app.services.chart_views.HEATMAP_MAX_SPAN_M` apart (the span is a rule between
+    :data:`~app.services.views.charts.HEATMAP_MAX_SPAN_M` apart (the span is a rule between
     two parameters, which a schema cannot state: ``x-max-span-m`` names it)."""
     return Window(from_m, to_m)
 

@@ -101,7 +101,7 @@ class Settings(BaseSettings):
         default: never); the result is applied only when it is significant.
     detail_retention_days : float or None
         A processed run's detail (profile, signals, log) is removed this many days after its
-        recording (``app.services.retention``); None (the default): kept for ever. Its
+        recording (``app.services.storage.retention``); None (the default): kept for ever. Its
         metadata, soft spots and share of the track's aggregate are always kept.
     detail_retention_runs : int or None
         Only the newest this many processed runs of each track keep their detail; None (the

@@ -59,7 +59,7 @@ class Track(Base):
     mass_per_m: Mapped[float] = mapped_column(Float)  # kg/m
     c_support: Mapped[float] = mapped_column(Float)  # N s/m per support
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utcnow)
-    # chunks whose geometry/stiffness separation waits for a worker (app.services.integrate)
+    # chunks whose geometry/stiffness separation waits for a worker (app.services.track.integrate)
     separation_pending_lo: Mapped[int | None] = mapped_column(Integer)
     separation_pending_hi: Mapped[int | None] = mapped_column(Integer)
 
@@ -285,9 +285,11 @@ class RunInput(Base):
     """The parsed log of a run: what the worker inverts, reprocessing and calibration read.
 
     ``data`` holds the canonical SI columns, float64, losslessly compressed
-    (``app.services.logs.pack_log``); keeping it in the database (not on a local disk) lets any
+    (``app.services.run_lifecycle.logs.pack_log``); keeping it in the database (not on a local
+    disk) lets any
     process sharing the database pick the run up. Deleted when the run fails; for processed
-    runs kept under the retention policy (``app.services.retention``: the newest runs of each
+    runs kept under the retention policy (``app.services.storage.retention``: the newest runs of
+    each
     vehicle, and never longer than the run's detail).
     """
 
@@ -302,8 +304,8 @@ class RunProfileBlock(Base):
 
     Block ``b`` holds grid points ``b * BLOCK_POINTS ...`` (chainage = grid index x 0.25 m,
     as processed); ``first`` is the grid index of the block's first stored point and ``data``
-    the columns of ``app.services.profiles.PROFILE_COLUMNS`` after chainage, packed by
-    ``app.services.packing`` (levels to 0.0001 mm, wheel forces to 1 N, NaN = no data). A
+    the columns of ``app.services.storage.profiles.PROFILE_COLUMNS`` after chainage, packed by
+    ``app.services.storage.packing`` (levels to 0.0001 mm, wheel forces to 1 N, NaN = no data). A
     chainage window of a run is one range scan of the ``(run_id, block)`` key over a few
     rows. Detail: removed when the run's detail expires (``Run.detail_expired_at``).
     """
@@ -335,7 +337,7 @@ class RunSignals(Base):
 
     ``packed`` holds ``time_s`` (from the first sample), ``accel_z_mps2``, ``pitch_rate_radps``
     and ``speed_mps``, equal length, at most a few thousand points, packed by
-    ``app.services.signals.pack_signals``. Detail: removed when the run's detail expires.
+    ``app.services.views.signals.pack_signals``. Detail: removed when the run's detail expires.
     """
 
     __tablename__ = "run_signals"
@@ -386,14 +388,14 @@ class TrackRunLevels(Base):
 class TrackProfileChunk(Base):
     """The aggregated profile of a track over one chunk of its 0.25 m grid.
 
-    ``data`` holds, packed by ``app.services.aggregate.pack_chunk``, the ``CHUNK_POINTS``
+    ``data`` holds, packed by ``app.services.track.aggregate.pack_chunk``, the ``CHUNK_POINTS``
     grid points ``chunk * CHUNK_POINTS ... + CHUNK_POINTS - 1`` (chainage = index x 0.25 m):
     ``level_mm`` the median over the aligned runs covering the point, ``spread_mm`` their
     robust spread (1.4826 x MAD), ``n_runs`` how many there are (0 and NaN: no run). The
     chunks are those of ``track_run_levels`` they are computed from; a chainage window is one
     range scan over a few rows. Only chunks with at least one covered point are stored.
     ``spots`` holds the soft spots of the combined passes peaking in the chunk
-    (``app.services.aggregate.CombinedSpot`` as dicts; NULL: not computed, stored before).
+    (``app.services.track.aggregate.CombinedSpot`` as dicts; NULL: not computed, stored before).
     """
 
     __tablename__ = "track_profile_chunks"
@@ -477,7 +479,8 @@ class SurveyLevels(Base):
 class TrackStiffness(Base):
     """The separated geometry and stiffness of a track over one chunk of its grid.
 
-    ``data`` holds ``app.services.stiffness.STIFFNESS_ARRAYS`` one after the other, each
+    ``data`` holds ``app.services.track.separation_store.STIFFNESS_ARRAYS`` one after the other,
+    each
     ``CHUNK_POINTS`` little-endian float32 values (NaN = not estimated); ``meta`` lists the
     passes that reached the chunk (``contributors``: kind, id, label, mean wheel force in N,
     points) and the separation's message where it could not separate.
@@ -523,7 +526,7 @@ class TrackStiffnessSpot(SeparatedSpotFigures, Base):
 class TrackSeparationHistory(SeparatedSpotFigures, Base):
     """One separation of a soft spot, kept after the next one (aligned chainage, m; loss %;
     depth mm at the separation's reference load): the register's trend and first sighting of a
-    separated defect (``app.services.separation_history``). ``support`` is the passes behind
+    separated defect (``app.services.track.separation_history``). ``support`` is the passes behind
     the figures (as ``TrackStiffnessSpot.support``), ``base`` the passes it opened with
     (``[[kind, id], ...]``): a later separation opens the next entry when the passes it adds
     to that base span two wheel loads by themselves, and refines this one otherwise."""

@@ -11,7 +11,7 @@ from typing import Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.services.aggregate import NEWEST_PASSES
+from app.services.track.aggregate import NEWEST_PASSES
 from engine.register import SOURCES, Limits
 
 from .common import StrictModel

@@ -10,8 +10,7 @@ from dataclasses import dataclass, field
 from app.core.config import Settings
 from app.core.memory import IdleRelease
 from app.db.session import Database
-
-from .handover import Handover
+from app.services.run_lifecycle.handover import Handover
 
 
 def _nobody() -> None:

@@ -18,11 +18,10 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Track, Vehicle
 from app.schemas.common import as_id, url_name_problem
+from app.services.errors import Conflict, Invalid, NotFound
+from app.services.vehicles.versions import create_vehicle
 from engine.track import TrackParams
 from engine.vehicle_kinds import KIND_PRESETS
-
-from .errors import Conflict, Invalid, NotFound
-from .vehicles import create_vehicle
 
 DEFAULT_VEHICLE = "table1"
 """The vehicle of a submission that names none (the paper's Table 1 vehicle)."""

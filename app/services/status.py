@@ -5,8 +5,7 @@ from __future__ import annotations
 from sqlalchemy import func, select, text
 
 from app.db.models import Run
-
-from .context import AppContext
+from app.services.context import AppContext
 
 
 def database_status(ctx: AppContext, *, count_processing: bool) -> tuple[bool, int | None]:

@@ -23,8 +23,8 @@ from app.cli import main as cli_main
 from app.core.config import get_settings
 from app.db.models import TrackRunLevels
 from app.db.session import Database
-from app.services.aggregate import recompute_aggregate
-from app.services.consistency import check_aggregate
+from app.services.track.aggregate import recompute_aggregate
+from app.services.track.consistency import check_aggregate
 
 
 def _check_command(monkeypatch, settings, *args: str) -> tuple[int, str]:

@@ -136,7 +136,7 @@ def test_a_declared_wheel_load_sets_a_bogie_vehicles_body_mass() -> None:
     is the coach; 10 % more per wheel is carried by the body alone (four wheels per rail);
     a payload is on the whole vehicle, as the datasheet's body mass is."""
     from app.services.errors import Invalid
-    from app.services.loads import loaded_vehicle
+    from app.services.vehicles.loads import loaded_vehicle
     from engine.vehicle import GRAVITY
 
     coach = PASSENGER_COACH

@@ -19,7 +19,7 @@ from api.live_server import LiveServer
 from app.core.config import REPO_ROOT
 from app.core.security import generate_key, hash_key, key_prefix
 from app.db.models import ApiKey
-from app.services.runs import EXTRA_PROFILE_COLUMNS
+from app.services.run_lifecycle.stored_runs import EXTRA_PROFILE_COLUMNS
 from engine.calibration import FITTABLE
 from engine.errors import ParameterError
 from engine.irregularity import SPECTRA

@@ -22,7 +22,7 @@ import pytest
 from starlette.testclient import TestClient
 
 from app.main import create_app
-from app.services.notation import km_m_range
+from app.services.views.notation import km_m_range
 from engine.chainage import bandpass_distance
 from engine.logio import write_run_csv
 from engine.synthetic import REALISTIC_SENSOR, SyntheticRun, make_run, make_track

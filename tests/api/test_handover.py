@@ -10,15 +10,15 @@ from dataclasses import replace
 
 import pytest
 
-import app.services.processing as processing_mod
 import app.services.run_lifecycle.accept as accept_mod
 import app.services.run_lifecycle.inversion as inversion_mod
+import app.services.run_lifecycle.processing as processing_mod
 import engine.plausibility as plausibility_mod
 import engine.setup as setup_mod
 from api.api_support import row_counts, upload, wait_done
-from app.services.handover import Handover
-from app.services.logs import pack_log
+from app.services.run_lifecycle.handover import Handover
 from app.services.run_lifecycle.jobs.process import HANDOVER_GRACE_S
+from app.services.run_lifecycle.logs import pack_log
 from app.services.run_lifecycle.queue import Worker
 from engine.runlog import RunLog
 from engine.setup import PreparedRun, RunSetup, prepare_run
@@ -152,7 +152,7 @@ def test_a_started_inversion_serves_only_its_set_up(synthetic_run) -> None:
     log."""
     from concurrent.futures import Future
 
-    from app.services.handover import Handed
+    from app.services.run_lifecycle.handover import Handed
 
     log = _small_log()
     chk = _check(log)

@@ -21,8 +21,8 @@ from alembic.script import ScriptDirectory
 from api.api_support import row_counts, sql, upload, wait_done
 from app.db.migrate import alembic_config, current_revision, upgrade
 from app.db.session import Database
-from app.services.logs import LOG_COLUMNS, parse_csv
-from app.services.processing import invert
+from app.services.run_lifecycle.logs import LOG_COLUMNS, parse_csv
+from app.services.run_lifecycle.processing import invert
 from engine.setup import RunSetup, prepare_run
 from engine.track import TrackParams
 from engine.vehicle import VehicleParams

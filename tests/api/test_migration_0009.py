@@ -4,7 +4,7 @@ through the move to packed chunks value for value.
 Runs are stored, the database is brought back to 0008 (the aggregate written out as one row
 per grid point, as that revision kept it) and upgraded again: the track's profile, defects and
 stiffness are served exactly as before, and the stored aggregate is what the runs make
-(``app.services.consistency.check_aggregate``). SQLite and, with ``TEST_DATABASE_URL``,
+(``app.services.track.consistency.check_aggregate``). SQLite and, with ``TEST_DATABASE_URL``,
 PostgreSQL.
 """
 
@@ -17,7 +17,7 @@ from alembic import command
 from api.api_support import row_counts, sql, upload
 from app.db.migrate import alembic_config, current_revision, upgrade
 from app.db.session import Database
-from app.services.consistency import check_aggregate
+from app.services.track.consistency import check_aggregate
 
 
 def _track(client: Any) -> dict[str, Any]:

@@ -15,9 +15,9 @@ import pytest
 from starlette.testclient import TestClient
 
 from api.api_support import row_counts, sql, stored_points, upload
-from app.services.retention import RetentionPolicy, sweep
 from app.services.run_lifecycle.jobs import SweepJob
 from app.services.run_lifecycle.queue import Worker
+from app.services.storage.retention import RetentionPolicy, sweep
 
 OLD = "2020-03-01T08:00:00Z"
 NEW = "2026-11-20T08:00:00Z"
@@ -99,7 +99,7 @@ def test_kept_things_are_served_unchanged(expired) -> None:
     # the expired run is still one of the runs the aggregate is the median of
     assert max(before["profile"]["n_runs"]) == 3
     ctx = client.app.state.ctx
-    from app.services.consistency import check_aggregate
+    from app.services.track.consistency import check_aggregate
 
     with ctx.db.session() as s:
         track_id = client.get("/api/v1/tracks/R").json()["id"]

@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-import app.services.integrate as integrate_mod
+import app.services.track.integrate as integrate_mod
 from api.api_support import upload
 from app.services.run_lifecycle.jobs import SEPARATION_RETRY_S, SeparateJob
 from app.services.run_lifecycle.queue import Worker

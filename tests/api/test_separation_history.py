@@ -1,5 +1,5 @@
 """The register's trend of a separated soft spot comes from the track's successive
-separations (``app.services.separation_history``).
+separations (``app.services.track.separation_history``).
 
 The separations are written by hand the way ``recompute_stiffness`` writes them (its soft
 spots, then ``record_separation``) over stored runs of two wheel loads recorded a month
@@ -22,7 +22,7 @@ from starlette.testclient import TestClient
 from app.db.models import Run, TrackSeparationHistory, TrackStiffnessSpot, Vehicle
 from app.db.session import Database
 from app.main import create_app
-from app.services.separation_history import record_separation
+from app.services.track.separation_history import record_separation
 from support.app_fixtures import make_settings
 
 T0 = datetime(2026, 1, 5, 7, 0, tzinfo=UTC)

@@ -170,7 +170,7 @@ def test_survey_is_stored_aligned_listed_and_deleted(
     assert max(v for v in st["load_ratio"] if v is not None) > 1.5
     # realigning the track (python -m app realign) aligns the survey again, to the same place
     from app.db.session import Database
-    from app.services.surveys import realign_surveys
+    from app.services.track.surveys import realign_surveys
 
     db = Database(settings.sqlalchemy_url)
     try:

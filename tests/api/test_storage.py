@@ -136,8 +136,8 @@ def test_profile_is_stored_in_blocks_and_read_by_key(client, settings, synthetic
 def test_stored_profile_keeps_levels_to_the_stated_resolution(client, settings, synthetic_run):
     """What is served is the engine's profile rounded to 0.0001 mm (levels) and 1 N (forces);
     where an axle did not pass its level is missing (null), never NaN in the JSON."""
-    from app.services.logs import parse_csv
-    from app.services.processing import invert
+    from app.services.run_lifecycle.logs import parse_csv
+    from app.services.run_lifecycle.processing import invert
     from engine.setup import RunSetup, prepare_run
     from engine.track import TrackParams
     from engine.vehicle import VehicleParams

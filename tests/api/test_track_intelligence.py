@@ -25,9 +25,9 @@ from app.db.models import Run, Track
 from app.db.session import Database
 from app.main import create_app
 from app.schemas.track_intel import DefectPublic
-from app.services.aggregate import read_track_profile
-from app.services.alignment import ALIGN_WINDOW_M
-from app.services.integrate import add_run_to_track
+from app.services.track.aggregate import read_track_profile
+from app.services.track.alignment import ALIGN_WINDOW_M
+from app.services.track.integrate import add_run_to_track
 from engine.logio import write_run_csv
 from engine.synthetic import REALISTIC_SENSOR, make_run
 from engine.track import SoftZone
@@ -265,7 +265,7 @@ def test_aggregated_profile_is_the_median_of_the_aligned_runs(
     median = np.median(stack, axis=0)
     assert np.allclose(agg["level_mm"], median, atol=1e-4)
     mad = 1.4826 * np.median(np.abs(stack - median), axis=0)
-    # served levels are rounded to 0.0001 mm (app.services.packing): the MAD of five of
+    # served levels are rounded to 0.0001 mm (app.services.storage.packing): the MAD of five of
     # them moves by up to ~1.5x that
     assert np.allclose(agg["spread_mm"], mad, atol=2e-4)
     err0 = steady_runs[0].error_m

@@ -159,8 +159,8 @@ def test_delete_and_edit_work_when_a_stored_pass_cannot_be_separated(
     of the separation now: the delete answers 204, the edit 200."""
     import numpy as np
 
-    from app.services.aggregate import CHUNK_POINTS
-    from app.services.packing import pack_f4
+    from app.services.storage.packing import pack_f4
+    from app.services.track.aggregate import CHUNK_POINTS
 
     ids = _upload_all(client, three_runs[:2])
     bad = pack_f4(np.full(CHUNK_POINTS, -5e4))

@@ -148,7 +148,7 @@ def test_engine_error_in_the_background_marks_the_run_failed(
     """An engine error that only the inversion finds ends the queued run as 'failed' with the
     engine's message and no stored input or profile; resending the file replaces the failed
     run."""
-    import app.services.processing as processing_mod
+    import app.services.run_lifecycle.processing as processing_mod
     from engine.errors import InversionError
 
     def failing_inversion(*_args, **_kwargs):

@@ -19,7 +19,7 @@ from sqlalchemy import select
 from app.db.migrate import upgrade
 from app.db.models import Run, SoftSpot, Track, Vehicle
 from app.db.session import Database
-from app.services.profiles import insert_profile
+from app.services.storage.profiles import insert_profile
 
 GRID_STEP_M = 0.25
 """Chainage step of a stored profile, m (the engine's default grid)."""

@@ -16,7 +16,7 @@ from browser.bigtrack import BigTrack, fill_big_track
 
 from app.core.config import REPO_ROOT, Settings
 from app.main import create_app
-from app.services.chart_views import minmax_decimate
+from app.services.views.charts import minmax_decimate
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")

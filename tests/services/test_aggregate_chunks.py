@@ -14,7 +14,7 @@ import pytest
 from app.db.migrate import upgrade
 from app.db.models import Track, TrackProfileChunk
 from app.db.session import Database
-from app.services.aggregate import (
+from app.services.track.aggregate import (
     CHUNK_POINTS,
     CombinedSpot,
     aggregate_chunk_range,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from app.services.processing import start_inversion
+from app.services.run_lifecycle.processing import start_inversion
 from engine.errors import BudgetExceeded
 from engine.setup import RunSetup, prepare_run
 

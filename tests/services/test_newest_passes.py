@@ -12,18 +12,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import app.services.aggregate as aggregate
+import app.services.track.aggregate as aggregate
 from app.db.migrate import upgrade
 from app.db.models import Run, Track, TrackRunLevels, Vehicle
 from app.db.session import Database
-from app.services.aggregate import (
+from app.services.track.aggregate import (
     CHUNK_POINTS,
     drop_run_levels,
     read_aggregate,
     recompute_aggregate,
     store_run_levels,
 )
-from app.services.stiffness import read_passes
+from app.services.track.separation_store import read_passes
 
 LIMIT = 3
 T0 = datetime(2026, 3, 1, tzinfo=UTC)

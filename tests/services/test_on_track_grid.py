@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.services import alignment
-from app.services.alignment import GRID_STEP_M, on_track_grid, sample_at
+from app.services.track import alignment
+from app.services.track.alignment import GRID_STEP_M, on_track_grid, sample_at
 
 
 def _general(c: np.ndarray, v: np.ndarray, offset: float) -> tuple[int, np.ndarray]:

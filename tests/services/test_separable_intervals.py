@@ -1,5 +1,6 @@
 """The separable stretches the register's stiffness notes rest on: read from the stored
-separation's chunks directly (``app.services.stiffness.separable_intervals``), they are the
+separation's chunks directly (``app.services.track.separation_store.separable_intervals``), they
+are the
 stretches the whole-line stiffness window (``read_stiffness``, what the API serves) gives,
 and each defect's note is the one a linear search over them gives.
 
@@ -19,8 +20,8 @@ import pytest
 from app.db.migrate import upgrade
 from app.db.models import Track, TrackStiffness
 from app.db.session import Database
-from app.services.register import stiffness_notes
-from app.services.stiffness import (
+from app.services.track.register import stiffness_notes
+from app.services.track.separation_store import (
     CHUNK_POINTS,
     GRID_STEP_M,
     NOT_SEPARABLE,

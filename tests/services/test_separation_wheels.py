@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from app.db.models import Run, Vehicle, VehicleVersion
 from app.db.session import Database
-from app.services.stiffness import read_passes
+from app.services.track.separation_store import read_passes
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH
 from services.test_newest_passes import _add_run, _track, db  # noqa: F401 (the fixture)
 

@@ -12,9 +12,9 @@ from app.db.migrate import upgrade
 from app.db.session import Database
 from app.services.context import AppContext
 from app.services.errors import Conflict, DomainError, Invalid, NotFound, TooLarge
-from app.services.logs import parse_csv
-from app.services.simulation import SimulationSpec, simulate_and_submit
-from app.services.window import Window
+from app.services.run_lifecycle.logs import parse_csv
+from app.services.run_lifecycle.simulation import SimulationSpec, simulate_and_submit
+from app.services.views.window import Window
 from engine.errors import LogFormatError
 from engine.sensor import SensorModel
 from engine.track import SoftZone
@@ -78,7 +78,7 @@ def test_csv_options_are_derived_from_the_reader() -> None:
     import dataclasses
 
     from app.schemas.runs import CsvOptionsFields
-    from app.services.chart_views import PREVIEW_OPTION_NAMES
+    from app.services.views.charts import PREVIEW_OPTION_NAMES
     from engine.cli import build_parser
     from engine.logio import OPTION_UNITS, CsvOptions
 

@@ -95,7 +95,7 @@ def test_new_database_directory_is_created(tmp_path) -> None:
 def test_a_block_decodes_any_subset_of_its_columns_exactly() -> None:
     """Decoding only some columns (a window read of the level needs two of seven) gives those
     columns exactly as the full decode does, gaps (NaN) included, in the order asked."""
-    from app.services.packing import decode_block, encode_block
+    from app.services.storage.packing import decode_block, encode_block
 
     rng = np.random.default_rng(3)
     scales = (1e-4, 1e-4, 1.0)

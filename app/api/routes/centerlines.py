@@ -17,7 +17,9 @@ from app.schemas.centerlines import (
     CENTERLINE_GEOJSON_SCHEMA,
     CenterlinePublic,
 )
-from app.services.centerlines import (
+from app.services.context import AppContext
+from app.services.lookup import get_track
+from app.services.track.centerlines import (
     CONTENT_TYPES,
     as_geojson,
     centerline_row,
@@ -26,8 +28,6 @@ from app.services.centerlines import (
     read_centerline,
     store_centerline,
 )
-from app.services.context import AppContext
-from app.services.lookup import get_track
 
 router = APIRouter(prefix="/tracks", tags=["centerlines"])
 

@@ -19,9 +19,9 @@ from app.schemas.quality import (
     QualityLimitsPublic,
     QualityPublic,
 )
-from app.services import quality as svc
-from app.services import quality_exports
 from app.services.lookup import get_track
+from app.services.track import quality as svc
+from app.services.views import quality_exports
 from engine.quality_limits import SPEED_CLASSES_KMH, QualityLimits
 
 router = APIRouter(prefix="/tracks", tags=["track quality"])

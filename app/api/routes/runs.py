@@ -32,13 +32,14 @@ from app.schemas.runs import (
     SignalsPublic,
     SoftSpotPublic,
 )
-from app.services import exports, runs
 from app.services.context import AppContext
-from app.services.json_log import has_columns, split_json_columns
 from app.services.lookup import get_track
 from app.services.run_lifecycle import intake
+from app.services.run_lifecycle import stored_runs as runs
 from app.services.run_lifecycle.accept import submit
 from app.services.run_lifecycle.intake import Submission, ignored_options
+from app.services.run_lifecycle.json_log import has_columns, split_json_columns
+from app.services.views import exports
 
 router = APIRouter(prefix="/runs", tags=["runs"])
 

@@ -12,8 +12,8 @@ from app.api.convert import simulation_spec
 from app.api.deps import CtxDep
 from app.schemas.runs import RunCreated
 from app.schemas.simulate import SimulatePublic, SimulateRequest
-from app.services.chart_views import truth_view
-from app.services.simulation import simulate_and_submit
+from app.services.run_lifecycle.simulation import simulate_and_submit
+from app.services.views.charts import truth_view
 from engine.irregularity import SPECTRA
 from engine.sensor import SENSOR_GRADES
 

@@ -21,18 +21,18 @@ from app.schemas.stiffness import (
     SurveyFields,
     SurveyPublic,
 )
-from app.services import exports
 from app.services.lookup import get_track
 from app.services.run_lifecycle.intake import clean_filename
-from app.services.stiffness import stiffness_with_vehicles
-from app.services.surveys import (
+from app.services.track.separation_store import stiffness_with_vehicles
+from app.services.track.surveys import (
     SurveyInput,
     delete_survey,
     get_survey,
     import_survey,
     list_surveys,
 )
-from app.services.vehicles import read_settled
+from app.services.vehicles.versions import read_settled
+from app.services.views import exports
 
 router = APIRouter(prefix="/tracks", tags=["geometry and stiffness"])
 

@@ -24,18 +24,18 @@ from app.schemas.track_intel import (
     LimitsUpdate,
     TrackProfileAggregatePublic,
 )
-from app.services import exports
-from app.services.aggregate import aggregated_profile_view
 from app.services.lookup import get_track
-from app.services.register import (
+from app.services.track.aggregate import aggregated_profile_view
+from app.services.track.register import (
     LIMIT_FIELDS,
     load_limits,
     save_limits,
     stiffness_notes,
     track_register,
 )
-from app.services.report import REPORT_CSP
-from app.services.vehicles import read_settled, require_settled
+from app.services.vehicles.versions import read_settled, require_settled
+from app.services.views import exports
+from app.services.views.report import REPORT_CSP
 from engine.register import Defect, Limits
 
 router = APIRouter(prefix="/tracks", tags=["track intelligence"])

@@ -10,8 +10,8 @@ from app.api.convert import track_public
 from app.api.deps import SessionDep
 from app.schemas.tracks import TrackCreate, TrackPublic, TracksPublic
 from app.services import lookup
-from app.services.tracks import delete_track as delete_track_and_runs
-from app.services.tracks import run_counts
+from app.services.track.deletion import delete_track as delete_track_and_runs
+from app.services.track.deletion import run_counts
 
 router = APIRouter(prefix="/tracks", tags=["tracks"])
 

@@ -30,8 +30,10 @@ from app.schemas.vehicles import (
     VehicleVersionPublic,
     VehicleVersionsPublic,
 )
-from app.services import calibration, lookup, vehicles
+from app.services import lookup
 from app.services.lookup import get_vehicle
+from app.services.vehicles import calibration
+from app.services.vehicles import versions as vehicles
 from engine.bogie import BogieParams
 from engine.vehicle_kinds import KIND_PRESETS
 

@@ -1,6 +1,6 @@
 """Server-side chart views for the dashboard: decimated profiles, chainage maps, CSV previews.
 
-The work is done by :mod:`app.services.chart_views`; these routes parse and serialise.
+The work is done by :mod:`app.services.views.charts`; these routes parse and serialise.
 
 A dashboard must never receive millions of points: a 100 km run has 400 000 grid points and a
 track may carry fifty of them. These endpoints answer what a chart of a given width can show:
@@ -28,8 +28,8 @@ from starlette.datastructures import UploadFile as StarletteUpload
 from app.api.deps import ClosedWindowDep, RunId, SessionDep, WindowDep
 from app.core.errors import ApiError
 from app.schemas.views import ChainageMapPublic, CsvPreviewPublic, ProfileViewPublic, WindowPublic
-from app.services import chart_views
 from app.services.lookup import get_track
+from app.services.views import charts as chart_views
 
 router = APIRouter(prefix="/views", tags=["views"])
 

@@ -21,6 +21,23 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track
+from app.services.context import AppContext
+from app.services.errors import Conflict, Invalid
+from app.services.lookup import (
+    check_new_track_name,
+    new_track_columns,
+    resolve_track,
+    resolve_vehicle,
+)
+from app.services.lookup import track_params as _track_params
+from app.services.run_lifecycle.intake import Submission
+from app.services.run_lifecycle.inversion import invert_now, start_early
+from app.services.run_lifecycle.logs import pack_log, summarize
+from app.services.run_lifecycle.processing import Processed
+from app.services.run_lifecycle.store import NewRun, complete_run, insert_run
+from app.services.track.centerlines import load_centerline, place_by_gnss
+from app.services.vehicles.loads import declared_wheel_load, loaded_vehicle
+from app.services.views.signals import log_signals
 from engine.budget import TimeBudget
 from engine.errors import EngineError, LogFormatError
 from engine.positioning import Centerline
@@ -28,19 +45,6 @@ from engine.setup import PreparedRun, RunSetup, prepare_run
 from engine.track import TrackParams
 from engine.vehicle_kinds import Vehicle as EngineVehicle
 from engine.vehicle_kinds import vehicle_from_dict
-
-from ..centerlines import load_centerline, place_by_gnss
-from ..context import AppContext
-from ..errors import Conflict, Invalid
-from ..loads import declared_wheel_load, loaded_vehicle
-from ..logs import pack_log, summarize
-from ..lookup import check_new_track_name, new_track_columns, resolve_track, resolve_vehicle
-from ..lookup import track_params as _track_params
-from ..processing import Processed
-from ..signals import log_signals
-from .intake import Submission
-from .inversion import invert_now, start_early
-from .store import NewRun, complete_run, insert_run
 
 _inflight_guard = threading.Lock()
 _inflight: dict[str, threading.Lock] = {}

@@ -1,7 +1,8 @@
 """A run as submitted: the upload parsed into a :class:`Submission`, and what it names.
 
 The route validates the request's fields (its schema) and hands them here with the log's
-bytes or arrays; the log is read (:func:`~app.services.logs.parse_csv`) and hashed at once.
+bytes or arrays; the log is read (:func:`~app.services.run_lifecycle.logs.parse_csv`) and hashed at
+once.
 The track and vehicle a submission names are looked up by :mod:`app.services.lookup`, as for
 every route.
 """
@@ -18,11 +19,16 @@ from typing import Any, Protocol
 from sqlalchemy.orm import Session
 
 from app.db.models import Run
+from app.services.errors import Invalid
+from app.services.lookup import resolve_vehicle
+from app.services.run_lifecycle.logs import (
+    hash_columns,
+    log_from_columns,
+    parse_csv,
+    recorded_at_of,
+    sha256_hex,
+)
 from engine.runlog import RunLog
-
-from ..errors import Invalid
-from ..logs import hash_columns, log_from_columns, parse_csv, recorded_at_of, sha256_hex
-from ..lookup import resolve_vehicle
 
 _UNSAFE_FILENAME = re.compile(r"[\x00-\x1f\x7f]")
 

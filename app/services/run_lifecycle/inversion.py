@@ -1,7 +1,7 @@
 """Inverting a run's log: in the request (short logs), started early beside the storing of a
 queued run's input, or by the worker that claimed the run.
 
-Every path goes through :func:`app.services.processing.invert` under a processing slot
+Every path goes through :func:`app.services.run_lifecycle.processing.invert` under a processing slot
 (``AppContext.slots``); this module only chooses the log, the set-up and the slot.
 """
 
@@ -11,17 +11,16 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 
 from app.db.models import Run
+from app.services.context import AppContext
+from app.services.errors import Invalid
+from app.services.run_lifecycle.handover import Handed
+from app.services.run_lifecycle.logs import unpack_log
+from app.services.run_lifecycle.processing import Processed, invert, start_inversion
+from app.services.vehicles.loads import loaded_vehicle
 from engine.errors import EngineError
 from engine.setup import PreparedRun, RunSetup, prepare_run
 from engine.track import TrackParams
 from engine.vehicle_kinds import vehicle_from_dict
-
-from ..context import AppContext
-from ..errors import Invalid
-from ..handover import Handed
-from ..loads import loaded_vehicle
-from ..logs import unpack_log
-from ..processing import Processed, invert, start_inversion
 
 
 def invert_now(ctx: AppContext, prepared: PreparedRun) -> Processed:

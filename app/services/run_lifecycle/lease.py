@@ -24,8 +24,7 @@ from sqlalchemy import ColumnElement, or_, select, update
 
 from app.db.base import utcnow
 from app.db.models import Calibration, Run
-
-from ..context import AppContext
+from app.services.context import AppContext
 
 log = logging.getLogger(__name__)
 

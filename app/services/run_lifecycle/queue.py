@@ -15,10 +15,10 @@ import threading
 import time
 from typing import TypeVar
 
-from ..context import AppContext
-from ..handover import Handover
-from .jobs import JOBS, Job
-from .lease import Claimable, claim, new_owner, release_dead_claims
+from app.services.context import AppContext
+from app.services.run_lifecycle.handover import Handover
+from app.services.run_lifecycle.jobs import JOBS, Job
+from app.services.run_lifecycle.lease import Claimable, claim, new_owner, release_dead_claims
 
 log = logging.getLogger(__name__)
 J = TypeVar("J", bound=Job)

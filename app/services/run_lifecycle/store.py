@@ -15,14 +15,13 @@ from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
 from app.db.models import Run, RunInput, RunSignals, Track
+from app.services.run_lifecycle.intake import Submission, clean_filename
+from app.services.run_lifecycle.logs import LogSummary
+from app.services.run_lifecycle.processing import Processed, store_result
+from app.services.track.integrate import Separation
+from app.services.vehicles.calibration import maybe_auto_calibrate
+from app.services.views.signals import pack_signals
 from engine.vehicle_plausibility import ImplausibleResult
-
-from ..calibration import maybe_auto_calibrate
-from ..integrate import Separation
-from ..logs import LogSummary
-from ..processing import Processed, store_result
-from ..signals import pack_signals
-from .intake import Submission, clean_filename
 
 
 @dataclass(frozen=True)

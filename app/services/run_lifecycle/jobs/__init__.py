@@ -7,12 +7,12 @@ names a table in ``claims``), keeps the claims alive and recovers them.
 
 from __future__ import annotations
 
-from .base import Crew, Job
-from .calibrate import CALIBRATIONS, CalibrateJob
-from .checkpoint import CheckpointJob
-from .process import HANDOVER_GRACE_S, RUNS, ProcessJob
-from .separate import SEPARATION_RETRY_S, SeparateJob
-from .sweep import SweepJob
+from app.services.run_lifecycle.jobs.base import Crew, Job
+from app.services.run_lifecycle.jobs.calibrate import CALIBRATIONS, CalibrateJob
+from app.services.run_lifecycle.jobs.checkpoint import CheckpointJob
+from app.services.run_lifecycle.jobs.process import HANDOVER_GRACE_S, RUNS, ProcessJob
+from app.services.run_lifecycle.jobs.separate import SEPARATION_RETRY_S, SeparateJob
+from app.services.run_lifecycle.jobs.sweep import SweepJob
 
 JOBS: dict[str, type[Job]] = {
     "process": ProcessJob,

@@ -10,9 +10,8 @@ from sqlalchemy.orm import Session
 
 from app.services.context import AppContext
 from app.services.errors import engine_error_facts
+from app.services.run_lifecycle.lease import Claimable
 from engine.errors import EngineError
-
-from ..lease import Claimable
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")

@@ -11,12 +11,11 @@ from sqlalchemy.orm import Session
 from app.db.base import utcnow
 from app.db.models import Calibration
 from app.services.errors import engine_error_facts
+from app.services.run_lifecycle.jobs.base import Job, attempt, failure_facts
+from app.services.run_lifecycle.lease import Claimable, Heartbeat
+from app.services.run_lifecycle.store import updated
+from app.services.vehicles.calibration import calibration_inputs, fit_calibration, store_calibration
 from engine.errors import EngineError
-
-from ...calibration import calibration_inputs, fit_calibration, store_calibration
-from ..lease import Claimable, Heartbeat
-from ..store import updated
-from .base import Job, attempt, failure_facts
 
 log = logging.getLogger(__name__)
 

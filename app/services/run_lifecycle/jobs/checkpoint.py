@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import threading
 
-from .base import Crew, Job
+from app.services.run_lifecycle.jobs.base import Crew, Job
 
 log = logging.getLogger(__name__)
 

@@ -10,13 +10,12 @@ from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
 from app.db.models import Run, RunInput
-
-from ...processing import Processed
-from ..inversion import ClaimedRun, invert_claimed
-from ..lease import Claimable, Heartbeat
-from ..store import complete_run, fail_run, updated
-from .base import Job, attempt
-from .separate import SeparateJob
+from app.services.run_lifecycle.inversion import ClaimedRun, invert_claimed
+from app.services.run_lifecycle.jobs.base import Job, attempt
+from app.services.run_lifecycle.jobs.separate import SeparateJob
+from app.services.run_lifecycle.lease import Claimable, Heartbeat
+from app.services.run_lifecycle.processing import Processed
+from app.services.run_lifecycle.store import complete_run, fail_run, updated
 
 log = logging.getLogger(__name__)
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import logging
 import time
 
-from ...integrate import separate_pending, tracks_pending_separation
-from .base import Crew, Job
+from app.services.run_lifecycle.jobs.base import Crew, Job
+from app.services.track.integrate import separate_pending, tracks_pending_separation
 
 log = logging.getLogger(__name__)
 
@@ -25,7 +25,7 @@ class SeparateJob(Job):
 
     def separate_track(self, track_id: int) -> bool:
         """Redo the separation a stored run left waiting on track ``track_id`` (one
-        transaction, :func:`~app.services.integrate.separate_pending`); False when none was
+        transaction, :func:`~app.services.track.integrate.separate_pending`); False when none was
         waiting or it failed (logged; the mark stays, retried at a later idle look)."""
         try:
             with self.ctx.db.session() as s:

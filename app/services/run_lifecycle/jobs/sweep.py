@@ -6,14 +6,14 @@ import logging
 import threading
 import time
 
-from ...retention import RetentionPolicy, sweep
-from .base import Crew, Job
+from app.services.run_lifecycle.jobs.base import Crew, Job
+from app.services.storage.retention import RetentionPolicy, sweep
 
 log = logging.getLogger(__name__)
 
 
 class SweepJob(Job):
-    """Removes expired detail (:mod:`app.services.retention`) when the last sweep is
+    """Removes expired detail (:mod:`app.services.storage.retention`) when the last sweep is
     ``retention_interval_s`` old. Only one thread of the process sweeps at a time; several
     processes may (each run is removed once, under its track's lock)."""
 
