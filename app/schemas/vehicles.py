@@ -21,7 +21,7 @@ from pydantic import (
 )
 
 from engine.bogie import BogieParams
-from engine.calibration import DEFAULT_FIT, FITTABLE
+from engine.calibration import DEFAULT_FIT_BY_KIND, FITTABLE
 from engine.vehicle import SENSOR_X_LIMIT_M, VehicleParams
 from engine.vehicle_kinds import KIND_PRESETS
 
@@ -248,7 +248,9 @@ class CalibrateRequest(StrictModel):
     )  # fmt: skip
     fit: list[str] | None = Field(
         default=None, min_length=1, max_length=8, json_schema_extra=closed_list(FITTABLE),
-        description=f"Quantities to fit (default {', '.join(DEFAULT_FIT)})",
+        description="Quantities to fit (default by the vehicle's kind: "
+        + "; ".join(f"{k} {', '.join(v)}" for k, v in DEFAULT_FIT_BY_KIND.items())
+        + ")",
     )  # fmt: skip
     apply: bool = Field(
         default=False,

@@ -1,15 +1,15 @@
 """Compact per-run storage and retention (issue 15).
 
 - ``run_profile_blocks``: a run's profile as compressed blocks of 1 km of its 0.25 m grid
-  (levels to 0.0001 mm, wheel forces to 1 N; ``app.services.profiles``), replacing the row
+  (levels to 0.0001 mm, wheel forces to 1 N; ``app.services.storage.profiles``), replacing the row
   per grid point of ``profile_points``. Every stored profile is moved, then the old table
   dropped.
 - ``track_run_levels`` and ``survey_levels``: their float32 chunks compressed losslessly
-  (``app.services.packing.pack_f4``).
+  (``app.services.storage.packing.pack_f4``).
 - ``run_inputs``: each stored log re-packed from an uncompressed ``.npz`` to compressed
-  float64 columns, bit for bit (``app.services.logs.pack_log``).
+  float64 columns, bit for bit (``app.services.run_lifecycle.logs.pack_log``).
 - ``run_signals``: the display signals packed (``packed``: time float64, signals float32,
-  compressed; ``app.services.signals.pack_signals``) instead of JSON lists (``data``).
+  compressed; ``app.services.views.signals.pack_signals``) instead of JSON lists (``data``).
 - ``runs.detail_expired_at``: when retention removed the run's detail (NULL: kept).
 
 The data move uses the service's own codecs, so what it writes is exactly what the service
@@ -45,7 +45,7 @@ def _as_float(values: Sequence[object]) -> np.ndarray:
 
 
 def _move_profiles(conn: sa.Connection) -> None:
-    from app.services.profiles import STORED_COLUMNS, encode_profile, fuse_axles
+    from app.services.storage.profiles import STORED_COLUMNS, encode_profile, fuse_axles
 
     blocks = sa.table(
         "run_profile_blocks",
@@ -82,7 +82,7 @@ def _move_profiles(conn: sa.Connection) -> None:
 
 
 def _pack_chunks(conn: sa.Connection, table: str, key: str, columns: Sequence[str]) -> None:
-    from app.services.packing import pack_f4
+    from app.services.storage.packing import pack_f4
 
     for row in conn.execute(sa.text(f"SELECT {key}, chunk FROM {table}")).all():
         values = conn.execute(
@@ -101,7 +101,7 @@ def _pack_chunks(conn: sa.Connection, table: str, key: str, columns: Sequence[st
 
 
 def _repack_logs(conn: sa.Connection) -> None:
-    from app.services.logs import LOG_COLUMNS, pack_log
+    from app.services.run_lifecycle.logs import LOG_COLUMNS, pack_log
     from engine.runlog import RunLog
 
     for run_id in conn.execute(sa.text("SELECT run_id FROM run_inputs")).scalars().all():
@@ -117,7 +117,7 @@ def _repack_logs(conn: sa.Connection) -> None:
 
 
 def _pack_signals(conn: sa.Connection) -> None:
-    from app.services.signals import pack_signals
+    from app.services.views.signals import pack_signals
 
     for run_id in conn.execute(sa.text("SELECT run_id FROM run_signals")).scalars().all():
         data = conn.execute(
@@ -158,7 +158,7 @@ def upgrade() -> None:
 
 
 def _unpack_chunks(conn: sa.Connection, table: str, key: str, columns: Sequence[str]) -> None:
-    from app.services.packing import unpack_f4
+    from app.services.storage.packing import unpack_f4
 
     for row in conn.execute(sa.text(f"SELECT {key}, chunk, {', '.join(columns)} FROM {table}")).all():
         values = {
@@ -173,8 +173,8 @@ def _unpack_chunks(conn: sa.Connection, table: str, key: str, columns: Sequence[
 
 
 def downgrade() -> None:
-    from app.services.logs import LOG_COLUMNS, unpack_log
-    from app.services.profiles import PROFILE_COLUMNS, read_profile
+    from app.services.run_lifecycle.logs import LOG_COLUMNS, unpack_log
+    from app.services.storage.profiles import PROFILE_COLUMNS, read_profile
     from sqlalchemy.orm import Session
 
     conn = op.get_bind()
@@ -205,7 +205,7 @@ def downgrade() -> None:
     # A plain DROP COLUMN (SQLite >= 3.35): a batch rebuild of ``runs`` would drop the table
     # and, with foreign keys on, cascade the delete to every run's rows.
     op.execute("ALTER TABLE runs DROP COLUMN detail_expired_at")
-    from app.services.signals import unpack_signals
+    from app.services.views.signals import unpack_signals
 
     op.add_column("run_signals", sa.Column("data", sa.JSON(), nullable=True))
     signals = sa.table("run_signals", sa.column("run_id"), sa.column("data", sa.JSON))

@@ -2,7 +2,7 @@
 
 ``track_profile_chunks`` holds a track's aggregate (median level, spread, run count per grid
 point) packed per chunk of ``CHUNK_POINTS`` grid points — the chunks of ``track_run_levels``
-it is computed from (``app.services.aggregate.pack_chunk``: float64, compressed) — replacing
+it is computed from (``app.services.track.aggregate.pack_chunk``: float64, compressed) — replacing
 ``track_profile_points``, a row per 0.25 m grid point, whose writing was most of the time a
 long run spends being stored. Every stored aggregate is moved (the values bit for bit), then
 the old table dropped. Downgrade moves them back.
@@ -45,7 +45,7 @@ def _point_chunks(
 ) -> Iterator[tuple[int, list[tuple[int, float | None, float | None, int]]]]:
     """A track's aggregate points grouped by chunk: ``(chunk, [(index in the chunk, level,
     spread, n_runs), ...])``, streamed in chainage order."""
-    from app.services.aggregate import CHUNK_POINTS
+    from app.services.track.aggregate import CHUNK_POINTS
     from engine.chainage import GRID_STEP_M
 
     rows = conn.execute(
@@ -63,7 +63,7 @@ def _nan(v: float | None) -> float:
 
 
 def upgrade() -> None:
-    from app.services.aggregate import CHUNK_POINTS, pack_chunk
+    from app.services.track.aggregate import CHUNK_POINTS, pack_chunk
 
     op.create_table(
         "track_profile_chunks",
@@ -99,7 +99,7 @@ def upgrade() -> None:
 
 
 def downgrade() -> None:
-    from app.services.aggregate import CHUNK_POINTS, unpack_chunk
+    from app.services.track.aggregate import CHUNK_POINTS, unpack_chunk
     from engine.chainage import GRID_STEP_M
 
     op.create_table(

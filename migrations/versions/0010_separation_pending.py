@@ -1,9 +1,9 @@
 """A track's separation redone after its run is done (issue 15): the chunks waiting for it.
 
 ``tracks.separation_pending_lo`` / ``separation_pending_hi``: the range of chunks
-(``app.services.aggregate.CHUNK_POINTS`` grid points each) whose geometry/stiffness
+(``app.services.track.aggregate.CHUNK_POINTS`` grid points each) whose geometry/stiffness
 separation a worker is to redo, set in the transaction that stores a queued run's result and
-cleared in the one that redoes it (``app.services.stiffness.separate_pending``). NULL for
+cleared in the one that redoes it (``app.services.track.separation_store.separate_pending``). NULL for
 every existing track: their separation is up to date.
 
 Revision ID: 0010

@@ -89,23 +89,27 @@ def quality_section(q: dict[str, Any]) -> str:
             f"<p>Repeatability between passes ({rep['band_m'][0]:g}–{rep['band_m'][1]:g} m): "
             f"95 % of differences within {rep['r95_mm']:.2f} mm ({rep['n_pairs']} pairs).</p>"
         )
-    for sv in q.get("survey_comparison", []):
-        rows = "".join(
-            f'<tr><td class="num">{r["start_m"]:.0f}–{r["end_m"]:.0f}</td>'
-            f'<td class="num">{_n(r["survey_d1_sd_mm"])}</td>'
-            f'<td class="num">{_n(r["fleet_d1_sd_mm"])}</td>'
-            f'<td class="num">{_n(r["d1_sd_diff_mm"])}</td>'
-            f'<td class="num">{_n(r["d2_sd_diff_mm"])}</td>'
-            f'<td class="num">{_n(r["d1_peak_error_mm"])}</td></tr>'
-            for r in sv["sections"][:MAX_ROWS]
-        )
-        name = escape(sv["name"] or f"survey {sv['survey_id']}")
-        parts.append(
-            f"<h3>Against the recording car: {name}</h3>"
-            '<table><thead><tr><th class="num">Section (m)</th><th class="num">Survey D1 SD</th>'
-            '<th class="num">Fleet D1 SD</th><th class="num">D1 SD difference</th>'
-            '<th class="num">D2 SD difference</th><th class="num">D1 peak error</th></tr>'
-            f"</thead><tbody>{rows}</tbody></table>"
-            '<p class="note">mm; fleet minus survey over the points both cover.</p>'
-        )
+    parts += [_survey_table(sv) for sv in q.get("survey_comparison", [])]
     return "".join(parts)
+
+
+def _survey_table(sv: dict[str, Any]) -> str:
+    """A survey's comparison with the fleet, section by section (mm)."""
+    rows = "".join(
+        f'<tr><td class="num">{r["start_m"]:.0f}–{r["end_m"]:.0f}</td>'
+        f'<td class="num">{_n(r["survey_d1_sd_mm"])}</td>'
+        f'<td class="num">{_n(r["fleet_d1_sd_mm"])}</td>'
+        f'<td class="num">{_n(r["d1_sd_diff_mm"])}</td>'
+        f'<td class="num">{_n(r["d2_sd_diff_mm"])}</td>'
+        f'<td class="num">{_n(r["d1_peak_error_mm"])}</td></tr>'
+        for r in sv["sections"][:MAX_ROWS]
+    )
+    name = escape(sv["name"] or f"survey {sv['survey_id']}")
+    return (
+        f"<h3>Against the recording car: {name}</h3>"
+        '<table><thead><tr><th class="num">Section (m)</th><th class="num">Survey D1 SD</th>'
+        '<th class="num">Fleet D1 SD</th><th class="num">D1 SD difference</th>'
+        '<th class="num">D2 SD difference</th><th class="num">D1 peak error</th></tr>'
+        f"</thead><tbody>{rows}</tbody></table>"
+        '<p class="note">mm; fleet minus survey over the points both cover.</p>'
+    )
