@@ -12,7 +12,7 @@ import {
   canPlaceWithoutStart, fileRecordedAt, formatBytes, localInputValue,
 } from "./state.js";
 import {
-  errorFactsOfRun, errorList, errorText, highlightFields, markFailed, pickVehicle, previewProblems,
+  DEFAULT_VEHICLE, errorFactsOfRun, errorList, errorText, highlightFields, markFailed, pickVehicle, previewProblems,
   resetProgress, showChoices, showPlacement, showPreview, showPreviewMessage, updateNewTrack,
 } from "./view.js";
 
@@ -34,6 +34,13 @@ export async function loadChoices(ui, state) {
     state.vehicles = await apiFetchAll("vehicles");
   } catch (err) {
     ui.status.show(`Could not load the vehicles: ${err.message}`, "error");
+  }
+  try {
+    // the engine's presets are vehicle names too (stored on first use): offered beside the
+    // stored vehicles, so a preset such as "heavy" needs no API call first
+    state.presets = Object.keys(await apiFetch("/api/v1/vehicles/presets"));
+  } catch {
+    state.presets = [DEFAULT_VEHICLE];
   }
   showChoices(ui, state);
 }

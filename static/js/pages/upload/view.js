@@ -222,9 +222,11 @@ export function showChoices(ui, state) {
   clear(ui.vehicleSel);
   ui.vehicleSel.appendChild(h("option", { value: "" }, "Choose the vehicle…"));
   const names = state.vehicles.map((v) => v.name);
-  // table1 is always a choice: the engine's preset, stored on first use
-  if (!names.includes(DEFAULT_VEHICLE)) ui.vehicleSel.appendChild(h("option", { value: DEFAULT_VEHICLE }, `${DEFAULT_VEHICLE} (preset)`));
   for (const name of names) ui.vehicleSel.appendChild(h("option", { value: name }, name));
+  // the engine's presets not stored yet are choices too (stored on first use); table1 always
+  for (const name of state.presets || [DEFAULT_VEHICLE]) {
+    if (!names.includes(name)) ui.vehicleSel.appendChild(h("option", { value: name }, `${name} (preset)`));
+  }
   pickVehicle(ui, state);
 }
 
