@@ -15,6 +15,7 @@ Chainage in m, levels in mm.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
@@ -32,6 +33,7 @@ from engine.accumulate import detect_on_aggregate
 from engine.aggregate import AggregateProfile, aggregate_levels
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
+from engine.errors import EngineError
 
 CHUNK_POINTS = 1000
 """Grid points per stored chunk of a run's aligned levels (250 m)."""
@@ -52,6 +54,8 @@ AGGREGATE_COLUMNS = ("level_mm", "spread_mm", "n_runs")
 """What a stored chunk of the aggregate holds per grid point (:func:`pack_chunk`)."""
 
 _DTYPE = np.dtype("<f4")
+
+log = logging.getLogger(__name__)
 
 
 def chunked(
@@ -338,12 +342,18 @@ def store_combined_spots(session: Session, track_id: int, c_lo: int, c_hi: int) 
         ).all()
         if not chunks:
             continue
-        found = detect_combined(session, track_id, unit)
+        try:
+            found: dict[int, list[CombinedSpot]] | None = detect_combined(session, track_id, unit)
+        except EngineError as exc:
+            # The run is stored whatever the combined detection says: its chunks keep no spots
+            # (NULL) and are detected on when read.
+            log.warning("combined detection of track %s unit %s failed: %s", track_id, unit, exc)
+            found = None
         session.execute(
             update(TrackProfileChunk),
             [
                 {"track_id": track_id, "chunk": c,
-                 "spots": [s.to_json() for s in found.get(c, [])]}
+                 "spots": None if found is None else [s.to_json() for s in found.get(c, [])]}
                 for c in chunks
             ],
         )  # fmt: skip
