@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import ParameterError
+from .errors import ParameterError, reject_unknown_keys
 from .vehicle import GRAVITY, VehicleParams, _param, check_fields
 
 N_DOF = 10
@@ -128,12 +128,7 @@ class BogieParams:
         kind = data.pop("kind", cls.kind)
         if kind != cls.kind:
             raise ParameterError(f"vehicle kind must be {cls.kind!r}, got {kind!r}", field="kind")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise ParameterError(
-                f"unknown bogie-vehicle parameter(s) {unknown}; expected some of {sorted(known)}"
-            )
+        reject_unknown_keys(data, (f.name for f in fields(cls)), "bogie-vehicle parameter")
         return cls(**data)
 
     def to_dict(self) -> dict[str, Any]:
