@@ -70,6 +70,11 @@ class DefectObservationPublic(BaseModel):
     passes: list[str] = Field(description="The passes behind it: 'run 12', 'survey 3'")
     loss_lo_pct: float | None = Field(description="Band of the loss, % (separated)")
     loss_hi_pct: float | None = None
+    level: LimitLevel | None = Field(
+        default=None,
+        description="The limit level this sighting reached by limits of its own (isolated "
+        "defects: the line speed's EN 13848 class); null for soft spots",
+    )
 
 
 class DefectEvidencePublic(BaseModel):

@@ -14,6 +14,7 @@ import threading
 from api.api_support import row_counts, upload
 from api.live_server import wait_status
 from app.services.run_lifecycle import store as store_module
+from engine.setup import ProcessConfig
 
 
 def test_a_run_over_its_budget_fails_clearly_and_frees_the_slot(start_app, synthetic_run):
@@ -30,7 +31,8 @@ def test_a_run_over_its_budget_fails_clearly_and_frees_the_slot(start_app, synth
         error = run["error"]
         assert error["kind"] == "BudgetExceeded" and error["limit_s"] == 1e-6
         assert "TRACKPROFILE_PROCESSING_BUDGET_S" in error["message"]
-        assert "stopped after the spectral inversion" in error["message"]
+        # the first stage the budget is checked after: the default method's inversion
+        assert f"stopped after the {ProcessConfig().method} inversion" in error["message"]
     assert c.app.state.ctx.slots.acquire(blocking=False)  # the slot is free again
     c.app.state.ctx.slots.release()
 
