@@ -140,6 +140,7 @@ def _create_key(settings) -> str:
     return key
 
 
+@pytest.mark.slow
 def test_the_key_is_checked_before_any_body_byte(keyed_server, settings) -> None:
     """Keys required: every body route answers 401 to a request whose 300 MB body was declared
     but never sent (so the server did not wait for it, let alone read it); a wrong key too.
@@ -163,6 +164,7 @@ def test_the_key_is_checked_before_any_body_byte(keyed_server, settings) -> None
         assert json.loads(body)["detail"]["limit_bytes"] > 0
 
 
+@pytest.mark.slow
 def test_read_only_refuses_before_any_body_byte(settings) -> None:
     """Read-only mode: 403 to a held-back 300 MB body on every body route."""
     server = LiveServer(settings, "ro", TRACKPROFILE_READ_ONLY="true").start()
@@ -175,6 +177,7 @@ def test_read_only_refuses_before_any_body_byte(settings) -> None:
         server.stop()
 
 
+@pytest.mark.slow
 def test_unauthorised_bodies_cost_no_memory(keyed_server, settings) -> None:
     """Four parallel 40 MB chunked JSON bodies without a key: each is refused after at most a
     few MB were sent, and the server's RSS grows by less than 30 MB (the probe: +800 MB per
@@ -202,6 +205,7 @@ def test_unauthorised_bodies_cost_no_memory(keyed_server, settings) -> None:
     assert row_counts(settings) == before_rows
 
 
+@pytest.mark.slow
 def test_every_body_has_a_cap_and_chunked_bodies_get_413(settings) -> None:
     """Without keys: small-body routes (JSON objects, the CSV preview) refuse a chunked body
     over TRACKPROFILE_MAX_BODY_KB with 413 (the probe saw 400 on csv-preview and limits), and
@@ -265,6 +269,7 @@ def test_key_use_is_stamped_outside_the_request(settings) -> None:
     db.dispose()
 
 
+@pytest.mark.slow
 def test_oversized_headers_are_refused_before_any_route(keyed_server) -> None:
     """The server runs with the HTTP parser that bounds header size (h11, as ``serve.sh`` and
     the Dockerfile start it): a 1 MB header is refused (400, or the connection closed) and

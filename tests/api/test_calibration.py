@@ -97,6 +97,7 @@ def _wait_version(c: TestClient, run_id: int, version: int, timeout: float = 120
         time.sleep(0.1)
 
 
+@pytest.mark.slow
 def test_calibration_with_apply_makes_a_version_and_reprocesses_in_place(
     client: TestClient, coach_runs
 ) -> None:
@@ -134,6 +135,7 @@ def test_calibration_with_apply_makes_a_version_and_reprocesses_in_place(
     assert [c["id"] for c in listed["data"]] == [cal["id"]]
 
 
+@pytest.mark.slow
 def test_runs_with_a_declared_payload_are_calibrated_at_their_mass(client: TestClient) -> None:
     """Three runs of the registered coach carrying 35 % of its body mass, uploaded with that
     payload_kg: the calibration compares each at the mass it was inverted with, finds nothing
@@ -152,6 +154,7 @@ def test_runs_with_a_declared_payload_are_calibrated_at_their_mass(client: TestC
     assert client.get("/api/v1/vehicles/laden").json()["version"] == 1
 
 
+@pytest.mark.slow
 def test_matching_vehicle_automatic_calibration_changes_nothing(start_app, healthy_runs) -> None:
     """With automatic calibration every 3 runs, a vehicle that matches its registration is
     calibrated once, the result says 'no significant change' and is not applied."""

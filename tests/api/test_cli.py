@@ -34,6 +34,7 @@ def _run(*argv: str) -> tuple[int, str]:
     return code, out.getvalue()
 
 
+@pytest.mark.slow
 def test_demo_run_is_loaded_once_and_finds_its_zones(env_db, start_app) -> None:
     """'demo' stores a simulated run with two soft zones (once); the service then serves it
     with both zones found."""

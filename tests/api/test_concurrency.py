@@ -17,6 +17,7 @@ from typing import Any
 
 import httpx
 import numpy as np
+import pytest
 
 from api.api_support import sql, stored_points
 from api.live_server import live_servers, wait_status
@@ -51,6 +52,7 @@ def _post(c: httpx.Client, data: bytes, track: str, key: str | None = None) -> h
     )
 
 
+@pytest.mark.slow
 def test_parallel_uploads_readers_and_deletes(settings, synthetic_run) -> None:
     """6 uploaders (24 runs, inline and queued), 2 threads resending one file with one
     Idempotency-Key, a thread deleting runs while they process, and 4 readers (lists, runs,
@@ -168,6 +170,7 @@ def test_parallel_uploads_readers_and_deletes(settings, synthetic_run) -> None:
         assert leftovers == 0, table
 
 
+@pytest.mark.slow
 def test_two_app_processes_process_each_run_exactly_once(settings) -> None:
     """Eight runs queued through two app processes (two worker threads each) on one database,
     four to each: every run is claimed once (attempts = 1, one claim in the two logs together)

@@ -265,6 +265,7 @@ def test_null_on_a_name_is_a_name(client, synthetic_run) -> None:
     assert (r.json()["track"], r.json()["name"]) == ("null", "null")
 
 
+@pytest.mark.slow
 def test_docs_follow_the_read_key_unless_public(start_app, settings) -> None:
     """With reads closed, /docs and /openapi.json need a key (Swagger's assets do not);
     TRACKPROFILE_PUBLIC_DOCS opens them; an open service always shows them."""

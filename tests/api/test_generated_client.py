@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 
 def _generate(client, tmp_path: Path) -> None:
@@ -29,6 +30,7 @@ def _generate(client, tmp_path: Path) -> None:
         assert (tmp_path / "tp_client" / "api" / "runs" / f"{op}.py").exists(), result.stdout
 
 
+@pytest.mark.slow
 def test_a_generated_client_uploads_and_reads_a_run(client, synthetic_run, tmp_path) -> None:
     _generate(client, tmp_path)
     sys.path.insert(0, str(tmp_path))

@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 
 import httpx
+import pytest
 
 from api.api_support import row_counts
 from api.live_server import LiveServer
@@ -30,6 +31,7 @@ def _body(n: int, time_s: bytes | None = None) -> bytes:
     return b'{"track": "T", "start_chainage_m": 0, "columns": {' + cols + b"}}"
 
 
+@pytest.mark.slow
 def test_big_json_columns_are_refused_fast_and_small(settings) -> None:
     """Four columns of 3 M zeros (24 MB): 422 naming time_s and its row 3 (time does not
     increase), within 10 s, the server's peak RSS growing by less than 4x the upload limit

@@ -12,6 +12,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from api.api_support import db_file, is_sqlite, row_counts, sql, upload
 from app.cli import main as cli_main
 from app.core.config import REPO_ROOT, get_settings
@@ -107,6 +109,7 @@ def _manage(settings, *argv: str) -> subprocess.CompletedProcess[str]:
     )  # fmt: skip
 
 
+@pytest.mark.slow
 def test_key_commands_create_list_and_revoke(start_app, settings) -> None:
     """`python -m app create-key` prints a key once that then opens writes; `list-keys`
     shows its prefix only; `revoke-key` closes it again (401 naming the reason); revoking

@@ -43,6 +43,7 @@ def test_simulated_run_finds_its_zone(client: TestClient) -> None:
     assert sig["n_samples"] == run["n_samples"]
 
 
+@pytest.mark.slow
 def test_same_simulation_is_not_stored_twice(client: TestClient, settings) -> None:
     """The simulation is deterministic in its seed: the same request returns the stored run;
     another seed is another run."""

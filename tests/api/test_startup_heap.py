@@ -5,9 +5,12 @@ from __future__ import annotations
 
 import gc
 
+import pytest
+
 from app.core.config import Settings
 
 
+@pytest.mark.slow
 def test_startup_heap_is_frozen_while_the_app_runs(start_app) -> None:
     assert gc.get_freeze_count() == 0
     client = start_app(freeze_startup_heap=True)

@@ -162,6 +162,7 @@ def run_profile(client: TestClient, run_id: int) -> tuple[np.ndarray, np.ndarray
 # ---- alignment -----------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_runs_are_aligned_within_half_a_metre(
     steady: tuple[TestClient, list[dict[str, Any]]], steady_runs: list[SimRun]
 ) -> None:
@@ -370,6 +371,7 @@ def test_register_exports_csv_and_history(
     assert all(d.get("history") is None for d in defects)
 
 
+@pytest.mark.slow
 def test_deepening_zone_is_worsening_at_the_simulated_rate(
     deepening: tuple[TestClient, list[dict[str, Any]]], deepening_runs: list[SimRun]
 ) -> None:

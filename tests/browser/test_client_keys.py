@@ -74,6 +74,7 @@ def _response_schema(op: dict[str, Any]) -> dict[str, Any] | None:
     return None
 
 
+@pytest.mark.slow
 def test_every_key_the_dashboard_reads_is_in_the_openapi_schema(
     page: Any, live_server: LiveServer, sample_csv: Path
 ) -> None:

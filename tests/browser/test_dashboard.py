@@ -184,6 +184,7 @@ def test_run_view_downloads_profile_and_soft_spots(
     page.watch.assert_clean()
 
 
+@pytest.mark.slow
 def test_track_view_draws_chainage_map_and_zone_table(
     page: Any, live_server: LiveServer, demo_track: list[int], screenshots: Path
 ) -> None:
@@ -498,6 +499,7 @@ def test_new_vehicle_is_created_and_selected(page: Any, live_server: LiveServer)
     page.watch.assert_clean()
 
 
+@pytest.mark.slow
 def test_background_processing_is_followed_until_done(
     page: Any, sample_csv: Path, tmp_path: Path
 ) -> None:

@@ -417,6 +417,7 @@ def test_simulate_names_its_bands_stores_on_a_chosen_track_and_has_no_cloud_link
     page.watch.assert_clean()
 
 
+@pytest.mark.slow
 def test_vehicles_and_docs_pages_are_accessible_and_docs_lead_back(
     page: Any, live_server: LiveServer, axe: str
 ) -> None:

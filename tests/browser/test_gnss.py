@@ -47,6 +47,7 @@ def gnss_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return line, run
 
 
+@pytest.mark.slow
 def test_centerline_upload_gnss_run_and_plan_view(
     page: Any, live_server: LiveServer, gnss_files: tuple[Path, Path]
 ) -> None:

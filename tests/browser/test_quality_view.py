@@ -46,6 +46,7 @@ def quality(live_server: LiveServer) -> Iterator[dict[str, Any]]:
     yield {"id": tid, "q": q}
 
 
+@pytest.mark.slow
 def test_quality_view_shows_classes_levels_and_exceedances(
     page: Any, live_server: LiveServer, quality: dict[str, Any]
 ) -> None:

@@ -157,6 +157,7 @@ def test_no_serious_axe_violation_on_the_changed_pages(
     assert not any(found.values()), found
 
 
+@pytest.mark.slow
 def test_a_track_being_reprocessed_reads_as_updating_then_loads(
     page: Any, live_server: LiveServer, geo_track: dict[str, Any]
 ) -> None:
@@ -229,6 +230,7 @@ def test_alignment_notice_names_every_status(
     page.watch.assert_clean()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("width", [1280, 390])
 def test_no_serious_axe_violation_on_the_other_pages(
     page: Any, live_server: LiveServer, geo_track: dict[str, Any], width: int

@@ -46,6 +46,7 @@ def tracks(live_server: LiveServer) -> Iterator[dict[str, Any]]:
     yield {"mixed": mixed_id, "stiffness": st, "coach_track": coach_id, "coach_run": coach}
 
 
+@pytest.mark.slow
 def test_stiffness_map_draws_stiffness_geometry_and_loads(
     page: Any, live_server: LiveServer, tracks: dict[str, Any]
 ) -> None:

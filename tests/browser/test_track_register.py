@@ -59,6 +59,7 @@ def table_rows(page: Any) -> list[dict[str, str]]:
     )
 
 
+@pytest.mark.slow
 def test_track_view_shows_the_register_with_status_and_priority(
     page: Any, live_server: LiveServer, register_track: tuple[int, list[dict[str, Any]]]
 ) -> None:

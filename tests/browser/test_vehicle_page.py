@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import pytest
 from browser.harness import LiveServer, axe_source, axe_violations, wait_for_plot
 
 from engine.logio import write_run_csv
@@ -62,6 +63,7 @@ def _calibrate(api: Any, run_ids: list[int]) -> None:
         time.sleep(0.2)
 
 
+@pytest.mark.slow
 def test_vehicle_page_shows_versions_calibrations_health_and_calibrates(
     page: Any, live_server: LiveServer, screenshots: Path
 ) -> None:

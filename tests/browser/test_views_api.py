@@ -58,6 +58,7 @@ def test_minmax_decimation_keeps_extremes_and_gaps() -> None:
     assert not dec and np.array_equal(short["level"], level[:500])
 
 
+@pytest.mark.slow
 def test_heatmap_is_the_lowest_level_per_run_and_bin(
     small_track: tuple[TestClient, BigTrack],
 ) -> None:

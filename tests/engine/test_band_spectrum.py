@@ -54,6 +54,7 @@ def test_decimation_step_keeps_the_oversampling():
         assert 1 / (dt * step) >= SPLINE_OVERSAMPLING * f
 
 
+@pytest.mark.slow
 def test_decimated_samples_are_the_full_rate_ones(inverted):
     """The short inverse transform gives the full-rate levels at every step-th sample."""
     _, _, inv = inverted

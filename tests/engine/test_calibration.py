@@ -64,6 +64,7 @@ def matching_runs():
     return _runs(TABLE1, 4, 300.0, 200)
 
 
+@pytest.mark.slow
 def test_calibration_fixes_a_wrong_vehicle(wrong_runs):
     """One joint calibration: I_s/m_s and k_s/m_s within ±10 % of the truth; reprocessed with
     the calibrated vehicle every run finds 4/4 zones within ±1.5 m, no false zone, loss within
@@ -97,6 +98,7 @@ def test_calibration_fixes_a_wrong_vehicle(wrong_runs):
     assert worst_registered > 1.5  # the test can fail: the registered vehicle is wrong
 
 
+@pytest.mark.slow
 def test_matching_vehicle_changes_nothing_and_says_so(matching_runs):
     """Runs of a vehicle that matches its registration: no significant change, the
     registered parameters stand, and the message says so."""
@@ -107,6 +109,7 @@ def test_matching_vehicle_changes_nothing_and_says_so(matching_runs):
     assert all(abs(f.change) < 0.05 and not f.significant for f in res.fitted)
 
 
+@pytest.mark.slow
 def test_unknown_sensor_position_is_found():
     """Five runs logged 3 m ahead of the CG on a vehicle registered at 0: found within ±0.3 m."""
     runs = _runs(TABLE1.replace(sensor_x_m=3.0), 5, 300.0, 300)
@@ -115,6 +118,7 @@ def test_unknown_sensor_position_is_found():
     assert res.significant and res.objective_after < 0.5 * res.objective_before
 
 
+@pytest.mark.slow
 def test_failing_suspension_is_a_health_alert(matching_runs):
     """Suspension stiffness 30 % lower in the second month: alerts on k_s1 and k_s2 (from ->
     to, since the second month); two months of the same vehicle: none."""
@@ -181,6 +185,7 @@ def test_given_load_fixes_the_mass(matching_runs):
     assert res.registered.ms == 17000.0 and res.params.ms == 17000.0
 
 
+@pytest.mark.slow
 def test_declared_loads_are_calibrated_at_their_mass():
     """Runs of the registered coach carrying 35 % of its body mass as payload, on rail with
     geometry (German low-disturbance) and logged 1.2 m off their start: declared (each run's

@@ -79,6 +79,7 @@ def test_help_states_units(cmd):
     assert " m" in out or "m/s" in out
 
 
+@pytest.mark.slow
 def test_simulate_with_a_sensor_grade_and_process_writes_its_detection_limit(tmp_path, capsys):
     """`simulate --sensor-grade` logs the grade's noise (as the inversion measures it);
     `process` writes the pass's detection limit; typed figures with a grade are refused."""

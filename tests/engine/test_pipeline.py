@@ -49,6 +49,7 @@ def noisy_run(request):
     )
 
 
+@pytest.mark.slow
 def test_profile_within_005mm_rms_of_truth(noisy_run):
     """Fused profile minus a slow baseline is within 0.05 mm RMS of the true loaded level."""
     run, res = noisy_run
@@ -95,6 +96,7 @@ def test_quality_indicators(noisy_run):
     assert np.allclose(step, 0.25)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [21, 22, 23])
 def test_sound_track_gives_no_false_alarm(seed):
     """Sound track with scattered supports and realistic noise: no zone at all."""

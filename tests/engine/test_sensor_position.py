@@ -33,6 +33,7 @@ def run_3m_ahead():
                     sim_rate_hz=2000.0, jitter=0.05, seed=7, vehicle=AHEAD)  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["spectral", "filtered-direct"])
 def test_registered_position_gives_the_accuracy_of_a_sensor_at_the_cg(run_3m_ahead, method):
     """Registered with sensor_x_m = 3: profile <= 0.05 mm RMS, 4/4 zones within ±1.5 m, none
@@ -62,6 +63,7 @@ def test_registered_position_gives_the_accuracy_of_a_sensor_at_the_cg(run_3m_ahe
     assert wrong.false_alarms >= 2 and wrong.profile_rms_mm > 2 * right.profile_rms_mm, wrong
 
 
+@pytest.mark.slow
 def test_least_squares_uses_the_sensor_position():
     """The optimisation baseline models the measured acceleration at the sensor too."""
     run = make_run(length=250.0, sensor=SENSOR_1KHZ, sim_rate_hz=2000.0, speed=25.0,

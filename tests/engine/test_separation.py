@@ -72,6 +72,7 @@ def _separate(results, labels=None):
     return separate(aligned), offsets
 
 
+@pytest.mark.slow
 def test_wheel_force_per_axle_matches_the_forward_models_contact_force(fleet):
     """Static + dynamic force from the inversion: mean within 0.3 %, the dynamic part in the
     3-40 m band within 15 % of its own spread, for both vehicles and axles."""

@@ -66,6 +66,7 @@ def steady():
     return _campaign(lambda i: zones, 5, seed=3)
 
 
+@pytest.mark.slow
 def test_runs_align_within_half_a_metre(steady):
     """Start-chainage errors up to +-5 m are undone to within 0.5 m (relative to run 0)."""
     _, offsets = _register(steady)
@@ -85,6 +86,7 @@ def test_one_defect_per_zone_seen_in_every_run(steady):
     assert [d.priority for d in register] == sorted(d.priority for d in register)
 
 
+@pytest.mark.slow
 def test_deepening_zone_reported_worsening_with_rate():
     """A zone whose loss grows 20 % -> 50 % over 50 days is worsening at ~+18 pp/month."""
     camp = _campaign(
