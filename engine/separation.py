@@ -38,6 +38,7 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.interpolate import make_interp_spline
 
 from .chainage import bandpass_distance
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
@@ -291,12 +292,14 @@ def zone_depths(
     lambda_max: float,
     taper: float,
     wheel_offsets_m: tuple[float, ...] = (0.0,),
+    shifts_m: tuple[float, ...] = (0.0,),
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Depth of the band-passed level dip of a 6 m zone against its loss, when the wheels at
-    ``wheel_offsets_m`` (m) share a force of 1 N: the losses (0-0.9) and the depths, mm/N.
+    ``wheel_offsets_m`` (m) share a force of 1 N and the level is averaged over ``shifts_m``
+    (m, :func:`view_shifts`): the losses (0-0.9) and the depths, mm/N.
 
     The mean level under the wheels is the single-load formula with the wheels' summed
-    influence (:func:`engine.stiffness.fit_zone`, Notes).
+    influence (:func:`engine.stiffness.fit_zone`, Notes); a shift moves the whole set.
     """
     step = 0.25
     grid = np.arange(-60.0, 60.0 + step / 2, step)
@@ -304,9 +307,13 @@ def zone_depths(
     offsets = np.asarray(wheel_offsets_m, dtype=float)
     sup_x = params.spacing * np.arange(np.ceil(-3.0 / params.spacing - 1e-9),
                                        np.floor(3.0 / params.spacing + 1e-9) + 1)  # fmt: skip
-    B = np.sum([infl(grid[None, :] + o - sup_x[:, None]) for o in offsets], axis=0)
-    lam, E = softening_modes(infl(sup_x[None, :] - sup_x[:, None]), B, np.eye(grid.size))
-    d = modal_dips(lam, E, _LOSSES, params.k_nominal, 1.0 / offsets.size**2)
+    flex = infl(sup_x[None, :] - sup_x[:, None])
+    modes = []
+    for t in shifts_m:
+        B = np.sum([infl(grid[None, :] + o + t - sup_x[:, None]) for o in offsets], axis=0)
+        lam, E = softening_modes(flex, B, np.eye(grid.size))
+        modes.append(E)
+    d = modal_dips(lam, np.mean(modes, axis=0), _LOSSES, params.k_nominal, 1.0 / offsets.size**2)
     depths = np.array(
         [-float(np.nanmin(bandpass_distance(row, step, lambda_min, lambda_max, taper)))
          for row in d]
@@ -321,6 +328,7 @@ def point_load_factor(
     lambda_min: float = 3.0,
     lambda_max: float = 40.0,
     taper: float = 0.3,
+    shifts_m: tuple[float, ...] = (0.0,),
 ) -> float:
     """``kappa``: the point load, per N of a measured point's force shared by its wheels,
     that makes the same band-passed dip over the reference zone (6 m, 45 %).
@@ -329,10 +337,13 @@ def point_load_factor(
     deflection basins, smoothed over the wheelbase: 0.46-0.51 for 2.6-1.8 m on the nominal
     track. On the reference zone passes with different wheels then give the same
     compliance dip per unit of their equivalent force; on a zone of 4-8 m the wheelbases of
-    1.9 and 2.6 m still differ by 5 % or less.
+    1.9 and 2.6 m still differ by 5 % or less. ``shifts_m`` (m): the level is averaged over
+    these shifts (:func:`view_shifts`).
     """
     i = int(np.argmin(np.abs(_LOSSES - REFERENCE_ZONE_LOSS)))
-    own = zone_depths(params, lambda_min, lambda_max, taper, tuple(wheel_offsets_m))[1][i]
+    own = zone_depths(
+        params, lambda_min, lambda_max, taper, tuple(wheel_offsets_m), tuple(shifts_m)
+    )[1][i]
     point = zone_depths(params, lambda_min, lambda_max, taper)[1][i]
     return float(own / point)
 
@@ -344,6 +355,53 @@ def uniform_load_factor(infl: InfluenceLine, wheel_offsets_m: tuple[float, ...])
     ``a`` apart, ``f`` the influence line."""
     o = np.asarray(wheel_offsets_m, dtype=float)
     return float(infl(o[:, None] - o[None, :]).sum() / (o.size**2 * infl(np.zeros(1))[0]))
+
+
+def view_shifts(wheel_offsets: Sequence[tuple[float, ...]]) -> list[tuple[float, ...]]:
+    """Per pass, the shifts (m) over which its level is averaged so that every pass sees the
+    geometry through the same wheels.
+
+    A pass's level holds the geometry averaged under its own wheels (``A_j g``: the mean of
+    ``g`` at the wheel offsets). A coach's bogie (2.6 m) and a wagon's (1.9 m) see the same
+    rail differently at 3-8 m wavelengths (2.6 m cancels 5.2 m), by about as much as a
+    zone's deflection differs between them: the separation would read that as compliance.
+    The averages commute, so averaging each pass over every *other* distinct set of wheels
+    gives all of them the same ``(prod_k A_k) g``. Sets are told apart to 1 mm; a single
+    wheel at the measured point averages nothing (passes that all have one change nothing).
+    """
+    keys = [tuple(sorted(round(float(o), 3) for o in w)) for w in wheel_offsets]
+    distinct = [k for k in dict.fromkeys(keys) if k != (0.0,)]
+    out: list[tuple[float, ...]] = []
+    for key in keys:
+        shifts: tuple[float, ...] = (0.0,)
+        for other in distinct:
+            if other != key:
+                shifts = tuple(t + o for t in shifts for o in other)
+        out.append(shifts)
+    return out
+
+
+def _shift_mean(
+    grid: NDArray[np.float64], y: NDArray[np.float64], shifts: tuple[float, ...]
+) -> NDArray[np.float64]:
+    """``y`` (on the regular ``grid``, m) averaged over ``y(x + t)`` for ``t`` in ``shifts``
+    (m); NaN where a shifted point leaves the covered part (or comes within two steps of a
+    gap). Cubic-spline interpolation between grid points: a shift is rarely a whole step, and
+    linear interpolation would damp 3 m waves by up to 3 %."""
+    if shifts == (0.0,):
+        return y
+    ok = np.isfinite(y)
+    if ok.sum() < 8:
+        return np.full_like(y, np.nan)
+    idx = np.flatnonzero(ok)
+    # gaps and ends filled smoothly so the spline does not ring off a jump
+    spline = make_interp_spline(grid, np.interp(grid, grid[idx], y[idx]), k=3)
+    out = np.mean([spline(grid + t) for t in shifts], axis=0)
+    clear = np.convolve(ok.astype(float), np.ones(5), mode="same") > 4.5
+    valid = np.ones(grid.size, dtype=bool)
+    for t in shifts:
+        valid &= np.interp(grid + t, grid, clear.astype(float), left=0.0, right=0.0) > 0.999
+    return np.where(valid, out, np.nan)
 
 
 def _edge_variance(
@@ -425,8 +483,10 @@ def separate(
     sink, kappa = np.ones(n_pass), np.ones(n_pass)
     for j, p in enumerate(passes):
         _check_wheels(j, p)
+    shifts = view_shifts([p.wheel_offsets_m for p in passes])
+    for j, p in enumerate(passes):
         sink[j] = uniform_load_factor(infl, p.wheel_offsets_m)
-        kappa[j] = point_load_factor(trk, p.wheel_offsets_m, *band)
+        kappa[j] = point_load_factor(trk, p.wheel_offsets_m, *band, shifts_m=shifts[j])
     fbar = np.array([float(np.nanmean(f)) if np.isfinite(f).any() else np.nan for f in forces])
     c0 = float(infl(np.zeros(1))[0]) * 1e3  # mm/N
     # force correction: the nominal track's deflection under each pass's dynamic force
@@ -437,6 +497,8 @@ def separate(
             z[j] = levels[j] + sink[j] * c0 * bandpass_distance(
                 df, step, cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper
             )
+        # every pass sees the geometry through every vehicle's wheels (view_shifts)
+        z[j] = _shift_mean(grid, z[j], shifts[j])
     contributors = [(p.label, p.kind, float(fbar[j])) for j, p in enumerate(passes)]
     # from here on every force is the equivalent point load (the fit's and the message's)
     fbar = fbar * kappa
@@ -449,10 +511,12 @@ def separate(
 
     # near a pass's ends the inversion's band edges ring over ~lambda_max: an error growing
     # with the rail's roughness (docs/method.md, measured) enters as extra variance
-    edge_var = _edge_variance(grid, levels, step, cfg)
+    viewed = np.array([_shift_mean(grid, levels[j], shifts[j]) for j in range(n_pass)])
+    edge_var = _edge_variance(grid, viewed, step, cfg)
     # per-pass noise from the residuals (two rounds); the prior where no dof is left
     noise_mm = np.full(n_pass, cfg.prior_noise_mm)
     fit_ok = (n_cov >= 2) & (ratio > 1.0 + 1e-6)
+    estimated = np.zeros(n_pass, dtype=bool)
     for _ in range(2):
         weights = 1.0 / (noise_mm[:, None] ** 2 + edge_var)
         a, b, var_a, var_b, fm, resid, _n = _weighted_fit(z, fbar, weights)
@@ -460,7 +524,8 @@ def separate(
         new = np.empty(n_pass)
         for j in range(n_pass):
             use = cov[j] & fit_ok & (dof > 0) & (edge_var[j] < noise_mm[j] ** 2)
-            if use.sum() < 40:
+            estimated[j] = use.sum() >= 40
+            if not estimated[j]:
                 new[j] = cfg.prior_noise_mm
                 continue
             # residual variance scaled up for the fitted parameters' share (n / (n - 2))
@@ -469,14 +534,18 @@ def separate(
             new[j] = max(sig * math.sqrt(scale), 0.25 * cfg.prior_noise_mm)
         noise_mm = new
 
-    sd_b = np.sqrt(var_b)  # mm/N
     with np.errstate(invalid="ignore"):  # each pass's coefficient in the slope
         coef = np.where(np.isfinite(z) & fit_ok, weights * (fbar[:, None] - fm) * var_b, 0.0)
-    wheels = _slope_wheel_sets(passes, np.nan_to_num(coef), fbar)
+    wheels = _slope_wheel_sets(passes, shifts, np.nan_to_num(coef), fbar)
+    if not estimated.any():
+        clear = fit_ok & np.all((edge_var < noise_mm[:, None] ** 2) | ~cov, axis=0)
+        s2 = _band_noise_scale(grid, b, np.sqrt(var_b), clear) ** 2
+        var_a, var_b = var_a * s2, var_b * s2
+    sd_b = np.sqrt(var_b)  # mm/N
     losses = zone_depths(trk, *band)[0]
     depths = cfg.reference_load_n * sum(
-        alpha * zone_depths(trk, *band, o)[1] / point_load_factor(trk, o, *band)
-        for o, alpha in wheels
+        alpha * zone_depths(trk, *band, o, t)[1] / point_load_factor(trk, o, *band, shifts_m=t)
+        for (o, t), alpha in wheels
     )
     dip_mm = -cfg.reference_load_n * b  # level dip under the reference load (negative = soft)
     dip_sd = cfg.reference_load_n * sd_b
@@ -538,6 +607,32 @@ def separate(
     )
 
 
+def _band_noise_scale(
+    grid: NDArray[np.float64],
+    dip_mm: NDArray[np.float64],
+    dip_sd: NDArray[np.float64],
+    clear: NDArray[np.bool_],
+) -> float:
+    """How much larger the noise of the compliance profile is, where a zone's dip is looked
+    for, than the fit's own estimate from the prior per-pass noise.
+
+    With no residual left (two passes, or two loads) the passes' noise is a prior: a
+    broadband floor, while soft spots are found after removing a 40 m baseline
+    (:func:`_soft_spots`), where the inversion's long-wave errors have gone. The measure is
+    the robust spread of that baseline-free profile over the points clear of the passes'
+    ends (zones are sparse; a track full of them reads noisier, the safe side), over the
+    median of the fit's standard deviation there; 1 with less than 40 m to measure on.
+    """
+    step = float(grid[1] - grid[0])
+    ok = clear & np.isfinite(dip_mm) & np.isfinite(dip_sd)
+    if ok.sum() * step < 40.0:
+        return 1.0
+    resid = dip_mm - robust_baseline(np.where(ok, dip_mm, np.nan), step, 40.0)
+    spread = robust_sigma(resid[ok])
+    own = float(np.median(dip_sd[ok]))
+    return max(spread / own, 0.25) if own > 0 and math.isfinite(spread) else 1.0
+
+
 def _check_wheels(j: int, p: Pass) -> None:
     """Pass ``j``'s wheel offsets: finite, some, within 10 m of the measured point."""
     o = p.wheel_offsets_m
@@ -549,10 +644,18 @@ def _check_wheels(j: int, p: Pass) -> None:
         )
 
 
+_View = tuple[tuple[float, ...], tuple[float, ...]]
+"""How a pass sees the rail: its wheels' offsets and the shifts its level is averaged over, m."""
+
+
 def _slope_wheel_sets(
-    passes: Sequence[Pass], a: NDArray[np.float64], fbar: NDArray[np.float64]
-) -> tuple[tuple[tuple[float, ...], float], ...]:
-    """What the fitted slope is made of: per set of wheels (offsets, m) its share ``alpha``.
+    passes: Sequence[Pass],
+    shifts: Sequence[tuple[float, ...]],
+    a: NDArray[np.float64],
+    fbar: NDArray[np.float64],
+) -> tuple[tuple[_View, float], ...]:
+    """What the fitted slope is made of: per view (wheel offsets and the shifts of
+    :func:`view_shifts`, m) its share ``alpha``.
 
     The slope is ``b = sum_j a_j z_j`` with ``a_j = w_j (Fbar_j - Fmean) / Sxx``, so each
     pass's compliance dip enters it with ``alpha_j = a_j Fbar_j`` (summing to 1): with a
@@ -562,12 +665,12 @@ def _slope_wheel_sets(
     """
     used = max(int(np.any(a != 0, axis=0).sum()), 1)
     alpha = np.nan_to_num(a * fbar[:, None]).sum(axis=1) / used
-    by_wheels: dict[tuple[float, ...], float] = {}
-    for p, v in zip(passes, alpha, strict=True):
-        key = tuple(float(o) for o in p.wheel_offsets_m)
-        by_wheels[key] = by_wheels.get(key, 0.0) + float(v)
-    sets = tuple((k, v) for k, v in by_wheels.items() if v != 0.0)
-    return sets or (((0.0,), 1.0),)
+    by_view: dict[_View, float] = {}
+    for p, t, v in zip(passes, shifts, alpha, strict=True):
+        key = (tuple(float(o) for o in p.wheel_offsets_m), tuple(t))
+        by_view[key] = by_view.get(key, 0.0) + float(v)
+    sets = tuple((k, v) for k, v in by_view.items() if v != 0.0)
+    return sets or ((((0.0,), (0.0,)), 1.0),)
 
 
 def _soft_spots(
@@ -576,11 +679,12 @@ def _soft_spots(
     dip_sd: NDArray[np.float64],
     trk: TrackParams,
     cfg: SeparationConfig,
-    wheels: tuple[tuple[tuple[float, ...], float], ...] = (((0.0,), 1.0),),
+    wheels: tuple[tuple[_View, float], ...] = ((((0.0,), (0.0,)), 1.0),),
 ) -> list[SeparatedSpot]:
     """Significant compliance dips, fitted with the beam-on-supports model under the blend
     of wheels the slope is made of (:func:`_slope_wheel_sets`), each set's force the
-    equivalent of the reference load."""
+    equivalent of the reference load; a view's shifts are its wheels moved together, each
+    with an equal share."""
     step = float(grid[1] - grid[0])
     resid = dip_mm - robust_baseline(dip_mm, step, 40.0)
     spread = robust_sigma(resid)
@@ -591,8 +695,14 @@ def _soft_spots(
     cand, _ = find_dips(grid, scaled, replace(det, noise_factor=1.0, min_depth_mm=cfg.noise_factor))
     band = (cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper)
     sets = tuple(
-        (o, alpha * cfg.reference_load_n / (len(o) * point_load_factor(trk, o, *band)))
-        for o, alpha in wheels
+        (
+            tuple(w + t for w in o),
+            alpha
+            * cfg.reference_load_n
+            / (len(o) * len(ts) * point_load_factor(trk, o, *band, shifts_m=ts)),
+        )
+        for (o, ts), alpha in wheels
+        for t in ts
     )
     load = cfg.reference_load_n
     half = 0.5 * trk.spacing
