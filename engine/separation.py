@@ -17,14 +17,16 @@ runs on equivalent point loads ``F_j kappa_j``: ``kappa_j`` makes a pass's dip o
 reference zone that of a point load (1 for a half car's axle, 0.46-0.51 for a bogie,
 :func:`point_load_factor`); the dynamic-force correction uses the sinkage of sound track
 instead (:func:`uniform_load_factor`). The slope is then a known blend of the passes' own
-dips, and the soft spots are fitted with that blend of their wheels. The
-pass weights are the inverse variances of each pass's residual (run-to-run scatter: speed,
-dynamics, sensor noise), estimated from the fit itself when there are more passes than
-distinct unknowns. Soft spots are dips of the compliance (as the level dip they cause under a
+dips, and the soft spots are fitted with that blend of their wheels. Passes with different
+wheels see the geometry through different averages; each is averaged through the others'
+wheels (:func:`view_shifts`) so that all share one. The pass weights are the inverse
+variances of each pass's residual (run-to-run scatter: speed, dynamics, sensor noise),
+estimated from the fit itself when there are more passes than distinct unknowns, else from
+the spread of the compliance where zones are looked for. Soft spots are dips of the compliance (as the level dip they cause under a
 reference load) fitted with the beam-on-discrete-supports model (:func:`engine.stiffness
 .fit_zone`, same band-pass as the profile). Details and assumptions: docs/method.md.
 
-One module, about 650 lines: the pass model, the per-point fit, the windowing of the
+One module, about 750 lines: the pass model, the per-point fit, the windowing of the
 result and the soft-spot extraction share the result object and its grid conventions; split,
 each part would import the others' private helpers.
 """
@@ -184,8 +186,10 @@ class SeparationResult:
     chainage_m : ndarray
         Common grid, m.
     geometry_mm, geometry_sd_mm : ndarray
-        Unloaded geometry in the band (mm, positive up) and its standard deviation. Where not
-        separable, the mean force-corrected loaded level assuming nominal stiffness.
+        Unloaded geometry in the band (mm, positive up) and its standard deviation, as every
+        pass's wheels together see it (:func:`view_shifts`; the rail itself when every pass
+        has one wheel at its measured point). Where not separable, the mean force-corrected
+        loaded level assuming nominal stiffness.
     k_rel, k_rel_lo, k_rel_hi : ndarray
         Support stiffness over nominal and its band (NaN where not separable). Outside soft
         spots ``k_rel`` is 1 and ``k_rel_lo`` is 1 minus the smallest loss the passes would
