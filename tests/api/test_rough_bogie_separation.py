@@ -1,0 +1,96 @@
+"""Issue 32 through the API: a passenger coach and a freight wagon over rough rail on one
+track give every soft zone in the track's register, with its separated loss.
+
+One 400 m track made with the engine's bogie-vehicle forward model (German low-disturbance
+geometry, +-5 % support scatter, two zones of 5.4-6 m with 45-50 % loss); two coach runs (27
+and 24 m/s) and two wagon runs (19 and 21 m/s) through the realistic sensor at 500 Hz, with
+logged start chainages off by up to +-1.5 m, uploaded as CSV with the engine's presets
+``passenger_coach`` and ``freight_wagon`` (stored on first use). The aligned chainage is the
+frame of the first run uploaded, so the truth is compared after that run's start error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+from collections.abc import Iterator
+from datetime import UTC, datetime, timedelta
+from typing import Any
+
+import pytest
+from starlette.testclient import TestClient
+
+from app.main import create_app
+from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH
+from engine.logio import write_run_csv
+from engine.synthetic import REALISTIC_SENSOR, make_run, make_track
+from engine.track import SoftZone
+from support.app_fixtures import make_settings
+
+from .api_support import upload
+
+pytestmark = pytest.mark.slow
+
+SENSOR = dataclasses.replace(REALISTIC_SENSOR, sample_rate_hz=500.0)
+ZONES = (SoftZone(140.0, 146.0, 0.50), SoftZone(260.0, 265.4, 0.45))
+SEED = 6
+FLEET = (
+    ("passenger_coach", PASSENGER_COACH, 27.0, 1.2),
+    ("freight_wagon", FREIGHT_WAGON, 19.0, -1.5),
+    ("passenger_coach", PASSENGER_COACH, 24.0, -0.6),
+    ("freight_wagon", FREIGHT_WAGON, 21.0, 0.9),
+)
+"""The order the runs arrive in: preset, vehicle, speed (m/s), logged start error (m)."""
+TRACK = "rough coach and wagon"
+T0 = datetime(2026, 4, 6, 6, 0, tzinfo=UTC)
+
+
+@pytest.fixture(scope="module")
+def register(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+    """The four runs simulated, uploaded one by one; the track's stiffness and register."""
+    track = make_track(400.0, zones=ZONES, jitter=0.05, irregularity="german-low", seed=SEED)
+    settings = make_settings(tmp_path_factory.mktemp("rough-bogie"))
+    with TestClient(create_app(settings)) as client:
+        for i, (preset, vehicle, speed, err) in enumerate(FLEET):
+            syn = make_run(
+                track=track, vehicle=vehicle, speed=speed, sensor=SENSOR, sim_rate_hz=500.0,
+                seed=90 + i + SEED, start_chainage_m=12.0, start_error_m=err,
+            )  # fmt: skip
+            buf = io.StringIO()
+            write_run_csv(syn.log, buf, digits=8)
+            r = upload(
+                client, buf.getvalue().encode(), track=TRACK, vehicle=preset,
+                start_chainage_m=round(syn.logged_start_chainage_m, 2),
+                recorded_at=(T0 + timedelta(days=i)).isoformat(),
+            )  # fmt: skip
+            assert r.status_code == 201, r.text
+        yield {
+            "stiffness": client.get(f"/api/v1/tracks/{TRACK}/stiffness").json(),
+            "defects": client.get(f"/api/v1/tracks/{TRACK}/defects").json(),
+            "frame_error_m": FLEET[0][3],
+        }
+
+
+def test_coach_and_wagon_over_rough_rail_give_every_zone_in_the_register(
+    register: dict[str, Any],
+) -> None:
+    """Every zone is in the register with a separated loss within +-10 points and both ends
+    of its separated soft spot within +-1.5 m; the stiffness answer reports no other spot."""
+    err = register["frame_error_m"]
+    spots = sorted(register["stiffness"]["soft_spots"], key=lambda s: s["start_m"])
+    found = [(s["start_m"] - err, s["end_m"] - err, s["stiffness_loss_pct"]) for s in spots]
+    assert len(spots) == len(ZONES), f"found {found}, expected {ZONES}"
+    for (start, end, loss), zone in zip(found, ZONES, strict=True):
+        assert abs(start - zone.start_m) <= 1.5, (found, zone)
+        assert abs(end - zone.end_m) <= 1.5, (found, zone)
+        assert abs(loss - 100 * zone.loss) <= 10.0, (found, zone)
+    for zone in ZONES:
+        over = [
+            d for d in register["defects"]
+            if d["start_m"] - err <= zone.end_m and d["end_m"] - err >= zone.start_m
+        ]  # fmt: skip
+        assert any(
+            d["stiffness_basis"] == "separated"
+            and abs(d["stiffness_loss_pct"] - 100 * zone.loss) <= 10.0
+            for d in over
+        ), (zone, over)
