@@ -22,9 +22,10 @@ wheels see the geometry through different averages; each is averaged through the
 wheels (:func:`view_shifts`) so that all share one. The pass weights are the inverse
 variances of each pass's residual (run-to-run scatter: speed, dynamics, sensor noise),
 estimated from the fit itself when there are more passes than distinct unknowns, else from
-the spread of the compliance where zones are looked for. Soft spots are dips of the compliance (as the level dip they cause under a
-reference load) fitted with the beam-on-discrete-supports model (:func:`engine.stiffness
-.fit_zone`, same band-pass as the profile). Details and assumptions: docs/method.md.
+the spread of the compliance where zones are looked for. Soft spots are dips of the
+compliance (as the level dip they cause under a reference load) fitted with the
+beam-on-discrete-supports model (:func:`engine.stiffness.fit_zone`, same band-pass as the
+profile). Details and assumptions: docs/method.md.
 
 One module, about 750 lines: the pass model, the per-point fit, the windowing of the
 result and the soft-spot extraction share the result object and its grid conventions; split,
