@@ -1,6 +1,6 @@
 """Accuracy of a bogie vehicle's inversion and stiffness fit on the engine's own runs.
 
-Run: ``python benchmarks/accuracy_bogie.py [--seeds 3] [--draw listed|wide]``
+Run: ``python benchmarks/accuracy_bogie.py [--seeds 3] [--first-seed 0] [--draw listed|wide]``
 
 Each case simulates a bogie vehicle (the passenger coach or the freight wagon preset, with
 its true values off the registered ones by up to 10-15 %) over a 360 m track with three soft
@@ -90,6 +90,7 @@ def score(res, zones) -> dict[str, object]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--vehicles", nargs="*", default=["coach", "wagon"])
     ap.add_argument("--rails", nargs="*", default=["smooth", "rough"])
     ap.add_argument("--sensor", choices=("ideal", "mems"), default="mems")
@@ -110,7 +111,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.vehicles:
         for rail in args.rails:
-            for seed in range(args.seeds):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
                 rng = np.random.default_rng(1000 + seed)
                 zones = zones_for(rng, args.draw)
                 true = true_vehicle(registered[name], rng)
