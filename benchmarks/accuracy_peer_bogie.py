@@ -30,12 +30,12 @@ from dataclasses import replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 from scipy.signal import butter, sosfiltfilt  # noqa: E402
 
-from engine.bogie import BogieParams  # noqa: E402
 from engine.chainage import bandpass_distance  # noqa: E402
 from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import align_passes, pass_from_result  # noqa: E402
@@ -45,6 +45,7 @@ from engine.separation import separate  # noqa: E402
 from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
+from support.peer import datasheet, zones_as_built  # noqa: E402
 
 TOL_M = 1.5
 """Zone end tolerance, m (README section 5)."""
@@ -52,26 +53,6 @@ TOL_M = 1.5
 
 def default_dir() -> Path:
     return Path(os.environ.get("SHARED_DIR", "/work/shared")) / "data" / "peer-bogie"
-
-
-def bogie_from_truth(truth: dict) -> BogieParams:
-    """The vehicle as its datasheet gives it (whole vehicle), from the truth JSON."""
-    full = truth["vehicle"]["full_vehicle"]
-    per_rail = truth["vehicle"]["per_rail_model"]
-    return BogieParams(
-        body_mass_kg=full["body_mass_kg"],
-        body_pitch_inertia_kgm2=full["body_pitch_inertia_kgm2"],
-        bogie_mass_kg=full["bogie_frame_mass_kg_each"],
-        bogie_pitch_inertia_kgm2=full["bogie_frame_pitch_inertia_kgm2_each"],
-        wheelset_mass_kg=full["wheelset_mass_kg_each"],
-        bogie_half_spacing_m=0.5 * full["bogie_centre_distance_m"],
-        wheelbase_m=full["wheelbase_m"],
-        secondary_k_n_per_m=full["secondary_k_N_per_m_per_bogie_per_side"],
-        secondary_c_ns_per_m=full["secondary_c_Ns_per_m_per_bogie_per_side"],
-        primary_k_n_per_m=full["primary_k_N_per_m_per_axlebox"],
-        primary_c_ns_per_m=full["primary_c_Ns_per_m_per_axlebox"],
-        contact_k_n_per_m=per_rail["hertz_k_linearised_at_static_load_N_per_m"],
-    )
 
 
 def lumped_from_truth(truth: dict) -> VehicleParams:
@@ -154,9 +135,7 @@ def zone_scores(res: ProcessResult, zones: list[dict]) -> dict[str, object]:
 def process_one(csv: Path, vehicle_kind: str) -> tuple[ProcessResult, Vehicle, dict, float]:
     """The run processed as uploaded: result, vehicle, truth JSON, seconds."""
     truth = json.loads(csv.with_suffix(".truth.json").read_text())
-    vehicle: Vehicle = (
-        bogie_from_truth(truth) if vehicle_kind == "bogie" else lumped_from_truth(truth)
-    )
+    vehicle: Vehicle = datasheet(truth) if vehicle_kind == "bogie" else lumped_from_truth(truth)
     t0 = time.perf_counter()
     res = process_run(
         prepare_run(
@@ -199,7 +178,7 @@ def separate_rough(csvs: list[Path], vehicle_kind: str, truth_levels: bool = Fal
             passes[j] = replace(p, level_mm=np.where(np.isfinite(p.level_mm), t, np.nan))
     passes, offsets = align_passes(passes, recentre=not truth_levels)
     sep = separate(passes)
-    zones = done[0][2]["zones"]
+    zones = zones_as_built(done[0][2], dict(np.load(csvs[0].with_suffix(".truth.npz"))))
     covered = sep.n_passes > 0
     lines = [
         f"Separation of {', '.join(c.stem for c in csvs)} (vehicle {vehicle_kind}"
@@ -247,7 +226,8 @@ def run_one(csv: Path, vehicle_kind: str) -> dict[str, object]:
         "run": csv.stem,
         "time_s": elapsed,
         "geometry_smooth": bool(res.geometry_check.smooth),
-        **zone_scores(res, truth["zones"]),
+        **zone_scores(res, zones_as_built(truth, npz)),
+        "listed": zone_scores(res, truth["zones"])["zones"],
         **profile_scores(res, npz),
     }
 
@@ -256,21 +236,27 @@ def table(results: list[dict[str, object]], vehicle_kind: str) -> list[str]:
     lines = [
         f"Vehicle given: **{vehicle_kind}**.",
         "",
-        "| run | zone (true) | reported | Δstart, Δend (m) | loss true → reported (Δ pp) | found |",
-        "|---|---|---|---|---|---|",
+        "Zones where the peer's mesh has them (tests/support/peer.py); the README's listed "
+        "positions alongside.",
+        "",
+        "| run | zone (as built; listed) | reported | Δstart, Δend (m) | vs listed (m) "
+        "| loss true → reported (Δ pp) | found |",
+        "|---|---|---|---|---|---|---|",
     ]
     for r in results:
-        for z in r["zones"]:  # type: ignore[union-attr]
+        for z, zl in zip(r["zones"], r["listed"], strict=True):  # type: ignore[call-overload]
             a, b, loss = z["true"]
+            la, lb, _ = zl["true"]
+            head = f"| {r['run']} | {a:.1f}-{b:.1f} m; {la:.1f}-{lb:.1f} m, {loss:.0f} % |"
             if "reported" in z:
                 ra, rb, rl = z["reported"]
                 lines.append(
-                    f"| {r['run']} | {a:.1f}-{b:.1f} m, {loss:.0f} % | {ra:.1f}-{rb:.1f} m | "
-                    f"{z['d_start']:+.1f}, {z['d_end']:+.1f} | {loss:.0f} → {rl:.0f} % "
+                    f"{head} {ra:.1f}-{rb:.1f} m | {z['d_start']:+.1f}, {z['d_end']:+.1f} | "
+                    f"{zl['d_start']:+.1f}, {zl['d_end']:+.1f} | {loss:.0f} → {rl:.0f} % "
                     f"({z['loss_err_pp']:+.1f}) | {'yes' if z['found'] else 'no'} |"
                 )
             else:
-                lines.append(f"| {r['run']} | {a:.1f}-{b:.1f} m, {loss:.0f} % | — | — | — | no |")
+                lines.append(f"{head} — | — | — | — | no |")
     lines += [
         "",
         "| run | false zones | rail judged smooth | profile 3-25 m: RMS diff / truth RMS, corr, "

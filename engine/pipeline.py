@@ -172,11 +172,12 @@ def process_run(run: PreparedRun, *, budget: TimeBudget | None = None) -> Proces
     # the fused profile is the mean of the two measured points: each wheel carries the mean
     # wheel load, at its offset from its point (front and rear alike for every kind)
     load = float(np.mean(vehicle.static_wheel_loads()))
-    spots = _soft_spots(grid, residual, dips, cfg, trk, load, vehicle.axle_wheel_offsets_m[0])
+    wheels = vehicle.axle_wheel_offsets_m[0]
+    spots = _soft_spots(grid, residual, dips, cfg, trk, load, wheels)
     limit = detection_limit(
         thr, params=trk, load=load, lambda_min_m=cfg.lambda_min_m,
         lambda_max_m=cfg.lambda_max_m, taper=cfg.taper, step_m=step,
-        baseline_window_m=cfg.detection.baseline_window_m,
+        baseline_window_m=cfg.detection.baseline_window_m, wheel_offsets_m=wheels,
     )  # fmt: skip
     spent("the soft-spot detection")
     # a wrong vehicle turns into dips no track can have: fail rather than report them

@@ -48,6 +48,10 @@ class DipModel:
         Grid step of the profile, m.
     baseline_window_m : float
         The detector's baseline window, m.
+    wheel_offsets_m : tuple of float
+        The wheels of a measured point relative to it, m, each carrying ``load``: ``(0,)``
+        for a half car's axle, ``(+a/2, -a/2)`` for a bogie of wheelbase ``a`` (the profile
+        is the mean level under them, :func:`engine.stiffness.fit_zone`).
     """
 
     params: TrackParams
@@ -57,6 +61,7 @@ class DipModel:
     taper: float
     step_m: float
     baseline_window_m: float
+    wheel_offsets_m: tuple[float, ...] = (0.0,)
 
 
 def zone_dip_depths(
@@ -80,9 +85,12 @@ def zone_dip_depths(
     # the modes of softening the zone's supports (engine.stiffness.softening_modes), each
     # mode's squared influence band-passed row by row (cheaper than the band-pass matrix)
     lam, Q = np.linalg.eigh(infl(sup[:, None] - sup[None, :]))
-    C = Q.T @ infl(g[None, :] - sup[:, None])
+    # n wheels at x + o_k, each of the load: the mean level under them changes as one load
+    # of load / n with the influence summed over the wheels (engine.stiffness.fit_zone, Notes)
+    offsets = model.wheel_offsets_m
+    C = Q.T @ sum(infl(g[None, :] + o - sup[:, None]) for o in offsets)
     E = _bandpass_rows(C * C, step_m, lambda_min_m, lambda_max_m, taper)
-    dips = modal_dips(lam, E, losses, params.k_nominal, model.load)
+    dips = modal_dips(lam, E, losses, params.k_nominal, model.load / len(offsets))
     near = np.abs(g) <= 0.5 * n * s + 2 * lambda_min_m
     depth = np.empty(losses.size)
     for i, d in enumerate(dips):
@@ -114,6 +122,7 @@ def detection_limit(
     taper: float,
     step_m: float,
     baseline_window_m: float,
+    wheel_offsets_m: tuple[float, ...] = (0.0,),
 ) -> DetectionLimit:
     """The smallest stiffness loss a detector with ``threshold_mm`` finds, per zone length.
 
@@ -128,6 +137,8 @@ def detection_limit(
     load, lambda_min_m, lambda_max_m, taper, step_m, baseline_window_m : float
         The wheel load (N), the profile's band (m) and tapers, its grid step (m) and the
         detector's baseline window (m): a :class:`DipModel`.
+    wheel_offsets_m : tuple of float
+        The wheels of a measured point relative to it, m (:class:`DipModel`).
 
     Returns
     -------
@@ -147,6 +158,7 @@ def detection_limit(
     model = DipModel(
         params or TrackParams(), float(load), float(lambda_min_m), float(lambda_max_m),
         float(taper), float(step_m), float(baseline_window_m),
+        tuple(float(o) for o in wheel_offsets_m),
     )  # fmt: skip
     out = []
     for z in zone_lengths_m:
