@@ -31,10 +31,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
-from numpy.typing import NDArray  # noqa: E402
-from scipy.signal import butter, sosfiltfilt  # noqa: E402
 
-from engine.bogie import BogieParams  # noqa: E402
+from benchmarks.peer_truth import bogie_from_truth, bogie_mean_truth, butter_band  # noqa: E402
 from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
@@ -52,45 +50,11 @@ def default_dir() -> Path:
     return Path(os.environ.get("SHARED_DIR", "/work/shared")) / "data" / "peer-bogie"
 
 
-def bogie_from_truth(truth: dict) -> BogieParams:
-    """The vehicle as its datasheet gives it (whole vehicle), from the truth JSON."""
-    full = truth["vehicle"]["full_vehicle"]
-    per_rail = truth["vehicle"]["per_rail_model"]
-    return BogieParams(
-        body_mass_kg=full["body_mass_kg"],
-        body_pitch_inertia_kgm2=full["body_pitch_inertia_kgm2"],
-        bogie_mass_kg=full["bogie_frame_mass_kg_each"],
-        bogie_pitch_inertia_kgm2=full["bogie_frame_pitch_inertia_kgm2_each"],
-        wheelset_mass_kg=full["wheelset_mass_kg_each"],
-        bogie_half_spacing_m=0.5 * full["bogie_centre_distance_m"],
-        wheelbase_m=full["wheelbase_m"],
-        secondary_k_n_per_m=full["secondary_k_N_per_m_per_bogie_per_side"],
-        secondary_c_ns_per_m=full["secondary_c_Ns_per_m_per_bogie_per_side"],
-        primary_k_n_per_m=full["primary_k_N_per_m_per_axlebox"],
-        primary_c_ns_per_m=full["primary_c_Ns_per_m_per_axlebox"],
-        contact_k_n_per_m=per_rail["hertz_k_linearised_at_static_load_N_per_m"],
-    )
-
-
 def lumped_from_truth(truth: dict) -> VehicleParams:
     """The README's lumped half car (each bogie one axle)."""
     h = truth["half_car_lumped"]
     keys = ("ms", "Is", "mu1", "mu2", "ks1", "ks2", "cs1", "cs2", "kt1", "kt2", "d1", "d2")
     return VehicleParams(**{k: h[k] for k in keys})
-
-
-def butter_band(y: NDArray[np.float64], step: float, lo: float, hi: float) -> NDArray[np.float64]:
-    """Zero-phase 4th-order Butterworth band-pass in wavenumber (wavelengths lo..hi m)."""
-    nyq = 0.5 / step
-    sos = butter(4, [1.0 / hi / nyq, 1.0 / lo / nyq], btype="band", output="sos")
-    return np.asarray(sosfiltfilt(sos, y))
-
-
-def bogie_mean_truth(npz: dict, grid: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The bogie-mean truth level on ``grid`` (m), NaN where not both bogies passed."""
-    f = np.interp(grid, npz["x_front_bogie"], npz["level_front_bogie"], left=np.nan, right=np.nan)
-    r = np.interp(grid, npz["x_rear_bogie"], npz["level_rear_bogie"], left=np.nan, right=np.nan)
-    return 0.5 * (f + r)
 
 
 def profile_scores(res: ProcessResult, npz: dict) -> dict[str, float]:

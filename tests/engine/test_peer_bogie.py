@@ -11,9 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.signal import butter, sosfiltfilt
 
-from engine.bogie import BogieParams
+from benchmarks.peer_truth import bogie_from_truth, bogie_mean_truth, butter_band
 from engine.logio.parse import read_run_csv
 from engine.pipeline import process_run
 from engine.results import ProcessResult
@@ -29,29 +28,6 @@ def _peer(name: str) -> tuple[Path, dict]:
     return csv, json.loads(csv.with_suffix(".truth.json").read_text())
 
 
-def _datasheet(truth: dict) -> BogieParams:
-    full = truth["vehicle"]["full_vehicle"]
-    return BogieParams(
-        body_mass_kg=full["body_mass_kg"],
-        body_pitch_inertia_kgm2=full["body_pitch_inertia_kgm2"],
-        bogie_mass_kg=full["bogie_frame_mass_kg_each"],
-        bogie_pitch_inertia_kgm2=full["bogie_frame_pitch_inertia_kgm2_each"],
-        wheelset_mass_kg=full["wheelset_mass_kg_each"],
-        bogie_half_spacing_m=0.5 * full["bogie_centre_distance_m"],
-        wheelbase_m=full["wheelbase_m"],
-        secondary_k_n_per_m=full["secondary_k_N_per_m_per_bogie_per_side"],
-        secondary_c_ns_per_m=full["secondary_c_Ns_per_m_per_bogie_per_side"],
-        primary_k_n_per_m=full["primary_k_N_per_m_per_axlebox"],
-        primary_c_ns_per_m=full["primary_c_Ns_per_m_per_axlebox"],
-        contact_k_n_per_m=truth["contact"]["k_linearised_N_per_m"],
-    )
-
-
-def _band(y: np.ndarray, step: float) -> np.ndarray:
-    sos = butter(4, [step * 2 / 25.0, step * 2 / 3.0], btype="band", output="sos")
-    return np.asarray(sosfiltfilt(sos, y))
-
-
 @pytest.fixture(scope="module")
 def coach_smooth() -> tuple[ProcessResult, dict, dict]:
     csv, truth = _peer("pub_coach_smooth")
@@ -61,7 +37,7 @@ def coach_smooth() -> tuple[ProcessResult, dict, dict]:
             RunSetup(
                 start_chainage_m=truth["start_chainage_m"],
                 direction=truth["direction"],
-                vehicle=_datasheet(truth),
+                vehicle=bogie_from_truth(truth),
             ),
         )
     )
@@ -72,12 +48,11 @@ def test_peer_coach_profile_is_the_bogie_mean_level(coach_smooth) -> None:
     """The loaded profile equals the peer's bogie-mean level in the 3-25 m band."""
     res, _, npz = coach_smooth
     x = res.chainage_m
-    f = np.interp(x, npz["x_front_bogie"], npz["level_front_bogie"], left=np.nan, right=np.nan)
-    r = np.interp(x, npz["x_rear_bogie"], npz["level_rear_bogie"], left=np.nan, right=np.nan)
-    truth = 0.5 * (f + r) * 1e3
+    truth = bogie_mean_truth(npz, x) * 1e3
     ok = np.flatnonzero(np.isfinite(truth) & np.isfinite(res.level_mm))
     seg = slice(ok[0] + 100, ok[-1] - 100)  # 25 m dropped at each end
-    t, m = _band(truth[seg], 0.25), _band(res.level_mm[seg], 0.25)
+    step = float(x[1] - x[0])
+    t, m = butter_band(truth[seg], step, 3.0, 25.0), butter_band(res.level_mm[seg], step, 3.0, 25.0)
     assert np.corrcoef(m, t)[0, 1] > 0.99
     assert np.sqrt(np.mean((m - t) ** 2)) < 0.2 * np.sqrt(np.mean(t**2))
 
