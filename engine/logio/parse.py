@@ -9,7 +9,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import LogFormatError, ParameterError
-from ..plausibility import check_chainage, check_time_steps
+from ..plausibility import (
+    ACCEL_LIMIT_MPS2,
+    PITCH_RATE_LIMIT_RADPS,
+    SPEED_MAX_MPS,
+    SPEED_MIN_MPS,
+    WHEEL_LOAD_MAX_N,
+    WHEEL_LOAD_MIN_N,
+    check_chainage,
+    check_time_steps,
+)
 from ..runlog import RunLog
 from ..scan import first_at_most, first_beyond, first_nonfinite, first_outside, first_true
 from ..vehicle import GRAVITY
@@ -34,18 +43,7 @@ from .source import (
     _Source,
 )
 from .table import _parse_table, _Table
-from .units import (
-    ACCEL_LIMIT_MPS2,
-    EPOCH_MS_THRESHOLD,
-    GRAVITY_TOLERANCE_MPS2,
-    PITCH_RATE_LIMIT_RADPS,
-    SPEED_MAX_MPS,
-    SPEED_MIN_MPS,
-    WHEEL_LOAD_MAX_N,
-    WHEEL_LOAD_MIN_N,
-    _auto_gravity,
-    resolve_units,
-)
+from .units import EPOCH_MS_THRESHOLD, GRAVITY_TOLERANCE_MPS2, _auto_gravity, resolve_units
 
 MIN_SAMPLES = 200
 """Fewest samples a log may have: shorter runs are too short to invert."""
