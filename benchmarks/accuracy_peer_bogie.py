@@ -30,12 +30,16 @@ from dataclasses import replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
-from scipy.signal import butter, sosfiltfilt  # noqa: E402
 
+from benchmarks.peer_truth import (  # noqa: E402
+    bogie_from_truth,
+    bogie_mean_truth,
+    butter_band,
+    zones_as_built,
+)
 from engine.chainage import bandpass_distance  # noqa: E402
 from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import align_passes, pass_from_result  # noqa: E402
@@ -45,7 +49,6 @@ from engine.separation import separate  # noqa: E402
 from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
-from support.peer import datasheet, zones_as_built  # noqa: E402
 
 TOL_M = 1.5
 """Zone end tolerance, m (README section 5)."""
@@ -60,20 +63,6 @@ def lumped_from_truth(truth: dict) -> VehicleParams:
     h = truth["half_car_lumped"]
     keys = ("ms", "Is", "mu1", "mu2", "ks1", "ks2", "cs1", "cs2", "kt1", "kt2", "d1", "d2")
     return VehicleParams(**{k: h[k] for k in keys})
-
-
-def butter_band(y: NDArray[np.float64], step: float, lo: float, hi: float) -> NDArray[np.float64]:
-    """Zero-phase 4th-order Butterworth band-pass in wavenumber (wavelengths lo..hi m)."""
-    nyq = 0.5 / step
-    sos = butter(4, [1.0 / hi / nyq, 1.0 / lo / nyq], btype="band", output="sos")
-    return np.asarray(sosfiltfilt(sos, y))
-
-
-def bogie_mean_truth(npz: dict, grid: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The bogie-mean truth level on ``grid`` (m), NaN where not both bogies passed."""
-    f = np.interp(grid, npz["x_front_bogie"], npz["level_front_bogie"], left=np.nan, right=np.nan)
-    r = np.interp(grid, npz["x_rear_bogie"], npz["level_rear_bogie"], left=np.nan, right=np.nan)
-    return 0.5 * (f + r)
 
 
 def profile_scores(res: ProcessResult, npz: dict) -> dict[str, float]:
@@ -135,7 +124,9 @@ def zone_scores(res: ProcessResult, zones: list[dict]) -> dict[str, object]:
 def process_one(csv: Path, vehicle_kind: str) -> tuple[ProcessResult, Vehicle, dict, float]:
     """The run processed as uploaded: result, vehicle, truth JSON, seconds."""
     truth = json.loads(csv.with_suffix(".truth.json").read_text())
-    vehicle: Vehicle = datasheet(truth) if vehicle_kind == "bogie" else lumped_from_truth(truth)
+    vehicle: Vehicle = (
+        bogie_from_truth(truth) if vehicle_kind == "bogie" else lumped_from_truth(truth)
+    )
     t0 = time.perf_counter()
     res = process_run(
         prepare_run(
@@ -236,7 +227,7 @@ def table(results: list[dict[str, object]], vehicle_kind: str) -> list[str]:
     lines = [
         f"Vehicle given: **{vehicle_kind}**.",
         "",
-        "Zones where the peer's mesh has them (tests/support/peer.py); the README's listed "
+        "Zones where the peer's mesh has them (benchmarks/peer_truth.py); the README's listed "
         "positions alongside.",
         "",
         "| run | zone (as built; listed) | reported | Δstart, Δend (m) | vs listed (m) "

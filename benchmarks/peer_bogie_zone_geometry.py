@@ -8,7 +8,7 @@ On ``pub_coach_smooth``, :func:`engine.stiffness.fit_zone` (the coach's two whee
 second wheelset (each wheel's own and its bogie neighbour's load), the truth's front-bogie
 mean level, and the bogie-mean level of an exact static Euler-Bernoulli rail (0.3 m
 elements) on the truth's sleeper table, with the sleepers at their listed positions and as
-ROSE's ``combine_horizontal_tracks`` builds the track (``tests/support/peer.py``). Prints the
+ROSE's ``combine_horizontal_tracks`` builds the track (``benchmarks/peer_truth.py``). Prints the
 first/last fitted support minus the listed first/last soft sleeper (m) and the loss; then,
 per wheel and zone, the RMS residual of the static rail's displacement against the truth's
 (gain and offset fitted) for both sleeper positions.
@@ -23,19 +23,18 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spl  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
+from benchmarks.peer_truth import joint_gap_m  # noqa: E402
 from engine.beam import element_matrices, hermite_shape  # noqa: E402
 from engine.chainage import bandpass_distance  # noqa: E402
 from engine.detect import robust_baseline  # noqa: E402
 from engine.stiffness import fit_zone  # noqa: E402
 from engine.track import TrackParams  # noqa: E402
-from support.peer import joint_gap_m  # noqa: E402
 
 STEP = 0.25
 ELEMENT_M = 0.3

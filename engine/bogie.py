@@ -22,14 +22,14 @@ the bogie-mean level.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import ParameterError, reject_unknown_keys
-from .vehicle import GRAVITY, VehicleParams, _param, check_fields
+from .errors import ParameterError
+from .vehicle import GRAVITY, Link, VehicleKindBase, VehicleParams, _param
 
 N_DOF = 10
 """Degrees of freedom of the per-rail bogie vehicle."""
@@ -39,7 +39,7 @@ WHEEL_DOFS = np.arange(6, 10)
 
 
 @dataclass(frozen=True)
-class BogieParams:
+class BogieParams(VehicleKindBase):
     """A four-axle bogie vehicle as its datasheet gives it (whole vehicle, SI).
 
     Parameters
@@ -74,6 +74,7 @@ class BogieParams:
     """
 
     kind: ClassVar[str] = "bogie"
+    what: ClassVar[str] = "bogie-vehicle parameter"
     rails: ClassVar[int] = 2
     """The datasheet is the whole vehicle: both rails."""
 
@@ -111,7 +112,7 @@ class BogieParams:
     )  # fmt: skip
 
     def __post_init__(self) -> None:
-        check_fields(self)
+        super().__post_init__()
         if self.wheelbase_m / 2 >= self.bogie_half_spacing_m:
             raise ParameterError(
                 f"vehicle parameter wheelbase_m ({self.wheelbase_m:g} m) must be shorter than "
@@ -120,24 +121,9 @@ class BogieParams:
                 field="wheelbase_m",
             )
 
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> BogieParams:
-        """Build from a mapping (``kind`` may be given: it must be ``"bogie"``); unknown
-        keys are an error, missing ones take the passenger-coach defaults."""
-        data = dict(data)
-        kind = data.pop("kind", cls.kind)
-        if kind != cls.kind:
-            raise ParameterError(f"vehicle kind must be {cls.kind!r}, got {kind!r}", field="kind")
-        reject_unknown_keys(data, (f.name for f in fields(cls)), "bogie-vehicle parameter")
-        return cls(**data)
-
     def to_dict(self) -> dict[str, Any]:
         """Parameters as a plain dict (SI units), with ``kind``."""
         return {"kind": self.kind, **asdict(self)}
-
-    def replace(self, **changes: float) -> BogieParams:
-        """A copy with some parameters changed (validated like a new one)."""
-        return BogieParams.from_dict({**self.to_dict(), **changes})
 
     def with_body_mass(self, ms: float) -> BogieParams:
         """The vehicle with another per-rail body mass ``ms``, kg (the half car's ``ms``
@@ -237,20 +223,11 @@ class BogieParams:
         F[[8, 9], 1] = self.contact_k_n_per_m
         return F
 
-    def matrices(
-        self,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """Per-rail mass, damping and stiffness matrices (contact springs included), SI.
-
-        Returns
-        -------
-        M, C, K : ndarray, shape (10, 10)
-            For the DOFs of the module docstring. ``K`` has each wheel's contact stiffness on
-            its diagonal; the rail level enters a wheel's equation as ``k_c y_w``.
-        """
+    def suspension_links(self) -> list[Link]:
+        """Each bogie side's secondary links the body point above the bogie centre to the
+        frame; each axle box's primary links the frame point above the wheel to the wheel."""
         L, a = self.bogie_half_spacing_m, 0.5 * self.wheelbase_m
-        M = np.diag(self.masses())
-        links: list[tuple[NDArray[np.float64], float, float]] = []
+        links: list[Link] = []
         ks, cs = self.secondary_k_n_per_m, self.secondary_c_ns_per_m
         kp, cp = self.primary_k_n_per_m, self.primary_c_ns_per_m
         for b, sign in ((2, 1.0), (4, -1.0)):
@@ -261,10 +238,7 @@ class BogieParams:
             v = np.zeros(N_DOF)
             v[[b, b + 1, 6 + w]] = 1.0, sign * a, -1.0  # frame point above the wheel - wheel
             links.append((v, kp, cp))
-        K = sum((k * np.outer(v, v) for v, k, _ in links), np.zeros((N_DOF, N_DOF)))
-        C = sum((c * np.outer(v, v) for v, _, c in links), np.zeros((N_DOF, N_DOF)))
-        K[WHEEL_DOFS, WHEEL_DOFS] += self.contact_k_n_per_m
-        return M, C, K
+        return links
 
     def lumped_half_car(self) -> VehicleParams:
         """The half car a user would map this vehicle onto (each bogie one axle): body per

@@ -64,6 +64,29 @@ CANONICAL_NAMES = {
     "speed_mps": "speed_mps", "chainage_m": "chainage_m", "wheel_load_n": "wheel_load_n",
 }  # fmt: skip
 
+MAGNITUDES: dict[str, tuple[float, float, str, str]] = {
+    "accel_z_mps2": (
+        -ACCEL_LIMIT_MPS2, ACCEL_LIMIT_MPS2, "m/s²",
+        f"a vertical body acceleration (gravity removed) stays within ±{ACCEL_LIMIT_MPS2:g} m/s²",
+    ),
+    "pitch_rate_radps": (
+        -PITCH_RATE_LIMIT_RADPS, PITCH_RATE_LIMIT_RADPS, "rad/s",
+        f"a body pitch rate stays within ±{PITCH_RATE_LIMIT_RADPS:g} rad/s",
+    ),
+    "speed_mps": (
+        SPEED_MIN_MPS, SPEED_MAX_MPS, "m/s",
+        f"the speed must be between {SPEED_MIN_MPS:g} m/s (standstills cannot be inverted: "
+        f"cut them out) and {SPEED_MAX_MPS:g} m/s ({SPEED_MAX_MPS * 3.6:g} km/h)",
+    ),
+    "wheel_load_n": (
+        WHEEL_LOAD_MIN_N, WHEEL_LOAD_MAX_N, "N",
+        f"a static wheel load lies between {WHEEL_LOAD_MIN_N / 1e3:g} and "
+        f"{WHEEL_LOAD_MAX_N / 1e3:g} kN (is the unit right? N, kN or t)",
+    ),
+}  # fmt: skip
+"""The range of each sampled field of a log: lowest, highest, unit, and what the user is told
+when a sample lies outside; an optional field is checked where the log has it."""
+
 RowOf = Callable[[int], int]
 """Maps a 0-based sample index to the 1-based row reported to the user."""
 
@@ -213,27 +236,10 @@ def check_plausible(
     """
     n = {**CANONICAL_NAMES, **(names or {})}
     check_time_steps(log.time_s, n["time_s"], row_of)
-    _magnitude(
-        log.accel_z_mps2, n["accel_z_mps2"], row_of, -ACCEL_LIMIT_MPS2, ACCEL_LIMIT_MPS2, "m/s²",
-        f"a vertical body acceleration (gravity removed) stays within ±{ACCEL_LIMIT_MPS2:g} m/s²",
-    )  # fmt: skip
-    _magnitude(
-        log.pitch_rate_radps, n["pitch_rate_radps"], row_of, -PITCH_RATE_LIMIT_RADPS,
-        PITCH_RATE_LIMIT_RADPS, "rad/s",
-        f"a body pitch rate stays within ±{PITCH_RATE_LIMIT_RADPS:g} rad/s",
-    )  # fmt: skip
-    if log.speed_mps is not None:
-        _magnitude(
-            log.speed_mps, n["speed_mps"], row_of, SPEED_MIN_MPS, SPEED_MAX_MPS, "m/s",
-            f"the speed must be between {SPEED_MIN_MPS:g} m/s (standstills cannot be inverted: "
-            f"cut them out) and {SPEED_MAX_MPS:g} m/s ({SPEED_MAX_MPS * 3.6:g} km/h)",
-        )  # fmt: skip
-    if log.wheel_load_n is not None:
-        _magnitude(
-            log.wheel_load_n, n["wheel_load_n"], row_of, WHEEL_LOAD_MIN_N, WHEEL_LOAD_MAX_N, "N",
-            f"a static wheel load lies between {WHEEL_LOAD_MIN_N / 1e3:g} and "
-            f"{WHEEL_LOAD_MAX_N / 1e3:g} kN (is the unit right? N, kN or t)",
-        )  # fmt: skip
+    for field, (lo, hi, unit, what) in MAGNITUDES.items():
+        values = getattr(log, field)
+        if values is not None:
+            _magnitude(values, n[field], row_of, lo, hi, unit, what)
     if log.chainage_m is not None:
         check_chainage(log.chainage_m, log.time_s, n["chainage_m"], row_of)
         mean_v = abs(float(log.chainage_m[-1] - log.chainage_m[0])) / log.duration_s

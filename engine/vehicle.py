@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, Protocol, Self
 
 import numpy as np
 from numpy.typing import NDArray
@@ -87,8 +87,85 @@ def check_fields(params: Any) -> None:
             )
 
 
+Link = tuple[NDArray[np.float64], float, float]
+"""A suspension element: the DOF combination it stretches (its extension per unit DOF
+displacement), its stiffness (N/m) and its damping (N s/m)."""
+
+
+class VehicleKindBase:
+    """What every vehicle kind's parameter dataclass shares: checked fields, building from a
+    mapping, validated copies, and its equations assembled from its masses and suspension.
+
+    A kind sets :attr:`kind` and :attr:`what` and gives :meth:`masses`,
+    :meth:`suspension_links`, ``contact_dofs`` and ``contact_k``.
+    """
+
+    kind: ClassVar[str]
+    what: ClassVar[str]
+    """How a parameter of the kind is named in messages (``"vehicle parameter"``)."""
+    __dataclass_fields__: ClassVar[dict[str, Any]]  # every kind is a dataclass
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Self:
+        """Build from a mapping (``kind`` may be given: it must be the class's); unknown keys
+        are an error, missing ones take the kind's defaults."""
+        data = dict(data)
+        kind = data.pop("kind", cls.kind)
+        if kind != cls.kind:
+            raise ParameterError(f"vehicle kind must be {cls.kind!r}, got {kind!r}", field="kind")
+        reject_unknown_keys(data, (f.name for f in fields(cls)), cls.what)
+        return cls(**data)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Parameters as a plain dict (SI units)."""
+        return asdict(self)
+
+    def replace(self, **changes: float) -> Self:
+        """A copy with some parameters changed (validated like a new one)."""
+        return self.from_dict({**self.to_dict(), **changes})
+
+    def masses(self) -> NDArray[np.float64]:
+        """Mass (kg) or inertia (kg m²) of each DOF."""
+        raise NotImplementedError
+
+    def suspension_links(self) -> list[Link]:
+        """The suspension elements between the DOFs (contact springs apart)."""
+        raise NotImplementedError
+
+    @property
+    def contact_dofs(self) -> NDArray[np.intp]:
+        """DOF index of each wheel."""
+        raise NotImplementedError
+
+    @property
+    def contact_k(self) -> NDArray[np.float64]:
+        """Contact stiffness of each wheel, N/m."""
+        raise NotImplementedError
+
+    def matrices(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Mass, damping and stiffness matrices of the free vehicle (contact springs included),
+        SI, shape ``(n_dof, n_dof)``.
+
+        ``M`` is diagonal (:meth:`masses`); each suspension link ``(v, k, c)`` adds ``k v vᵀ``
+        to ``K`` and ``c v vᵀ`` to ``C``; ``K`` has each wheel's contact stiffness on its
+        DOF's diagonal, and the rail level enters that wheel's equation as ``k_c y``.
+        """
+        M = np.diag(self.masses())
+        n = M.shape[0]
+        links = self.suspension_links()
+        K = sum((k * np.outer(v, v) for v, k, _ in links), np.zeros((n, n)))
+        C = sum((c * np.outer(v, v) for v, _, c in links), np.zeros((n, n)))
+        K[self.contact_dofs, self.contact_dofs] += self.contact_k
+        return M, C, K
+
+
 @dataclass(frozen=True)
-class VehicleParams:
+class VehicleParams(VehicleKindBase):
     """Parameters of the half-car; defaults are the paper's Table 1 vehicle.
 
     Parameters
@@ -141,26 +218,7 @@ class VehicleParams:
     rails: ClassVar[int] = 1
     """Rails the parameters describe: the half car's are one rail's already."""
 
-    def __post_init__(self) -> None:
-        check_fields(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> VehicleParams:
-        """Build from a mapping; unknown keys are an error, missing keys take Table 1 values."""
-        data = dict(data)
-        kind = data.pop("kind", cls.kind)
-        if kind != cls.kind:
-            raise ParameterError(f"vehicle kind must be {cls.kind!r}, got {kind!r}", field="kind")
-        reject_unknown_keys(data, (f.name for f in fields(cls)), "vehicle parameter")
-        return cls(**data)
-
-    def to_dict(self) -> dict[str, float]:
-        """Parameters as a plain dict (SI units)."""
-        return asdict(self)
-
-    def replace(self, **changes: float) -> VehicleParams:
-        """A copy with some parameters changed (validated like a new one)."""
-        return VehicleParams.from_dict({**self.to_dict(), **changes})
+    what: ClassVar[str] = "vehicle parameter"
 
     def with_body_mass(self, ms: float) -> VehicleParams:
         """The vehicle with another body mass, kg (a payload carried, a load figure).
@@ -229,32 +287,17 @@ class VehicleParams:
         F[2, 0], F[3, 1] = self.kt1, self.kt2
         return F
 
-    def matrices(
-        self,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """Mass, damping and stiffness matrices of the free vehicle (contact springs included).
+    def masses(self) -> NDArray[np.float64]:
+        """Mass (kg) or inertia (kg m²) of each DOF ``[u_s, theta_s, u_u1, u_u2]``."""
+        return np.array([self.ms, self.Is, self.mu1, self.mu2])
 
-        Returns
-        -------
-        M, C, K : ndarray, shape (4, 4)
-            In SI units for the DOFs ``[u_s (m), theta_s (rad), u_u1 (m), u_u2 (m)]``.
-            ``K`` contains the contact stiffnesses ``kt1``, ``kt2`` on the axle diagonals; the
-            rail level enters the axle equations as a force ``kt_i * y_i``.
-        """
-        d1, d2 = self.d1, self.d2
-        M = np.diag([self.ms, self.Is, self.mu1, self.mu2])
-
-        def spring_matrix(k1: float, k2: float) -> NDArray[np.float64]:
-            # suspension i links body point (u_s + d1 th) or (u_s - d2 th) to axle i
-            a1 = np.array([1.0, d1, -1.0, 0.0])
-            a2 = np.array([1.0, -d2, 0.0, -1.0])
-            return k1 * np.outer(a1, a1) + k2 * np.outer(a2, a2)
-
-        C = spring_matrix(self.cs1, self.cs2)
-        K = spring_matrix(self.ks1, self.ks2)
-        K[2, 2] += self.kt1
-        K[3, 3] += self.kt2
-        return M, C, K
+    def suspension_links(self) -> list[Link]:
+        """Suspension ``i`` links the body point above axle ``i`` (``u_s + d1 theta_s`` or
+        ``u_s - d2 theta_s``) to the axle."""
+        return [
+            (np.array([1.0, self.d1, -1.0, 0.0]), self.ks1, self.cs1),
+            (np.array([1.0, -self.d2, 0.0, -1.0]), self.ks2, self.cs2),
+        ]
 
 
 class VehicleModel(Protocol):

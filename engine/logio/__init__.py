@@ -26,12 +26,22 @@ The package, one module per step (each imports only from the ones above it):
 - :mod:`.columns`: which header name plays which role;
 - :mod:`.threaded`: the numbers by pyarrow, where it reads them exactly as the reference;
 - :mod:`.table`: the numbers (threaded, fast and careful paths);
-- :mod:`.units`: the one unit resolution shared by parsing and preview, plausibility limits;
+- :mod:`.units`: the one unit resolution shared by parsing and preview;
 - :mod:`.parse`: :func:`parse_run_csv`, :func:`read_run_csv`;
 - :mod:`.preview`: :func:`preview_csv`;
 - :mod:`.write`: :func:`write_run_csv`.
 """
 
+from ..plausibility import (
+    ACCEL_LIMIT_MPS2,
+    GAP_FACTOR,
+    MAX_RATE_HZ,
+    MIN_RATE_HZ,
+    PITCH_RATE_LIMIT_RADPS,
+    SPEED_MAX_MPS,
+    SPEED_MIN_MPS,
+    STEP_TOLERANCE,
+)
 from .options import CsvOptions
 from .parse import MIN_SAMPLES, ParsedRun, parse_run_csv, read_run_csv
 from .preview import PREVIEW_BYTES, CsvPreview, preview_csv
@@ -45,19 +55,7 @@ from .roles import (
     UNIT_LABELS,
 )
 from .source import MAX_DECOMPRESSED_BYTES, Source
-from .units import (
-    ACCEL_LIMIT_MPS2,
-    EPOCH_MS_THRESHOLD,
-    EPOCH_THRESHOLD_S,
-    GAP_FACTOR,
-    GRAVITY_TOLERANCE_MPS2,
-    MAX_RATE_HZ,
-    MIN_RATE_HZ,
-    PITCH_RATE_LIMIT_RADPS,
-    SPEED_MAX_MPS,
-    SPEED_MIN_MPS,
-    STEP_TOLERANCE,
-)
+from .units import EPOCH_MS_THRESHOLD, EPOCH_THRESHOLD_S, GRAVITY_TOLERANCE_MPS2
 from .write import write_run_csv
 
 __all__ = [

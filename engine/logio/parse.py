@@ -9,9 +9,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import LogFormatError, ParameterError
-from ..plausibility import check_chainage, check_time_steps
+from ..plausibility import (
+    ACCEL_LIMIT_MPS2,
+    PITCH_RATE_LIMIT_RADPS,
+    SPEED_MAX_MPS,
+    SPEED_MIN_MPS,
+    WHEEL_LOAD_MAX_N,
+    WHEEL_LOAD_MIN_N,
+    check_chainage,
+    check_time_steps,
+)
 from ..runlog import RunLog
-from ..scan import first_at_most, first_beyond, first_nonfinite, first_outside, first_true
+from ..scan import first_at_most, first_nonfinite, first_outside, first_true
 from ..vehicle import GRAVITY
 from .columns import (
     _map_columns,
@@ -34,18 +43,7 @@ from .source import (
     _Source,
 )
 from .table import _parse_table, _Table
-from .units import (
-    ACCEL_LIMIT_MPS2,
-    EPOCH_MS_THRESHOLD,
-    GRAVITY_TOLERANCE_MPS2,
-    PITCH_RATE_LIMIT_RADPS,
-    SPEED_MAX_MPS,
-    SPEED_MIN_MPS,
-    WHEEL_LOAD_MAX_N,
-    WHEEL_LOAD_MIN_N,
-    _auto_gravity,
-    resolve_units,
-)
+from .units import EPOCH_MS_THRESHOLD, GRAVITY_TOLERANCE_MPS2, _auto_gravity, resolve_units
 
 MIN_SAMPLES = 200
 """Fewest samples a log may have: shorter runs are too short to invert."""
@@ -150,19 +148,29 @@ def _limit_error(
     )
 
 
+def _refuse_outside(
+    table: _Table, name: str, raw: NDArray[np.float64], unit: str, si: NDArray[np.float64],
+    lo: float, hi: float, si_unit: str, what: str,
+) -> None:  # fmt: skip
+    """Refuse the first sample whose SI value lies outside ``lo..hi``: its line, its value as
+    read (``raw`` in ``unit``) and in SI, and ``what`` the user is told."""
+    i = first_outside(si, lo, hi)
+    if i is not None:
+        raise _limit_error(table, i, name, float(raw[i]), unit, float(si[i]), si_unit, what)
+
+
 def _accel(
     table: _Table, j: int, name: str, unit: str, gravity: str
 ) -> tuple[NDArray[np.float64], str]:
     raw = table.columns[j]
     a = raw * _ROLES["accel"].factors[unit]
     alt = "set accel_unit='m/s2'" if unit == "g" else "set accel_unit='g' if it is in g"
-    i = first_beyond(a, ACCEL_LIMIT_MPS2 + GRAVITY)
-    if i is not None:
-        raise _limit_error(
-            table, i, name, float(raw[i]), unit, float(a[i]), "m/s²",
-            f"a vertical body acceleration stays within ±{ACCEL_LIMIT_MPS2:g} m/s², so the unit "
-            f"looks wrong: the column is read in {_label(unit)}, expected m/s² or g ({alt})",
-        )  # fmt: skip
+    limit = ACCEL_LIMIT_MPS2 + GRAVITY
+    _refuse_outside(
+        table, name, raw, unit, a, -limit, limit, "m/s²",
+        f"a vertical body acceleration stays within ±{ACCEL_LIMIT_MPS2:g} m/s², so the unit "
+        f"looks wrong: the column is read in {_label(unit)}, expected m/s² or g ({alt})",
+    )  # fmt: skip
     mean = float(np.mean(a))
     if gravity == "auto":
         found = _auto_gravity(mean)
@@ -193,31 +201,28 @@ def _accel(
         )
     if gravity == "included":
         a = a - GRAVITY
-    i = first_beyond(a, ACCEL_LIMIT_MPS2)
-    if i is not None:
-        raise _limit_error(
-            table, i, name, float(raw[i]), unit, float(a[i]), "m/s² with gravity removed",
-            f"a vertical body acceleration stays within ±{ACCEL_LIMIT_MPS2:g} m/s²; "
-            f"is the unit right? (read in {_label(unit)}, expected m/s² or g)",
-        )  # fmt: skip
+    _refuse_outside(
+        table, name, raw, unit, a, -ACCEL_LIMIT_MPS2, ACCEL_LIMIT_MPS2,
+        "m/s² with gravity removed",
+        f"a vertical body acceleration stays within ±{ACCEL_LIMIT_MPS2:g} m/s²; "
+        f"is the unit right? (read in {_label(unit)}, expected m/s² or g)",
+    )  # fmt: skip
     return a, gravity
 
 
 def _pitch_rate(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
     raw = table.columns[j]
     w = raw * _ROLES["pitch_rate"].factors[unit]
-    i = first_beyond(w, PITCH_RATE_LIMIT_RADPS)
-    if i is not None:
-        alt = (
-            "set pitch_rate_unit='deg/s' if it is in deg/s"
-            if unit == "rad/s"
-            else "expected rad/s or deg/s"
-        )
-        raise _limit_error(
-            table, i, name, float(raw[i]), unit, float(w[i]), "rad/s",
-            f"a body pitch rate stays within ±{PITCH_RATE_LIMIT_RADPS:g} rad/s, so the unit "
-            f"looks wrong: the column is read in {_label(unit)} ({alt})",
-        )  # fmt: skip
+    alt = (
+        "set pitch_rate_unit='deg/s' if it is in deg/s"
+        if unit == "rad/s"
+        else "expected rad/s or deg/s"
+    )
+    _refuse_outside(
+        table, name, raw, unit, w, -PITCH_RATE_LIMIT_RADPS, PITCH_RATE_LIMIT_RADPS, "rad/s",
+        f"a body pitch rate stays within ±{PITCH_RATE_LIMIT_RADPS:g} rad/s, so the unit "
+        f"looks wrong: the column is read in {_label(unit)} ({alt})",
+    )  # fmt: skip
     return w
 
 
@@ -283,15 +288,13 @@ def _chainage(
 def _wheel_load(table: _Table, j: int, name: str, unit: str) -> NDArray[np.float64]:
     raw = table.columns[j]
     f = table.columns[j] * _ROLES["wheel_load"].factors[unit]
-    i = first_outside(f, WHEEL_LOAD_MIN_N, WHEEL_LOAD_MAX_N)
-    if i is not None:
-        others = " or ".join(repr(u) for u in OPTION_UNITS["wheel_load"] if u != unit)
-        raise _limit_error(
-            table, i, name, float(raw[i]), unit, float(f[i]), "N",
-            f"a static wheel load lies between {WHEEL_LOAD_MIN_N / 1e3:g} and "
-            f"{WHEEL_LOAD_MAX_N / 1e3:g} kN, so the unit looks wrong: the column is read in "
-            f"{_label(unit)} (set wheel_load_unit to {others})",
-        )  # fmt: skip
+    others = " or ".join(repr(u) for u in OPTION_UNITS["wheel_load"] if u != unit)
+    _refuse_outside(
+        table, name, raw, unit, f, WHEEL_LOAD_MIN_N, WHEEL_LOAD_MAX_N, "N",
+        f"a static wheel load lies between {WHEEL_LOAD_MIN_N / 1e3:g} and "
+        f"{WHEEL_LOAD_MAX_N / 1e3:g} kN, so the unit looks wrong: the column is read in "
+        f"{_label(unit)} (set wheel_load_unit to {others})",
+    )  # fmt: skip
     return f
 
 

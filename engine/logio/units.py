@@ -1,5 +1,5 @@
 """Units: the one resolution of each column's unit (option, name, data) shared by parsing and
-preview, gravity, and the plausibility limits that tell a wrong unit."""
+preview, and gravity (the limits that tell a wrong unit are :mod:`engine.plausibility`'s)."""
 
 from __future__ import annotations
 
@@ -7,19 +7,6 @@ import re
 from collections.abc import Mapping
 from datetime import UTC, datetime
 
-# The plausibility limits are the engine's (one check for every input path); re-exported.
-from ..plausibility import (  # noqa: F401
-    ACCEL_LIMIT_MPS2,
-    GAP_FACTOR,
-    MAX_RATE_HZ,
-    MIN_RATE_HZ,
-    PITCH_RATE_LIMIT_RADPS,
-    SPEED_MAX_MPS,
-    SPEED_MIN_MPS,
-    STEP_TOLERANCE,
-    WHEEL_LOAD_MAX_N,
-    WHEEL_LOAD_MIN_N,
-)
 from ..vehicle import GRAVITY
 from .options import CsvOptions
 from .roles import ROLES, _label

@@ -2,7 +2,7 @@
 
 Skipped when the shared data are absent (set SHARED_DIR). The vehicle is registered from the
 truth JSON's whole-vehicle datasheet values; nothing else of the truth enters the processing.
-Zones are scored where the peer's track mesh has them (:mod:`support.peer`).
+Zones are scored where the peer's track mesh has them (:mod:`benchmarks.peer_truth`).
 """
 
 from __future__ import annotations
@@ -13,13 +13,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 from scipy.ndimage import uniform_filter1d
-from scipy.signal import butter, sosfiltfilt
 
+from benchmarks.peer_truth import (
+    bogie_from_truth,
+    bogie_mean_truth,
+    butter_band,
+    joint_gap_m,
+    zones_as_built,
+)
 from engine.logio.parse import read_run_csv
 from engine.pipeline import process_run
 from engine.results import ProcessResult
 from engine.setup import RunSetup, prepare_run
-from support.peer import datasheet, joint_gap_m, zones_as_built
 from support.samples import shared_data_dir
 
 TOL_M = 1.5
@@ -34,11 +39,6 @@ def _peer(name: str) -> tuple[Path, dict]:
     return csv, json.loads(csv.with_suffix(".truth.json").read_text())
 
 
-def _band(y: np.ndarray, step: float) -> np.ndarray:
-    sos = butter(4, [step * 2 / 25.0, step * 2 / 3.0], btype="band", output="sos")
-    return np.asarray(sosfiltfilt(sos, y))
-
-
 @pytest.fixture(scope="module")
 def coach_smooth() -> tuple[ProcessResult, dict, dict]:
     csv, truth = _peer("pub_coach_smooth")
@@ -48,7 +48,7 @@ def coach_smooth() -> tuple[ProcessResult, dict, dict]:
             RunSetup(
                 start_chainage_m=truth["start_chainage_m"],
                 direction=truth["direction"],
-                vehicle=datasheet(truth),
+                vehicle=bogie_from_truth(truth),
             ),
         )
     )
@@ -66,9 +66,9 @@ def _ripple_phase_m(x: np.ndarray, u: np.ndarray, a: float, b: float, bay: float
 
 
 def test_peer_zone_sleepers_sit_half_a_bay_off_the_listed_grid(coach_smooth) -> None:
-    """The peer's mesh adds half a bay at every segment joint (support.peer): on sound track
-    the rail under a wheel rides highest over the listed 0.6 m grid, inside every zone (an odd
-    number of joints along) half a bay off it. Listed positions would give the same phase."""
+    """The peer's mesh adds half a bay at every segment joint (benchmarks.peer_truth): on sound
+    track the rail under a wheel rides highest over the listed 0.6 m grid, inside every zone (an
+    odd number of joints along) half a bay off it. Listed positions would give the same phase."""
     _, truth, npz = coach_smooth
     bay, gap = truth["track"]["spacing"], joint_gap_m(truth)
     x, u = npz["x_wheels"][0], npz["rail_disp_wheels"][0]
@@ -88,12 +88,11 @@ def test_peer_coach_profile_is_the_bogie_mean_level(coach_smooth) -> None:
     bogie centres' chainage (no lag: the profile's reference point is right)."""
     res, _, npz = coach_smooth
     x = res.chainage_m
-    f = np.interp(x, npz["x_front_bogie"], npz["level_front_bogie"], left=np.nan, right=np.nan)
-    r = np.interp(x, npz["x_rear_bogie"], npz["level_rear_bogie"], left=np.nan, right=np.nan)
-    truth = 0.5 * (f + r) * 1e3
+    truth = bogie_mean_truth(npz, x) * 1e3
     ok = np.flatnonzero(np.isfinite(truth) & np.isfinite(res.level_mm))
     seg = slice(ok[0] + 100, ok[-1] - 100)  # 25 m dropped at each end
-    t, m = _band(truth[seg], 0.25), _band(res.level_mm[seg], 0.25)
+    step = float(x[1] - x[0])
+    t, m = butter_band(truth[seg], step, 3.0, 25.0), butter_band(res.level_mm[seg], step, 3.0, 25.0)
     assert np.corrcoef(m, t)[0, 1] > 0.99
     assert np.sqrt(np.mean((m - t) ** 2)) < 0.2 * np.sqrt(np.mean(t**2))
     lags = np.arange(-4, 5)  # ±1 m

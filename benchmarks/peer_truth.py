@@ -1,5 +1,10 @@
-"""The peer's (ROSE) bogie runs of ``shared/data/peer-bogie``: the vehicle from their truth
-JSON's datasheet and the zones where the peer's track mesh actually has them.
+"""The peer's (ROSE) truth files read the one way the accuracy benchmark and the tests read them.
+
+A truth JSON describes the vehicle by its whole-vehicle datasheet; :func:`bogie_from_truth`
+turns it into the :class:`engine.bogie.BogieParams` a user would register. The truth NPZ gives
+the level under each bogie; :func:`bogie_mean_truth` is what the loaded profile is scored
+against, :func:`butter_band` the band both are compared in (README of ``peer-bogie``,
+section 5).
 
 Where the zones are. The README lists each zone by the index position of its sleepers
 (``i * spacing``). The track was assembled from one ROSE track segment per zone and per
@@ -17,14 +22,19 @@ rail under a wheel is half a bay out of phase inside every zone).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import butter, sosfiltfilt
 
 from engine.bogie import BogieParams
 
 
-def datasheet(truth: dict) -> BogieParams:
-    """The vehicle as its datasheet gives it (whole vehicle), from the truth JSON."""
+def bogie_from_truth(truth: dict[str, Any]) -> BogieParams:
+    """The vehicle as its datasheet gives it (whole vehicle, SI), from the truth JSON."""
     full = truth["vehicle"]["full_vehicle"]
+    per_rail = truth["vehicle"]["per_rail_model"]
     return BogieParams(
         body_mass_kg=full["body_mass_kg"],
         body_pitch_inertia_kgm2=full["body_pitch_inertia_kgm2"],
@@ -37,8 +47,23 @@ def datasheet(truth: dict) -> BogieParams:
         secondary_c_ns_per_m=full["secondary_c_Ns_per_m_per_bogie_per_side"],
         primary_k_n_per_m=full["primary_k_N_per_m_per_axlebox"],
         primary_c_ns_per_m=full["primary_c_Ns_per_m_per_axlebox"],
-        contact_k_n_per_m=truth["contact"]["k_linearised_N_per_m"],
+        contact_k_n_per_m=per_rail["hertz_k_linearised_at_static_load_N_per_m"],
     )
+
+
+def bogie_mean_truth(npz: dict[str, Any], grid: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The bogie-mean truth level on ``grid`` (m), m; NaN where not both bogies passed."""
+    f = np.interp(grid, npz["x_front_bogie"], npz["level_front_bogie"], left=np.nan, right=np.nan)
+    r = np.interp(grid, npz["x_rear_bogie"], npz["level_rear_bogie"], left=np.nan, right=np.nan)
+    return np.asarray(0.5 * (f + r))
+
+
+def butter_band(y: NDArray[np.float64], step: float, lo: float, hi: float) -> NDArray[np.float64]:
+    """Zero-phase 4th-order Butterworth band-pass in wavenumber (wavelengths lo..hi m; grid
+    ``step`` m)."""
+    nyq = 0.5 / step
+    sos = butter(4, [1.0 / hi / nyq, 1.0 / lo / nyq], btype="band", output="sos")
+    return np.asarray(sosfiltfilt(sos, y))
 
 
 def joint_gap_m(truth: dict) -> float:
