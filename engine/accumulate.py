@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from .aggregate import aggregate_levels, column_nanmedian
 from .align import Alignment, align_profiles
 from .detect import DetectionConfig, find_dips, robust_baseline, robust_sigma
 from .errors import ParameterError
@@ -95,14 +96,19 @@ def pass_noise(
         return np.array([max(robust_sigma(res[0]), 1e-6)])
     n = np.isfinite(res).sum(axis=0)
     med = np.full(res.shape[1], np.nan)
-    med[n > 0] = np.nanmedian(res[:, n > 0], axis=0)
-    out = np.empty(res.shape[0])
-    for j in range(res.shape[0]):
-        use = np.isfinite(res[j]) & (n >= 2)
-        d = res[j, use] - med[use]
-        # the median includes the pass itself: its deviation from it is (N-1)/N of its noise
-        nn = float(np.mean(n[use])) if use.any() else 1.0
-        out[j] = robust_sigma(d) * nn / max(nn - 1.0, 1.0) if d.size >= 20 else float("nan")
+    med[n > 0] = column_nanmedian(res[:, n > 0], n[n > 0])
+    use = np.isfinite(res) & (n >= 2)
+    count = use.sum(axis=1)
+    # the median includes the pass itself: its deviation from it is (N-1)/N of its noise
+    nn = np.where(count > 0, (n * use).sum(axis=1) / np.maximum(count, 1), 1.0)
+    out = np.full(res.shape[0], np.nan)
+    measured = count >= 20
+    if measured.any():
+        # every pass's robust_sigma of its deviations at once: the robust spread that
+        # aggregate_levels finds per column, with one column per pass
+        d = np.where(use, res - med, np.nan)[measured]
+        spread = aggregate_levels(np.flatnonzero(measured).astype(np.float64), d.T).spread_mm
+        out[measured] = spread * nn[measured] / np.maximum(nn[measured] - 1.0, 1.0)
     fallback = np.nanmedian(out) if np.isfinite(out).any() else 1.0
     # identical passes (no noise to measure) still weigh finitely: the one-pass floor
     return np.maximum(np.where(np.isfinite(out) & (out > 0), out, fallback), 1e-6)
@@ -350,11 +356,12 @@ def detect_on_aggregate(
         nk = float(noise.noise_mm[k])
         # passes that agree exactly (the same log twice) leave no noise: infinitely significant
         sig = math.nan if not math.isfinite(nk) else depth / nk if nk > 0 else math.inf
-        covering = tuple(int(j) for j in np.flatnonzero(np.isfinite(res[:, inside]).all(axis=1)))
+        cover = np.flatnonzero(np.isfinite(res[:, inside]).all(axis=1))
+        covering = tuple(int(j) for j in cover)
         m_all = float(np.nanmean(mean[inside]))
-        supporting = tuple(
-            j for j in covering if float(np.nanmean(res[j, inside])) <= 0.5 * m_all
-        )  # fmt: skip
+        # the covering passes are finite over the extent: their plain means, row by row
+        own = res[np.ix_(cover, np.flatnonzero(inside))].mean(axis=1)
+        supporting = tuple(int(j) for j, m in zip(cover, own, strict=True) if m <= 0.5 * m_all)
         spots.append(AggregateSpot(a, b, peak, depth, loss, sig, supporting, covering))
     return AggregateDetection(grid, mean, noise, thr, sigma, roughness, smooth, spots)
 
