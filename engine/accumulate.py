@@ -19,15 +19,19 @@ Units: chainage in m, levels in mm (band-passed loaded level, positive up), load
 
 from __future__ import annotations
 
+import hashlib
 import math
+import threading
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .aggregate import aggregate_levels, column_nanmedian
 from .align import Alignment, align_profiles
-from .detect import DetectionConfig, find_dips, robust_baseline, robust_sigma
+from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .errors import ParameterError
 from .geometry_check import is_smooth_rail
 from .track import TrackParams
@@ -45,6 +49,13 @@ COMBINED_NOISE_FACTOR = 4.5
 (seeds 11-14 of ``benchmarks/accuracy_passes.py``, 4-16 passes of three grades): 4.5 finds
 16/16 zones with industrial passes where 5 finds 15/16, with no false zone in 36 combinations;
 4.0 gives a false zone with fibre-optic passes."""
+
+FIT_GAP_M = 40.0
+"""Gap between chains of dips, m, that their stiffness fits do not bridge: a fit keeps a zone
+within seven support spacings (4-5 m) of the extent it starts from, and only zones whose
+fitted extents overlap merge (and are fitted again), so only some nine merges in a row could
+reach across. A detection that wants the spots of one stretch only (``peaks_in_m``) fits the
+chains of dips at most this far apart that hold a dip whose deepest point lies there."""
 
 
 @dataclass(frozen=True)
@@ -95,25 +106,81 @@ def pass_noise(
         return np.array([max(robust_sigma(res[0]), 1e-6)])
     n = np.isfinite(res).sum(axis=0)
     med = np.full(res.shape[1], np.nan)
-    med[n > 0] = np.nanmedian(res[:, n > 0], axis=0)
-    out = np.empty(res.shape[0])
-    for j in range(res.shape[0]):
-        use = np.isfinite(res[j]) & (n >= 2)
-        d = res[j, use] - med[use]
-        # the median includes the pass itself: its deviation from it is (N-1)/N of its noise
-        nn = float(np.mean(n[use])) if use.any() else 1.0
-        out[j] = robust_sigma(d) * nn / max(nn - 1.0, 1.0) if d.size >= 20 else float("nan")
+    med[n > 0] = column_nanmedian(res[:, n > 0], n[n > 0])
+    use = np.isfinite(res) & (n >= 2)
+    count = use.sum(axis=1)
+    # the median includes the pass itself: its deviation from it is (N-1)/N of its noise
+    nn = np.where(count > 0, (n * use).sum(axis=1) / np.maximum(count, 1), 1.0)
+    out = np.full(res.shape[0], np.nan)
+    measured = count >= 20
+    if measured.any():
+        # every pass's robust_sigma of its deviations at once: the robust spread that
+        # aggregate_levels finds per column, with one column per pass
+        d = np.where(use, res - med, np.nan)[measured]
+        spread = aggregate_levels(np.flatnonzero(measured).astype(np.float64), d.T).spread_mm
+        out[measured] = spread * nn[measured] / np.maximum(nn[measured] - 1.0, 1.0)
     fallback = np.nanmedian(out) if np.isfinite(out).any() else 1.0
     # identical passes (no noise to measure) still weigh finitely: the one-pass floor
     return np.maximum(np.where(np.isfinite(out) & (out > 0), out, fallback), 1e-6)
 
 
 def residuals(
-    levels_mm: NDArray[np.float64], step_m: float, window_m: float
+    levels_mm: NDArray[np.float64],
+    step_m: float,
+    window_m: float,
+    *,
+    cache: ResidualCache | None = None,
 ) -> NDArray[np.float64]:
-    """Each pass's level minus its own running baseline (:func:`engine.detect.robust_baseline`)."""
+    """Each pass's level minus its own running baseline (:func:`engine.detect.robust_baseline`);
+    with ``cache``, a row met before is not filtered again."""
     lv = np.atleast_2d(np.asarray(levels_mm, dtype=np.float64))
+    if cache is not None:
+        return np.stack([cache.residual(row, step_m, window_m) for row in lv])
     return np.stack([row - robust_baseline(row, step_m, window_m) for row in lv])
+
+
+class ResidualCache:
+    """The residuals (:func:`residuals`) of the passes' level rows seen last, by content.
+
+    A track's combined detection runs again on every pass that arrives, over the same
+    stretch, with every earlier pass's row unchanged: their running medians (most of the
+    detection's cost besides the fits) are taken from here. A row is known by a digest of
+    its bytes, grid step and window, so a changed row (a pass moved, the stretch grown) is
+    filtered again and the residuals are the same numbers either way. Thread-safe; the
+    least recently used rows go first.
+
+    Parameters
+    ----------
+    max_rows : int
+        Rows kept (a 1.5 km stretch on the 0.25 m grid: 48 kB each).
+    """
+
+    def __init__(self, max_rows: int = 256) -> None:
+        if max_rows < 1:
+            raise ParameterError("max_rows must be at least 1", field="max_rows")
+        self.max_rows = max_rows
+        self._rows: OrderedDict[bytes, NDArray[np.float64]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def residual(
+        self, row: NDArray[np.float64], step_m: float, window_m: float
+    ) -> NDArray[np.float64]:
+        """``row`` minus its running baseline, mm (a copy: the kept one stays as it is)."""
+        row = np.ascontiguousarray(row, dtype=np.float64)
+        h = hashlib.blake2b(row.tobytes(), digest_size=16)
+        h.update(np.array([step_m, window_m, row.size], dtype=np.float64).tobytes())
+        key = h.digest()
+        with self._lock:
+            got = self._rows.get(key)
+            if got is not None:
+                self._rows.move_to_end(key)
+                return got.copy()
+        out = row - robust_baseline(row, step_m, window_m)
+        with self._lock:
+            self._rows[key] = out.copy()
+            while len(self._rows) > self.max_rows:
+                self._rows.popitem(last=False)
+        return out
 
 
 def weighted_mean(
@@ -269,6 +336,8 @@ def detect_on_aggregate(
     config: DetectionConfig | None = None,
     lambda_min_m: float = 3.0,
     lambda_max_m: float = 40.0,
+    peaks_in_m: tuple[float, float] | None = None,
+    cache: ResidualCache | None = None,
 ) -> AggregateDetection:
     """Soft spots of many aligned passes, against the measured noise of their combination.
 
@@ -291,6 +360,13 @@ def detect_on_aggregate(
         sum of squares), and at least ``min_depth_mm``.
     lambda_min_m, lambda_max_m : float
         Band of the levels, m.
+    peaks_in_m : (float, float), optional
+        Only the spots whose deepest point lies in ``[lo, hi)`` m are wanted (the rest of the
+        levels are context): the others are not returned, and dips further than
+        :data:`FIT_GAP_M` from them (chain-wise) are not fitted. The spots returned are
+        those a detection without it finds there.
+    cache : ResidualCache, optional
+        Where the passes' residuals are kept between detections.
 
     Returns
     -------
@@ -307,7 +383,9 @@ def detect_on_aggregate(
     if load_n is not None and not (math.isfinite(load_n) and load_n > 0):
         raise ParameterError("load_n must be a positive wheel load, N", field="load_n")
     step = float(grid[1] - grid[0])
-    res = residuals(lv, step, cfg.baseline_window_m)
+    if peaks_in_m is not None and not peaks_in_m[0] < peaks_in_m[1]:
+        raise ParameterError("peaks_in_m must be (lo, hi) with lo < hi, m", field="peaks_in_m")
+    res = residuals(lv, step, cfg.baseline_window_m, cache=cache)
     sigma = pass_noise(lv, step, cfg.baseline_window_m, res=res)
     mean, _ = weighted_mean(res, 1.0 / sigma**2)
     noise = combined_noise(res, sigma)
@@ -328,6 +406,8 @@ def detect_on_aggregate(
         noise_factor=1e-12, min_length_m=cfg.min_length_m, edge_m=cfg.edge_m,
     )  # fmt: skip
     dips, _ = find_dips(grid, scaled, flat)
+    if peaks_in_m is not None:
+        dips = dips_near(dips, *peaks_in_m)
     # a noisy mean of smooth rail is smooth rail: the roughness decides
     smooth = bool(is_smooth_rail(roughness).smooth)
     fitted: list[tuple[float, float, float, float]] = []
@@ -340,6 +420,8 @@ def detect_on_aggregate(
             fitted.append((s.start_m, s.end_m, s.peak_m, s.stiffness_loss_pct))
     else:
         fitted = [(d.start_m, d.end_m, d.peak_m, float("nan")) for d in dips]
+    if peaks_in_m is not None:
+        fitted = [f for f in fitted if peaks_in_m[0] <= f[2] < peaks_in_m[1]]
     spots = []
     for a, b, peak, loss in fitted:
         inside = (grid >= a) & (grid <= b)
@@ -350,13 +432,28 @@ def detect_on_aggregate(
         nk = float(noise.noise_mm[k])
         # passes that agree exactly (the same log twice) leave no noise: infinitely significant
         sig = math.nan if not math.isfinite(nk) else depth / nk if nk > 0 else math.inf
-        covering = tuple(int(j) for j in np.flatnonzero(np.isfinite(res[:, inside]).all(axis=1)))
+        cover = np.flatnonzero(np.isfinite(res[:, inside]).all(axis=1))
+        covering = tuple(int(j) for j in cover)
         m_all = float(np.nanmean(mean[inside]))
-        supporting = tuple(
-            j for j in covering if float(np.nanmean(res[j, inside])) <= 0.5 * m_all
-        )  # fmt: skip
+        # the covering passes are finite over the extent: their plain means, row by row
+        own = res[np.ix_(cover, np.flatnonzero(inside))].mean(axis=1)
+        supporting = tuple(int(j) for j, m in zip(cover, own, strict=True) if m <= 0.5 * m_all)
         spots.append(AggregateSpot(a, b, peak, depth, loss, sig, supporting, covering))
     return AggregateDetection(grid, mean, noise, thr, sigma, roughness, smooth, spots)
+
+
+def dips_near(dips: list[Dip], lo_m: float, hi_m: float, gap_m: float = FIT_GAP_M) -> list[Dip]:
+    """The dips (by chainage) of every chain of dips at most ``gap_m`` apart that holds a
+    dip whose deepest point lies in ``[lo_m, hi_m)``: what the spots there can be fitted
+    and merged from."""
+    chains: list[list[Dip]] = []
+    reach = -math.inf
+    for d in sorted(dips, key=lambda d: d.start_m):
+        if not chains or d.start_m - reach > gap_m:
+            chains.append([])
+        chains[-1].append(d)
+        reach = max(reach, d.end_m)
+    return [d for c in chains if any(lo_m <= x.peak_m < hi_m for x in c) for d in c]
 
 
 def align_to_others(

@@ -29,7 +29,7 @@ from sqlalchemy.orm import Session
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
 from app.services.storage.packing import pack_f4, pack_named, unpack_f4, unpack_named
 from app.services.views.window import Window
-from engine.accumulate import detect_on_aggregate
+from engine.accumulate import ResidualCache, detect_on_aggregate
 from engine.aggregate import AggregateProfile, aggregate_levels
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
@@ -240,6 +240,10 @@ DETECTION_MARGIN_CHUNKS = 1
 """Chunks of context read either side of a detection unit (250 m: far more than the 40 m
 baseline and any zone); a spot belongs to the unit its deepest point lies in."""
 
+_RESIDUALS = ResidualCache()
+"""The passes' residuals of the units detected last in this process: a pass arriving changes
+one row of a unit, the others are filtered once, not at every pass."""
+
 
 @dataclass(frozen=True)
 class CombinedSpot:
@@ -307,7 +311,10 @@ def detect_combined(session: Session, track_id: int, unit: int) -> dict[int, lis
         if forces is not None and np.isfinite(forces[:, sl]).any()
         else None
     )
-    det = detect_on_aggregate(grid[sl], levels[:, sl], load_n=load)
+    unit_m = (a * CHUNK_POINTS * GRID_STEP_M, (b + 1) * CHUNK_POINTS * GRID_STEP_M)
+    det = detect_on_aggregate(
+        grid[sl], levels[:, sl], load_n=load, peaks_in_m=unit_m, cache=_RESIDUALS
+    )
     for spot in det.spots:
         chunk = _chunk_of(spot.peak_m)
         if not (a <= chunk <= b) or len(spot.covering) < 2:
