@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from app.services.run_lifecycle.processing import invert
+from app.services.run_lifecycle.processing import invert, mean_wheel_load
 from app.services.track.register import LOAD_RATIO
 from app.services.track.separation_store import PassLevels, _support
 from engine.bogie import PASSENGER_COACH
@@ -21,7 +21,7 @@ from engine.register import count_loads
 from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run, make_track
 from engine.vehicle import GRAVITY, TABLE1
-from engine.vehicle_kinds import Vehicle, per_wheel
+from engine.vehicle_kinds import Vehicle
 
 COACH_WHEEL_N = float(np.mean(PASSENGER_COACH.static_wheel_loads()))
 
@@ -56,11 +56,9 @@ def stored_loads() -> dict[str, float]:
         prepared = prepare_run(
             run.log, RunSetup(start_chainage_m=run.logged_start_chainage_m, vehicle=vehicle)
         )
-        processed = invert(prepared)
-        res = processed.result
-        assert res.front_force_n is not None and res.rear_force_n is not None
-        point = np.nanmean(0.5 * (res.front_force_n + res.rear_force_n))
-        out[name] = per_wheel(float(point), processed.wheel_offsets_m)
+        load = mean_wheel_load(invert(prepared))
+        assert load is not None
+        out[name] = load
     return out
 
 

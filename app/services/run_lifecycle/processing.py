@@ -84,6 +84,20 @@ def finite_or_none(value: Any) -> float | None:
     return f if math.isfinite(f) else None
 
 
+def mean_wheel_load(processed: Processed) -> float | None:
+    """The mean force per wheel under a run's profile, N (None without one): the measured
+    points' fused force shared by each point's wheels, so that runs of one wheel load are one
+    load whatever their vehicle kind."""
+    res = processed.result
+    if res.front_force_n is None or res.rear_force_n is None:
+        return None
+    force = fuse_axles(res.front_force_n, res.rear_force_n)
+    under_level = force[np.isfinite(res.level_mm) & np.isfinite(force)]
+    if not under_level.size:
+        return None
+    return per_wheel(float(under_level.mean()), processed.wheel_offsets_m)
+
+
 def store_result(
     session: Session,
     run: Run,
@@ -140,11 +154,7 @@ def store_result(
     run.processing_s = processed.seconds
     force = fuse_axles(front_force, rear_force)
     under_level = force[np.isfinite(res.level_mm) & np.isfinite(force)]
-    run.mean_wheel_force_n = (
-        per_wheel(float(under_level.mean()), processed.wheel_offsets_m)
-        if under_level.size
-        else None
-    )
+    run.mean_wheel_force_n = mean_wheel_load(processed)
     run.single_pass_valid = None if check is None else bool(check.smooth)
     run.status = "done"
     run.stage = None
