@@ -8,7 +8,11 @@ points the inversion measures. The half car is the kind with one wheel per measu
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
 
 from .bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams
 from .errors import ParameterError
@@ -48,3 +52,26 @@ def vehicle_from_dict(data: dict[str, Any]) -> Vehicle:
             field="kind",
         )
     return cls.from_dict(data)
+
+
+Force = TypeVar("Force", float, NDArray[np.float64])
+
+
+def per_wheel(point_force_n: Force, wheel_offsets_m: Sequence[float]) -> Force:
+    """The load per wheel of a measured point's force, N.
+
+    A measured point's force is that of all its wheels together (a half car's axle: one
+    wheel; a bogie centre: its two); wheel loads compare across vehicle kinds only per wheel.
+
+    Parameters
+    ----------
+    point_force_n : float or ndarray
+        Contact force of the measured point, N (compression positive).
+    wheel_offsets_m : sequence of float
+        The point's wheels about it, m (``vehicle.axle_wheel_offsets_m[0]``): their count
+        shares the force.
+    """
+    n = len(wheel_offsets_m)
+    if n < 1:
+        raise ParameterError("a measured point has at least one wheel", field="wheel_offsets_m")
+    return point_force_n / n

@@ -382,7 +382,7 @@ class RunPublic(BaseModel):
         default=None, description="Declared static wheel load, N"
     )
     mean_wheel_force_n: float | None = Field(
-        default=None, description="Mean wheel force under the profile (static + dynamic), N"
+        default=None, description="Mean force per wheel under the profile (static + dynamic), N"
     )
     stiffness_basis: Literal["single pass", "not separable"] | None = Field(
         default=None,

@@ -19,6 +19,7 @@ from app.services.track.integrate import Separation, add_run_to_track
 from engine.budget import TimeBudget
 from engine.pipeline import PreparedRun, fuse_axles, process_run
 from engine.results import ProcessResult
+from engine.vehicle_kinds import per_wheel
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,8 @@ class Processed:
 
     result: ProcessResult
     seconds: float
+    wheel_offsets_m: tuple[float, ...] = (0.0,)
+    """The wheels of a measured point about it, m (the vehicle's): they share its force."""
 
 
 def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
@@ -40,7 +43,8 @@ def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
         else None
     )
     result = process_run(run, budget=budget)
-    return Processed(result, time.perf_counter() - t0)
+    wheels = tuple(run.setup.vehicle.axle_wheel_offsets_m[0])
+    return Processed(result, time.perf_counter() - t0, wheels)
 
 
 def start_inversion(
@@ -78,6 +82,20 @@ def finite_or_none(value: Any) -> float | None:
     except (TypeError, ValueError):
         return None
     return f if math.isfinite(f) else None
+
+
+def mean_wheel_load(processed: Processed) -> float | None:
+    """The mean force per wheel under a run's profile, N (None without one): the measured
+    points' fused force shared by each point's wheels, so that runs of one wheel load are one
+    load whatever their vehicle kind."""
+    res = processed.result
+    if res.front_force_n is None or res.rear_force_n is None:
+        return None
+    force = fuse_axles(res.front_force_n, res.rear_force_n)
+    under_level = force[np.isfinite(res.level_mm) & np.isfinite(force)]
+    if not under_level.size:
+        return None
+    return per_wheel(float(under_level.mean()), processed.wheel_offsets_m)
 
 
 def store_result(
@@ -136,7 +154,7 @@ def store_result(
     run.processing_s = processed.seconds
     force = fuse_axles(front_force, rear_force)
     under_level = force[np.isfinite(res.level_mm) & np.isfinite(force)]
-    run.mean_wheel_force_n = float(under_level.mean()) if under_level.size else None
+    run.mean_wheel_force_n = mean_wheel_load(processed)
     run.single_pass_valid = None if check is None else bool(check.smooth)
     run.status = "done"
     run.stage = None

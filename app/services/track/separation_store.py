@@ -60,7 +60,7 @@ from engine.separation import (
     separate,
 )
 from engine.track import TrackParams
-from engine.vehicle_kinds import vehicle_from_dict
+from engine.vehicle_kinds import per_wheel, vehicle_from_dict
 
 STIFFNESS_ARRAYS = (
     "geometry_mm",
@@ -362,14 +362,16 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
 def _support(
     passes: list[PassLevels], grid: NDArray[np.float64], start_m: float, end_m: float
 ) -> list[dict[str, Any]]:
-    """The passes with a level over ``[start_m, end_m]`` and their mean wheel force there (N)."""
+    """The passes with a level over ``[start_m, end_m]`` and their mean force per wheel there
+    (N): a bogie's and a half car's of one wheel load are one load."""
     lo, hi = (int(i) for i in np.searchsorted(grid, [start_m, end_m + 1e-9]))
     out = []
     for p in passes:
         f = p.force_n[lo:hi]
         ok = np.isfinite(f)
         if ok.any():
-            out.append({"kind": p.kind, "id": p.id, "force_n": round(float(f[ok].mean()), 1)})
+            load = per_wheel(float(f[ok].mean()), p.wheel_offsets_m)
+            out.append({"kind": p.kind, "id": p.id, "force_n": round(load, 1)})
     return out
 
 
