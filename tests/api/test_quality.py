@@ -76,8 +76,9 @@ def _truth_sd(world: dict[str, Any], band: str, a: float, b: float) -> float:
 
 
 def test_quality_sections_follow_the_truth(world: dict[str, Any]) -> None:
-    """Every 200 m section has the contract's keys; full sections' D1 SD is within 0.1 mm of
-    the true geometry's; three passes each; basis loaded (one wheel load cannot separate)."""
+    """Every 200 m section has the contract's keys; full sections' D1 SD and D2 SD (from the
+    passes' own 3-100 m level, all of D2's 25-70 m) are within 0.1 mm of the true
+    geometry's; three passes each; basis loaded (one wheel load cannot separate)."""
     r = world["client"].get(f"/api/v1/tracks/{TRACK}/quality", params={"section_m": 200})
     assert r.status_code == 200, r.text
     q = r.json()
@@ -88,10 +89,12 @@ def test_quality_sections_follow_the_truth(world: dict[str, Any]) -> None:
     for s in full:
         truth = _truth_sd(world, "D1", s["start_m"], s["end_m"])
         assert abs(s["d1_sd_mm"] - truth) < 0.1, (s, truth)
-        assert s["n_passes"] == 3 and s["basis"] == "loaded"
+        truth2 = _truth_sd(world, "D2", s["start_m"], s["end_m"])
+        assert abs(s["d2_sd_mm"] - truth2) < 0.1, (s, truth2)
+        assert s["n_passes"] == 3 and s["basis"] == "loaded" and s["d2_level"] == "long"
         assert s["quality_class"] in "ABCDE"
         assert s["repeatability_d1_mm"] is not None and s["repeatability_d1_mm"] < 0.5
-    assert q["d2_band_m"] == [25.0, 40.0] and q["notes"]  # the stored band is said, not hidden
+    assert q["d2_band_m"] == [25.0, 70.0]  # D2's whole band: its own level is stored
     # the default limit tables are unverified against the standard, and the answer says so
     assert q["unverified_limits"] == ["isolated_mm.D1", "isolated_mm.D2", "class_sd_mm"]
     assert "EN 13848-5" in q["limits_source"]

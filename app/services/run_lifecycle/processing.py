@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
@@ -19,18 +20,22 @@ from app.services.track.integrate import Separation, add_run_to_track
 from engine.budget import TimeBudget
 from engine.pipeline import PreparedRun, fuse_axles, process_run
 from engine.results import ProcessResult
+from engine.track_quality import long_level
 
 
 @dataclass(frozen=True)
 class Processed:
-    """An engine result and how long it took, s."""
+    """An engine result, the run's long level on its grid (mm; None: too short for its band)
+    and how long both took, s."""
 
     result: ProcessResult
     seconds: float
+    long_level_mm: NDArray[np.float64] | None = None
 
 
 def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
-    """Invert and detect (engine pipeline); raises the engine's errors unchanged, and
+    """Invert and detect (engine pipeline), then the long level D2 is filtered from
+    (:func:`engine.track_quality.long_level`); raises the engine's errors unchanged, and
     :class:`~engine.errors.BudgetExceeded` past ``budget_s`` of wall time (s;
     ``TRACKPROFILE_PROCESSING_BUDGET_S``)."""
     t0 = time.perf_counter()
@@ -40,7 +45,10 @@ def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
         else None
     )
     result = process_run(run, budget=budget)
-    return Processed(result, time.perf_counter() - t0)
+    long = long_level(run)
+    if budget is not None:
+        budget.check("the long level")
+    return Processed(result, time.perf_counter() - t0, long)
 
 
 def start_inversion(
@@ -145,5 +153,5 @@ def store_result(
     run.vehicle_version = vehicle_version
     add_run_to_track(
         session, run, res.chainage_m, res.level_mm, force if under_level.size else None,
-        separation=separation,
+        separation=separation, long_mm=processed.long_level_mm,
     )  # fmt: skip
