@@ -328,8 +328,11 @@ def service_tracks(n_tracks: int, public: Path | None) -> list[str]:
         rows.append(service_row(f"unseen track, seed {seed} (1000 m, 2 coach + 2 heavy)", r))
     if public is not None:
         truths = [json.loads((public / f"{n}.truth.json").read_text()) for n in PUBLIC_RUNS]
-        uploads = [((public / f"{n}.csv").read_bytes(), "table1" if "coach" in n else "heavy",
-                    t["start_chainage_m"]) for n, t in zip(PUBLIC_RUNS, truths, strict=True)]  # fmt: skip
+        uploads = [
+            ((public / f"{n}.csv").read_bytes(), "table1" if "coach" in n else "heavy",
+             t["start_chainage_m"])
+            for n, t in zip(PUBLIC_RUNS, truths, strict=True)
+        ]  # fmt: skip
         z = np.load(public / f"{PUBLIC_RUNS[0]}.truth.npz")
         r = service_scores(uploads, lambda x: np.interp(x, z["irr_x"], z["irr"]) * 1e3)
         rows.append(service_row("public geometry set (600 m, 2 coach + 2 heavy; not tuned on)", r))
@@ -371,8 +374,10 @@ def main() -> None:
     p.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs/accuracy.md"))
     p.add_argument("--tracks", type=int, default=2)
     p.add_argument("--public", default=None, help="the public geometry set's directory")
-    p.add_argument("--service", action="store_true",
-                   help="score the service's quality answer instead (uploads, then GET)")  # fmt: skip
+    p.add_argument(
+        "--service", action="store_true",
+        help="score the service's quality answer instead (uploads, then GET)",
+    )  # fmt: skip
     ns = p.parse_args()
     if ns.service:
         t0 = time.perf_counter()
