@@ -18,6 +18,7 @@ The line speeds, the limit tables and the isolated defects are in :mod:`engine.q
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -88,7 +89,11 @@ class BandFilter:
         return float(r ** (-1.0 / (2 * self.order)))
 
     def sos(self, step_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Second-order sections of the high-pass and the low-pass half for grid ``step_m`` (m)."""
+        """Second-order sections of the high-pass and the low-pass half for grid ``step_m`` (m)
+        (designed once per band and grid: a design costs more than filtering 10 km)."""
+        return _designed(self, float(step_m))
+
+    def _design(self, step_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         fs = 1.0 / step_m
         shift = self._design_shift()
         # scipy's bilinear design keeps the Butterworth law in tan(pi f / fs): shift there, so
@@ -150,6 +155,14 @@ class BandFilter:
             pad = min(n - 1, int(math.ceil(1.5 * self.lambda_max_m / step_m)))
             out[a:b] = signal.sosfiltfilt(sos, seg, padtype="odd", padlen=pad)
         return out
+
+
+@functools.lru_cache(maxsize=64)
+def _designed(band: BandFilter, step_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    halves = band._design(step_m)
+    for h in halves:
+        h.flags.writeable = False  # shared between callers
+    return halves
 
 
 END_TRIM_M = 25.0

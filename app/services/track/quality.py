@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import defaultdict
+from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
@@ -215,7 +216,29 @@ def read_levels(
         level[idx[ok]] = geo[ok]
         unloaded[idx[ok]] = True
     lv = _Levels(i0, level, unloaded, {}, {}, {})
-    return with_passes(session, track_id, lv) if passes else lv
+    if passes:
+        return with_passes(session, track_id, lv)
+    # D2's own level even without the passes: a screen for defects sees the D2 they will
+    return dataclasses.replace(lv, long_mm=_median(list(_long_levels(session, track_id, lv)), n))
+
+
+def _long_levels(session: Session, track_id: int, lv: _Levels) -> Iterator[NDArray[np.float64]]:
+    """Each pass's long level over ``lv``'s stretch (the newest passes of each chunk, those
+    that kept one), mm."""
+    n = lv.level_mm.size
+    c_lo = lv.i0 // CHUNK_POINTS
+    t = TrackRunLevels.__table__
+    keys = newest_runs(track_id, c_lo, c_lo + n // CHUNK_POINTS - 1)
+    longs: dict[int, NDArray[np.float64]] = {}
+    for rid, chunk, blob in session.execute(
+        select(t.c.run_id, t.c.chunk, t.c.long_mm)
+        .join(keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk))
+        .where(t.c.long_mm.is_not(None))
+    ):
+        arr = longs.setdefault(int(rid), np.full(n, np.nan))
+        at = (chunk - c_lo) * CHUNK_POINTS
+        arr[at : at + CHUNK_POINTS] = unpack_long_level(blob)
+    return iter(longs.values())
 
 
 def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
