@@ -23,6 +23,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -470,7 +471,9 @@ class Repeatability:
     n_points: int
 
 
-def repeatability(passes: Sequence[NDArray[np.float64]], *, pairs: str = "all") -> Repeatability:
+def repeatability(
+    passes: Sequence[NDArray[np.floating[Any]]], *, pairs: str = "all"
+) -> Repeatability:
     """Repeatability of filtered levels on one grid (NaN where a pass has no value).
 
     ``pairs``: ``"all"`` pairs of passes, or ``"successive"`` (each pass with the next, the

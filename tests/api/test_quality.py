@@ -255,7 +255,7 @@ def test_unknown_track_and_bad_section_length(world: dict[str, Any]) -> None:
 
 def test_report_has_the_quality_section(world: dict[str, Any]) -> None:
     """The HTML report carries the quality section: its heading, one row per section with its
-    class, and the note about the stored D2 band."""
+    class, and D2's band: all of its 25-70 m (its own level stored), no note of a narrower one."""
     c = world["client"]
     q = c.get(f"/api/v1/tracks/{TRACK}/quality").json()
     html = c.get(f"/api/v1/tracks/{TRACK}/report").text
@@ -263,7 +263,7 @@ def test_report_has_the_quality_section(world: dict[str, Any]) -> None:
     part = html.split("<h2>Track quality (EN 13848)</h2>")[1]
     for s in q["sections"]:
         assert f"{s['start_m']:.0f}–{s['end_m']:.0f}</td>" in part
-    assert "D2 covers 25-40 m" in part
+    assert "D2 (25–70 m)" in part and "D2 covers 25-40 m" not in part
 
 
 def test_survey_comparison_per_section(world: dict[str, Any]) -> None:

@@ -165,17 +165,18 @@ class _Levels:
 
     ``long_mm`` is the passes' median long level (D2's own: ``engine.track_quality.long_level``,
     NaN where no pass kept one), ``long_passes`` each pass's; both empty until
-    :func:`with_passes`.
+    :func:`with_passes`. The passes are float32 (as stored): a whole track's passes are in
+    memory at once.
     """
 
     i0: int
     level_mm: NDArray[np.float64]
     unloaded: NDArray[np.bool_]
-    passes: dict[int, NDArray[np.float64]]
+    passes: dict[int, NDArray[np.float32]]
     recorded: dict[int, datetime | None]
     vehicle_speeds: dict[int, list[float]]
     long_mm: NDArray[np.float64] | None = None
-    long_passes: dict[int, NDArray[np.float64]] = dataclasses.field(default_factory=dict)
+    long_passes: dict[int, NDArray[np.float32]] = dataclasses.field(default_factory=dict)
 
     @property
     def ordered_runs(self) -> list[int]:
@@ -222,20 +223,20 @@ def read_levels(
     return dataclasses.replace(lv, long_mm=_median(list(_long_levels(session, track_id, lv)), n))
 
 
-def _long_levels(session: Session, track_id: int, lv: _Levels) -> Iterator[NDArray[np.float64]]:
+def _long_levels(session: Session, track_id: int, lv: _Levels) -> Iterator[NDArray[np.float32]]:
     """Each pass's long level over ``lv``'s stretch (the newest passes of each chunk, those
     that kept one), mm."""
     n = lv.level_mm.size
     c_lo = lv.i0 // CHUNK_POINTS
     t = TrackRunLevels.__table__
     keys = newest_runs(track_id, c_lo, c_lo + n // CHUNK_POINTS - 1)
-    longs: dict[int, NDArray[np.float64]] = {}
+    longs: dict[int, NDArray[np.float32]] = {}
     for rid, chunk, blob in session.execute(
         select(t.c.run_id, t.c.chunk, t.c.long_mm)
         .join(keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk))
         .where(t.c.long_mm.is_not(None))
     ):
-        arr = longs.setdefault(int(rid), np.full(n, np.nan))
+        arr = longs.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
         at = (chunk - c_lo) * CHUNK_POINTS
         arr[at : at + CHUNK_POINTS] = unpack_long_level(blob)
     return iter(longs.values())
@@ -246,8 +247,8 @@ def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
     n = lv.level_mm.size
     c_lo = lv.i0 // CHUNK_POINTS
     c_hi = c_lo + n // CHUNK_POINTS - 1
-    passes: dict[int, NDArray[np.float64]] = {}
-    longs: dict[int, NDArray[np.float64]] = {}
+    passes: dict[int, NDArray[np.float32]] = {}
+    longs: dict[int, NDArray[np.float32]] = {}
     t = TrackRunLevels.__table__
     keys = newest_runs(track_id, c_lo, c_hi)
     for rid, chunk, blob, long_blob in session.execute(
@@ -255,11 +256,11 @@ def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
             keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk)
         )
     ):
-        arr = passes.setdefault(int(rid), np.full(n, np.nan))
+        arr = passes.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
         at = (chunk - c_lo) * CHUNK_POINTS
         arr[at : at + CHUNK_POINTS] = unpack_f4(blob)
         if long_blob is not None:
-            la = longs.setdefault(int(rid), np.full(n, np.nan))
+            la = longs.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
             la[at : at + CHUNK_POINTS] = unpack_long_level(long_blob)
     recorded: dict[int, datetime | None] = {}
     speeds: dict[int, list[float]] = defaultdict(list)
@@ -278,7 +279,7 @@ def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
     )  # fmt: skip
 
 
-def _median(arrays: list[NDArray[np.float64]], n: int) -> NDArray[np.float64]:
+def _median(arrays: list[NDArray[np.float32]], n: int) -> NDArray[np.float64]:
     """The median of the arrays' finite values point by point (NaN where none has one)."""
     if not arrays:
         return np.full(n, np.nan)
@@ -286,7 +287,7 @@ def _median(arrays: list[NDArray[np.float64]], n: int) -> NDArray[np.float64]:
     count = np.isfinite(stack).sum(axis=0)
     out = np.full(n, np.nan)
     has = count > 0
-    out[has] = column_nanmedian(stack[:, has], count[has])
+    out[has] = column_nanmedian(stack[:, has].astype(np.float64), count[has])
     return out
 
 
@@ -463,19 +464,21 @@ class Analysis:
             self.filt["D2"] = np.where(self.d2_from_quality, fallback, self.filt["D2"])
         self.lo = -math.inf if window.from_m is None else window.from_m
         self.hi = math.inf if window.to_m is None else window.to_m
-        self._by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
+        self._by_band: dict[str, dict[int, NDArray[np.float32]]] = {}
 
     @property
     def bounds(self) -> tuple[float, float]:
         return self.lo, self.hi
 
-    def pass_levels(self, band: str) -> dict[int, NDArray[np.float64]]:
+    def pass_levels(self, band: str) -> dict[int, NDArray[np.float32]]:
         """Each pass filtered to ``band`` (once), in recording order."""
         if band not in self._by_band:
             b = BANDS[band]
             lv = self.lv
             own = lv.long_passes if BAND_LEVEL.get(band) == "long" else {}
-            self._by_band[band] = {r: _band(b, own.get(r, lv.passes[r])) for r in lv.ordered_runs}
+            self._by_band[band] = {
+                r: _band(b, own.get(r, lv.passes[r])).astype(np.float32) for r in lv.ordered_runs
+            }
         return self._by_band[band]
 
 
@@ -567,7 +570,9 @@ def _defects(q: Analysis) -> list[dict[str, Any]]:
 
 
 def _repeatability(lv: _Levels) -> dict[str, Any]:
-    rep_passes = [_band(REPEATABILITY_BAND, lv.passes[r]) for r in lv.ordered_runs]
+    rep_passes = [
+        _band(REPEATABILITY_BAND, lv.passes[r]).astype(np.float32) for r in lv.ordered_runs
+    ]
     rep = repeatability(rep_passes, pairs="successive")
     return {
         "band_m": [REPEATABILITY_BAND.lambda_min_m, REPEATABILITY_BAND.lambda_max_m],
@@ -593,7 +598,7 @@ def _defect_dict(
     basis: str,
     limits: QualityLimits,
     lv: _Levels,
-    filtered: dict[int, NDArray[np.float64]],
+    filtered: dict[int, NDArray[np.float32]],
 ) -> dict[str, Any]:
     band = d.band
     triple = limits.limits_at(band, d.speed_kmh)
@@ -606,7 +611,7 @@ def _defect_dict(
 
 
 def pass_values(
-    lv: _Levels, peak_m: float, filtered: dict[int, NDArray[np.float64]]
+    lv: _Levels, peak_m: float, filtered: dict[int, NDArray[np.float32]]
 ) -> list[tuple[int, datetime, float]]:
     """Each pass's value of a defect peaking at ``peak_m``: ``(run id, recorded, largest
     |level| within PEAK_MATCH_M of the peak, mm)``, passes in recording order."""
@@ -623,7 +628,7 @@ def pass_values(
 
 
 def defect_next_limit(
-    d: IsolatedDefect, limits: QualityLimits, lv: _Levels, filtered: dict[int, NDArray[np.float64]]
+    d: IsolatedDefect, limits: QualityLimits, lv: _Levels, filtered: dict[int, NDArray[np.float32]]
 ) -> dict[str, Any] | None:
     """When the defect's passes, trended, reach the next level it has not reached (3 passes)."""
     nxt = next_limit(d.value_mm, limits.limits_at(d.band, d.speed_kmh))
@@ -680,7 +685,7 @@ def _survey_comparison(
     return out
 
 
-def _band(band: BandFilter, level: NDArray[np.float64]) -> NDArray[np.float64]:
+def _band(band: BandFilter, level: NDArray[np.floating[Any]]) -> NDArray[np.float64]:
     """A level filtered to ``band``, without the ringing stretches at its coverage's ends."""
     return trim_ends(band.apply(level, GRID_STEP_M), GRID_STEP_M)
 
