@@ -44,3 +44,23 @@ def test_long_level_lands_on_the_levels_points() -> None:
     assert np.max(np.abs(placed[ok] - want)) < 1e-3  # linear interpolation of a 60 m wave
     assert not ok[: int(40 - offset / GRID_STEP_M) - 1].any()
     assert ok[-10:].all()
+
+
+def test_a_kept_long_level_goes_back_to_the_runs_own_chainage() -> None:
+    """A realignment rebuilds a run from its own chainage: its kept long level (stored on
+    track-grid points at the old offset) comes back there, so it can be placed again."""
+    from app.services.track.aggregate import CHUNK_POINTS, chunked
+    from app.services.track.integrate import _long_level_back
+
+    x = np.arange(0.0, 600.0, GRID_STEP_M) + 30.0  # the run's chainage as processed
+    long = np.sin(2 * np.pi * x / 45.0)
+    offset = -2.7
+    i_lo, on_grid = on_track_grid(x, long, offset)
+    rows = [(c, pack_long_level(v)) for c, v in chunked(i_lo, on_grid)[2].items()]
+    assert rows and all(len(unpack_long_level(b)) == CHUNK_POINTS for _, b in rows)
+    back = _long_level_back(rows, offset, x)
+    assert back is not None
+    ok = np.isfinite(back)
+    assert ok[8:-8].all()
+    assert np.max(np.abs(back[ok] - long[ok])) < 2e-3  # two interpolations of a 45 m wave
+    assert _long_level_back([], offset, x) is None
