@@ -2,7 +2,10 @@
 repeatability). Updates docs/accuracy.md between its quality-accuracy markers.
 
 Run: ``python benchmarks/accuracy_quality.py [--tracks 2] [--public DIR] [--out docs/accuracy.md]``
-(about 2 minutes per track on 2 cores).
+(about 2 minutes per track on 2 cores). With ``--service``: the same tracks' runs (and the
+public set's) uploaded as CSV to the service (a fresh SQLite database, the app in process),
+``GET /tracks/{t}/quality`` asked, and its sections' D1/D2 SDs scored against the truth
+(its own section of docs/accuracy.md).
 
 Each track is made with the engine's own forward model and seeds that are not the public
 set's: 1000 m, German low-disturbance geometry, supports 80 kN/mm +-5 %, three soft zones of
@@ -28,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import io
 import json
 import sys
 import time
@@ -83,7 +87,9 @@ def quality_level(passes, lam_max: float):
     return grid, np.where(ok, geo, loaded), ok, levels
 
 
-def score_track(seed: int) -> dict[str, dict[str, list[float]]]:
+def track_runs(seed: int) -> list:
+    """An unseen track's four runs (engine.synthetic.SyntheticRun), as :func:`score_track`
+    makes them."""
     rng = np.random.default_rng(seed)
     zones, x = [], float(rng.uniform(150, 200))
     for _ in range(3):
@@ -98,6 +104,11 @@ def score_track(seed: int) -> dict[str, dict[str, list[float]]]:
         syn = make_run(track=track, vehicle=veh, speed=speed, sensor=SENSOR, sim_rate_hz=1000.0,
                        seed=100 * seed + i, start_chainage_m=12.0, start_error_m=err)  # fmt: skip
         runs.append(syn)
+    return runs
+
+
+def score_track(seed: int) -> dict[str, dict[str, list[float]]]:
+    runs = track_runs(seed)
     made = {}
     for label, lam in BANDS_PROCESSED.items():
         cfg = ProcessConfig(lambda_max_m=lam)
@@ -234,6 +245,107 @@ def public_repeatability(directory: Path) -> list[str]:
     return rows
 
 
+SERVICE_START = "<!-- quality-service-accuracy:start -->"
+SERVICE_END = "<!-- quality-service-accuracy:end -->"
+
+
+def service_scores(uploads, truth_at) -> dict[str, list[float]]:
+    """Upload ``uploads`` (``(csv bytes, vehicle, logged start chainage m)``, the first is the
+    track's reference) to a fresh service, ask ``GET /tracks/{t}/quality`` and score its
+    sections' D1 and D2 SDs against ``truth_at(x)`` (the true unloaded level at true chainage
+    x, mm) through the same filters over the same coverage. The aligned frame (the reference
+    run's start error) is found by correlating the answer's D1 trace with the truth's."""
+    import tempfile
+
+    from starlette.testclient import TestClient
+
+    from app.core.config import Settings
+    from app.main import create_app
+    from engine.track_quality import END_TRIM_M
+
+    with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        settings = Settings(data_dir=Path(tmp), database_url=f"sqlite:///{tmp}/q.db")
+        with TestClient(create_app(settings)) as client:
+            for k, (data, vehicle, start) in enumerate(uploads):
+                r = client.post("/api/v1/runs", files={"file": (f"r{k}.csv", data, "text/csv")},
+                                data={"track": "quality", "vehicle": vehicle,
+                                      "start_chainage_m": f"{start:.2f}",
+                                      "recorded_at": f"2026-0{k + 1}-01T08:00:00Z"})  # fmt: skip
+                assert r.status_code in (200, 201, 202), r.text
+                rid = r.json()["id"]
+                for _ in range(600):
+                    run = client.get(f"/api/v1/runs/{rid}").json()
+                    if run["status"] != "processing":
+                        break
+                    time.sleep(0.5)
+                assert run["status"] == "done", run
+            q = client.get("/api/v1/tracks/quality/quality",
+                           params={"section_m": 200, "traces": "true"}).json()  # fmt: skip
+    tr = q["traces"]
+    xt, d1t = np.asarray(tr["chainage_m"]), np.asarray(tr["d1_mm"], dtype=float)
+    lo, hi = float(xt[0]), float(xt[-1])
+    x = np.arange(lo, hi + STEP / 2, STEP)
+
+    def truth_bands(frame: float) -> dict[str, np.ndarray]:
+        y = truth_at(x - frame)
+        return {n: trim_ends(b.apply(y, STEP), STEP, END_TRIM_M) for n, b in BANDS.items()}
+
+    def mismatch(frame: float) -> float:
+        ref = np.interp(xt, x, truth_bands(frame)["D1"])
+        ok = np.isfinite(ref) & np.isfinite(d1t)
+        return float(np.mean((ref[ok] - d1t[ok]) ** 2))
+
+    frame = min(np.arange(-3.0, 3.001, 0.05), key=mismatch)
+    ref = truth_bands(frame)
+    out: dict[str, list[float]] = {"d1_sd": [], "d2_sd": [], "frame": [float(frame)]}
+    for sec in q["sections"]:
+        a, b = sec["start_m"], sec["end_m"]
+        if sec["coverage"] is None or sec["coverage"] < 0.95 or a < lo + EDGE_M or b > hi - EDGE_M:
+            continue
+        m = (x >= a) & (x < b)
+        for band, key in (("D1", "d1_sd"), ("D2", "d2_sd")):
+            out[key].append(sec[f"{band.lower()}_sd_mm"] - float(np.nanstd(ref[band][m])))
+    out["d2_level"] = [float(s["d2_level"] == "long") for s in q["sections"]]
+    return out
+
+
+def service_tracks(n_tracks: int, public: Path | None) -> list[str]:
+    """The service's D1/D2 SD errors per set: unseen tracks, then the public set."""
+    from engine.logio import write_run_csv
+
+    rows = []
+    for k in range(n_tracks):
+        seed = 3301 + 29 * k
+        runs = track_runs(seed)
+        uploads = []
+        for syn in runs:
+            buf = io.StringIO()
+            write_run_csv(syn.log, buf, digits=8)
+            name = "table1" if syn.vehicle == TABLE1 else "heavy"
+            uploads.append((buf.getvalue().encode(), name, syn.logged_start_chainage_m))
+        r = service_scores(uploads, runs[0].true_geometry)
+        rows.append(service_row(f"unseen track, seed {seed} (1000 m, 2 coach + 2 heavy)", r))
+    if public is not None:
+        truths = [json.loads((public / f"{n}.truth.json").read_text()) for n in PUBLIC_RUNS]
+        uploads = [
+            ((public / f"{n}.csv").read_bytes(), "table1" if "coach" in n else "heavy",
+             t["start_chainage_m"])
+            for n, t in zip(PUBLIC_RUNS, truths, strict=True)
+        ]  # fmt: skip
+        z = np.load(public / f"{PUBLIC_RUNS[0]}.truth.npz")
+        r = service_scores(uploads, lambda x: np.interp(x, z["irr_x"], z["irr"]) * 1e3)
+        rows.append(service_row("public geometry set (600 m, 2 coach + 2 heavy; not tuned on)", r))
+    return rows
+
+
+def service_row(label: str, r: dict[str, list[float]]) -> str:
+    return (
+        f"| {label} | {len(r['d1_sd'])} | {worst(r['d1_sd'])} | {worst(r['d2_sd'])} | "
+        f"{100 * float(np.mean(r['d2_level'])):.0f} % | {r['frame'][0]:+.2f} m |"
+    )
+
+
 def worst(v: list[float]) -> str:
     return f"{max(abs(x) for x in v):.3f}" if v else "—"
 
@@ -262,7 +374,32 @@ def main() -> None:
     p.add_argument("--out", default=str(Path(__file__).resolve().parents[1] / "docs/accuracy.md"))
     p.add_argument("--tracks", type=int, default=2)
     p.add_argument("--public", default=None, help="the public geometry set's directory")
+    p.add_argument(
+        "--service", action="store_true",
+        help="score the service's quality answer instead (uploads, then GET)",
+    )  # fmt: skip
     ns = p.parse_args()
+    if ns.service:
+        t0 = time.perf_counter()
+        body = service_tracks(ns.tracks, Path(ns.public) if ns.public else None)
+        lines = [
+            SERVICE_START,
+            f"Measured by `python benchmarks/accuracy_quality.py --service --tracks {ns.tracks}"
+            + (f" --public {ns.public}" if ns.public else "")
+            + f"` ({time.perf_counter() - t0:.0f} s; {machine()}): each set's runs uploaded as "
+            "CSV to a fresh service, `GET /tracks/{t}/quality?section_m=200&traces=true` "
+            "asked, its sections (full coverage, more than 40 m from the ends) scored against "
+            "the true unloaded level through the same filters over the same coverage; the "
+            "aligned frame found by correlating the answer's D1 trace with the truth's.",
+            "",
+            "| set | sections | D1 SD error, mm (worst) | D2 SD error, mm (worst) | "
+            "sections with D2 from its own level | aligned frame |",
+            "|---|---|---|---|---|---|",
+            *body,
+            SERVICE_END,
+        ]
+        publish_section(lines, Path(ns.out), heading="### Track quality through the service\n\n")
+        return
     t0 = time.perf_counter()
     results = [score_track(3301 + 29 * k) for k in range(ns.tracks)]
     lines = [

@@ -118,9 +118,35 @@ def store_run(db: Database, track_id: int, vehicle_id: int, line: Line, k: int, 
         s.add(run)
         s.flush()
         t0 = time.perf_counter()
-        store_result(s, run, Processed(res, 0.0), 1)
+        # the generated level stands for the run's long level too (every run keeps one)
+        store_result(s, run, Processed(res, 0.0, res.level_mm), 1)
         s.commit()
         return run.id, float(run.chainage_offset_m), time.perf_counter() - t0
+
+
+def quality_memory(db: Database, track_id: int) -> None:
+    """Time and peak traced memory of the whole track's quality answer (no window: every
+    pass over the whole track), through its service function."""
+    import tracemalloc
+
+    from app.db.models import Track
+    from app.services.track.quality import track_quality
+
+    with db.session() as s:
+        track = s.get(Track, track_id)
+        assert track is not None
+        track_quality(s, track)  # warm: imports, caches
+        t0 = time.perf_counter()
+        track_quality(s, track)
+        dt = time.perf_counter() - t0
+        tracemalloc.start()
+        track_quality(s, track)
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+    print(
+        f"quality answer of the whole track (no window): {dt:.2f} s, peak traced memory "
+        f"{peak / 2**20:.1f} MiB"
+    )
 
 
 def main() -> int:
@@ -202,6 +228,7 @@ def main() -> int:
                     fn_prof.append(1000 * (time.perf_counter() - t0))
             print(f"service functions alone: register {median_p95(fn_reg)}; profile window "
                   f"{median_p95(fn_prof)}")  # fmt: skip
+            quality_memory(db, track_id)
 
             k = args.runs
             run_id, _, dt = store_run(db, track_id, vehicle_id, line, k, k + 1, errors[k], rng)

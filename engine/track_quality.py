@@ -18,17 +18,22 @@ The line speeds, the limit tables and the isolated defects are in :mod:`engine.q
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime, timedelta
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 from scipy import stats as sstats
 
-from .errors import ParameterError
+from .errors import InversionError, ParameterError
+from .methods import METHODS, MethodInput
+from .pipeline import fuse_axles
+from .setup import Method, PreparedRun
 from .spectral import vehicle_response
 from .vehicle import VehicleParams
 
@@ -85,7 +90,11 @@ class BandFilter:
         return float(r ** (-1.0 / (2 * self.order)))
 
     def sos(self, step_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Second-order sections of the high-pass and the low-pass half for grid ``step_m`` (m)."""
+        """Second-order sections of the high-pass and the low-pass half for grid ``step_m`` (m)
+        (designed once per band and grid: a design costs more than filtering 10 km)."""
+        return _designed(self, float(step_m))
+
+    def _design(self, step_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         fs = 1.0 / step_m
         shift = self._design_shift()
         # scipy's bilinear design keeps the Butterworth law in tan(pi f / fs): shift there, so
@@ -149,6 +158,14 @@ class BandFilter:
         return out
 
 
+@functools.lru_cache(maxsize=64)
+def _designed(band: BandFilter, step_m: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    halves = band._design(step_m)
+    for h in halves:
+        h.flags.writeable = False  # shared between callers
+    return halves
+
+
 END_TRIM_M = 25.0
 """Stretch at each end of a level's coverage whose band-filtered values are not used, m: an
 inversion's level rings near the ends of a run (errors up to 2.4 mm in D1 within 10 m of an
@@ -189,6 +206,45 @@ separable, else the loaded level (3-40 m); ``long``: the passes' loaded level of
 reaching :data:`LONG_LEVEL_LAMBDA_MAX_M` (25-70 m waves are the rail's long-wave geometry; the
 deflection under the wheel varies over a few metres and adds little there: D2 SD per 200 m
 within 0.015 mm of the truth's, measured: docs/accuracy.md)."""
+
+
+LONG_LEVEL_METHOD: Method = "wiener"
+"""Inversion of the long level, whatever the run's own method: the spectral inversion with its
+Wiener weighting (any vehicle kind, one transform of the log; the least-squares fit would
+double a slow run's cost for a level D2 needs only in its 25-70 m waves)."""
+
+
+def long_level(run: PreparedRun) -> NDArray[np.float64] | None:
+    """The run's loaded level in the band reaching :data:`LONG_LEVEL_LAMBDA_MAX_M`, mm.
+
+    The run is inverted again with the same shortest wavelength and the longest one widened
+    to :data:`LONG_LEVEL_LAMBDA_MAX_M` (:data:`LONG_LEVEL_METHOD`), on the run's own grid
+    (``run.grid``, m); the two axles' levels fused as the result's level is
+    (:func:`~engine.pipeline.fuse_axles`). D2 is filtered from it (:data:`BAND_LEVEL`).
+
+    Returns
+    -------
+    ndarray or None
+        Level on ``run.grid``, mm (NaN where no axle passed); None when the run is too
+        short for the band (less than twice its longest wavelength).
+    """
+    cfg = run.setup.config
+    if cfg.lambda_max_m >= LONG_LEVEL_LAMBDA_MAX_M:
+        long_cfg = replace(cfg, method=LONG_LEVEL_METHOD)
+    else:
+        long_cfg = replace(cfg, method=LONG_LEVEL_METHOD, lambda_max_m=LONG_LEVEL_LAMBDA_MAX_M)
+    try:
+        wide = run.with_setup(replace(run.setup, config=long_cfg))
+    except InversionError:
+        return None  # shorter than two longest wavelengths: no long level, D2 says so
+    given = MethodInput(
+        log=wide.log, positions=wide.positions, grid=wide.grid, step_m=long_cfg.grid_step_m,
+        vehicle=wide.setup.vehicle, f_lo_hz=wide.f_lo_hz, f_hi_hz=wide.f_hi_hz,
+        lambda_min_m=long_cfg.lambda_min_m, lambda_max_m=long_cfg.lambda_max_m,
+        taper=long_cfg.taper,
+    )  # fmt: skip
+    inv = METHODS[long_cfg.method](given)
+    return fuse_axles(inv.front_mm, inv.rear_mm)
 
 
 def band_levels(
@@ -415,7 +471,9 @@ class Repeatability:
     n_points: int
 
 
-def repeatability(passes: Sequence[NDArray[np.float64]], *, pairs: str = "all") -> Repeatability:
+def repeatability(
+    passes: Sequence[NDArray[np.floating[Any]]], *, pairs: str = "all"
+) -> Repeatability:
     """Repeatability of filtered levels on one grid (NaN where a pass has no value).
 
     ``pairs``: ``"all"`` pairs of passes, or ``"successive"`` (each pass with the next, the

@@ -372,7 +372,10 @@ class TrackRunLevels(Base):
     Only runs that are the reference of their stretch or aligned to it have rows here: the
     aggregate of a chainage range is recomputed from these rows alone. ``force_n`` holds the
     wheel force under that level the same way (N; NULL for runs stored before wheel forces were
-    kept).
+    kept). ``long_mm`` holds the run's loaded level of the long band D2 is filtered from
+    (``engine.track_quality.long_level``, 3-100 m) on the same points, packed by
+    ``app.services.storage.profiles.pack_long_level`` (0.001 mm; NULL for runs stored before
+    it was kept, or too short for the band: D2 then comes from ``levels``, and says so).
     """
 
     __tablename__ = "track_run_levels"
@@ -383,6 +386,7 @@ class TrackRunLevels(Base):
     track_id: Mapped[int] = mapped_column(ForeignKey("tracks.id", ondelete="CASCADE"))
     levels: Mapped[bytes] = mapped_column(LargeBinary)
     force_n: Mapped[bytes | None] = mapped_column(LargeBinary)
+    long_mm: Mapped[bytes | None] = mapped_column(LargeBinary)
 
 
 class TrackProfileChunk(Base):

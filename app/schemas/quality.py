@@ -46,6 +46,11 @@ class QualitySectionPublic(BaseModel):
     quality_class: str | None = Field(description="A-E from the D1 SD and the speed class")
     basis: Basis = Field(description="unloaded: separated geometry; loaded: aggregated "
                          "loaded level; mixed: both")  # fmt: skip
+    d2_level: Literal["long", "quality", "mixed"] = Field(
+        description="The level D2 is filtered from: long: the passes' own 3-100 m loaded "
+        "level (all of D2's 25-70 m); quality: the stored 3-40 m level (passes stored before "
+        "the long level was kept: D2 holds only 25-40 m); mixed: both"
+    )
     next_class: CrossingPublic | None = None
 
 

@@ -76,8 +76,9 @@ def _truth_sd(world: dict[str, Any], band: str, a: float, b: float) -> float:
 
 
 def test_quality_sections_follow_the_truth(world: dict[str, Any]) -> None:
-    """Every 200 m section has the contract's keys; full sections' D1 SD is within 0.1 mm of
-    the true geometry's; three passes each; basis loaded (one wheel load cannot separate)."""
+    """Every 200 m section has the contract's keys; full sections' D1 SD and D2 SD (from the
+    passes' own 3-100 m level, all of D2's 25-70 m) are within 0.1 mm of the true
+    geometry's; three passes each; basis loaded (one wheel load cannot separate)."""
     r = world["client"].get(f"/api/v1/tracks/{TRACK}/quality", params={"section_m": 200})
     assert r.status_code == 200, r.text
     q = r.json()
@@ -88,10 +89,12 @@ def test_quality_sections_follow_the_truth(world: dict[str, Any]) -> None:
     for s in full:
         truth = _truth_sd(world, "D1", s["start_m"], s["end_m"])
         assert abs(s["d1_sd_mm"] - truth) < 0.1, (s, truth)
-        assert s["n_passes"] == 3 and s["basis"] == "loaded"
+        truth2 = _truth_sd(world, "D2", s["start_m"], s["end_m"])
+        assert abs(s["d2_sd_mm"] - truth2) < 0.1, (s, truth2)
+        assert s["n_passes"] == 3 and s["basis"] == "loaded" and s["d2_level"] == "long"
         assert s["quality_class"] in "ABCDE"
         assert s["repeatability_d1_mm"] is not None and s["repeatability_d1_mm"] < 0.5
-    assert q["d2_band_m"] == [25.0, 40.0] and q["notes"]  # the stored band is said, not hidden
+    assert q["d2_band_m"] == [25.0, 70.0]  # D2's whole band: its own level is stored
     # the default limit tables are unverified against the standard, and the answer says so
     assert q["unverified_limits"] == ["isolated_mm.D1", "isolated_mm.D2", "class_sd_mm"]
     assert "EN 13848-5" in q["limits_source"]
@@ -252,7 +255,7 @@ def test_unknown_track_and_bad_section_length(world: dict[str, Any]) -> None:
 
 def test_report_has_the_quality_section(world: dict[str, Any]) -> None:
     """The HTML report carries the quality section: its heading, one row per section with its
-    class, and the note about the stored D2 band."""
+    class, and D2's band: all of its 25-70 m (its own level stored), no note of a narrower one."""
     c = world["client"]
     q = c.get(f"/api/v1/tracks/{TRACK}/quality").json()
     html = c.get(f"/api/v1/tracks/{TRACK}/report").text
@@ -260,7 +263,7 @@ def test_report_has_the_quality_section(world: dict[str, Any]) -> None:
     part = html.split("<h2>Track quality (EN 13848)</h2>")[1]
     for s in q["sections"]:
         assert f"{s['start_m']:.0f}–{s['end_m']:.0f}</td>" in part
-    assert "D2 covers 25-40 m" in part
+    assert "D2 (25–70 m)" in part and "D2 covers 25-40 m" not in part
 
 
 def test_survey_comparison_per_section(world: dict[str, Any]) -> None:

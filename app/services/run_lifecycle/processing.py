@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
@@ -19,21 +20,25 @@ from app.services.track.integrate import Separation, add_run_to_track
 from engine.budget import TimeBudget
 from engine.pipeline import PreparedRun, fuse_axles, process_run
 from engine.results import ProcessResult
+from engine.track_quality import long_level
 from engine.vehicle_kinds import per_wheel
 
 
 @dataclass(frozen=True)
 class Processed:
-    """An engine result and how long it took, s."""
+    """An engine result, the run's long level on its grid (mm; None: too short for its band)
+    and how long both took, s."""
 
     result: ProcessResult
     seconds: float
     wheel_offsets_m: tuple[float, ...] = (0.0,)
     """The wheels of a measured point about it, m (the vehicle's): they share its force."""
+    long_level_mm: NDArray[np.float64] | None = None
 
 
 def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
-    """Invert and detect (engine pipeline); raises the engine's errors unchanged, and
+    """Invert and detect (engine pipeline), then the long level D2 is filtered from
+    (:func:`engine.track_quality.long_level`); raises the engine's errors unchanged, and
     :class:`~engine.errors.BudgetExceeded` past ``budget_s`` of wall time (s;
     ``TRACKPROFILE_PROCESSING_BUDGET_S``)."""
     t0 = time.perf_counter()
@@ -44,7 +49,10 @@ def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
     )
     result = process_run(run, budget=budget)
     wheels = tuple(run.setup.vehicle.axle_wheel_offsets_m[0])
-    return Processed(result, time.perf_counter() - t0, wheels)
+    long = long_level(run)
+    if budget is not None:
+        budget.check("the long level")
+    return Processed(result, time.perf_counter() - t0, wheels, long)
 
 
 def start_inversion(
@@ -163,5 +171,5 @@ def store_result(
     run.vehicle_version = vehicle_version
     add_run_to_track(
         session, run, res.chainage_m, res.level_mm, force if under_level.size else None,
-        separation=separation,
+        separation=separation, long_mm=processed.long_level_mm,
     )  # fmt: skip

@@ -28,6 +28,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
 from app.services.storage.packing import pack_f4, pack_named, unpack_f4, unpack_named
+from app.services.storage.profiles import pack_long_level
 from app.services.views.window import Window
 from engine.accumulate import ResidualCache, detect_on_aggregate
 from engine.aggregate import AggregateProfile, aggregate_levels
@@ -90,9 +91,11 @@ def store_run_levels(
     i_lo: int,
     levels: NDArray[np.float64],
     force_n: NDArray[np.float64] | None = None,
+    long_mm: NDArray[np.float64] | None = None,
 ) -> tuple[int, int] | None:
-    """Keep a run's aligned levels (mm), and the wheel force under them (N, same points) when
-    known, from grid point ``i_lo`` on; the chunks written.
+    """Keep a run's aligned levels (mm), and the wheel force under them (N, same points) and
+    its long level (mm, same points: ``engine.track_quality.long_level``) when known, from
+    grid point ``i_lo`` on; the chunks written.
 
     Returns ``(first_chunk, last_chunk)``, or None when there is no finite level.
     """
@@ -100,9 +103,11 @@ def store_run_levels(
     if not parts:
         return None
     forces = chunked(i_lo, force_n)[2] if force_n is not None else {}
+    longs = chunked(i_lo, long_mm)[2] if long_mm is not None else {}
     rows = [
         {"run_id": run_id, "chunk": chunk, "track_id": track_id, "levels": pack_f4(buf),
-         "force_n": pack_f4(forces[chunk]) if chunk in forces else None}
+         "force_n": pack_f4(forces[chunk]) if chunk in forces else None,
+         "long_mm": pack_long_level(longs[chunk]) if chunk in longs else None}
         for chunk, buf in parts.items()
     ]  # fmt: skip
     session.execute(insert(TrackRunLevels), rows)

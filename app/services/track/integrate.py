@@ -22,7 +22,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
 from app.services.storage.packing import unpack_f4
-from app.services.storage.profiles import fuse_axles, read_profile
+from app.services.storage.profiles import fuse_axles, read_profile, unpack_long_level
 from app.services.track.aggregate import (
     CHUNK_POINTS,
     drop_run_levels,
@@ -83,9 +83,10 @@ def add_run_to_track(
     force_n: NDArray[np.float64] | None = None,
     *,
     separation: Separation = "now",
+    long_mm: NDArray[np.float64] | None = None,
 ) -> RunAlignment:
     """Align a just-stored run (profile as processed: chainage m, level mm, the wheel force
-    under it N) and merge it.
+    under it N, its long level mm: ``engine.track_quality.long_level``) and merge it.
 
     Sets the run's offset and alignment fields; a reference or aligned run's levels join the
     track's aggregate over the chunks it covers, and the track's geometry/stiffness
@@ -109,7 +110,10 @@ def add_run_to_track(
         if force_n is not None:
             _, force = on_track_grid(chainage_m, force_n, al.offset_m)
             force = force[: levels.size] if force.size >= levels.size else None
-        chunks = store_run_levels(session, run.track_id, run.id, i_lo, levels, force)
+        long = None
+        if long_mm is not None:
+            long = _on_points(chainage_m, long_mm, al.offset_m, i_lo, levels.size)
+        chunks = store_run_levels(session, run.track_id, run.id, i_lo, levels, force, long)
         if chunks is not None:
             recompute_aggregate(session, run.track_id, *chunks)
             moved = realign_placed(session, run.track_id, *chunks)
@@ -178,14 +182,60 @@ def realign_placed(session: Session, track_id: int, c_lo: int, c_hi: int) -> tup
     return changed
 
 
+def _on_points(
+    chainage_m: NDArray[np.float64],
+    values: NDArray[np.float64],
+    offset_m: float,
+    i_lo: int,
+    n: int,
+) -> NDArray[np.float64]:
+    """``values`` (on ``chainage_m``, m) shifted by ``offset_m`` onto the ``n`` track-grid
+    points from ``i_lo``: the points of the level they are stored with (NaN beyond them)."""
+    j, v = on_track_grid(chainage_m, values, offset_m)
+    out = np.full(n, np.nan)
+    a, b = max(i_lo, j), min(i_lo + n, j + v.size)
+    if b > a:
+        out[a - i_lo : b - i_lo] = v[a - j : b - j]
+    return out
+
+
+def _kept_long_levels(session: Session, track_id: int) -> dict[int, list[tuple[int, bytes]]]:
+    """The track's stored long levels, packed, by run: ``(chunk, blob)`` each."""
+    lv = TrackRunLevels.__table__
+    out: dict[int, list[tuple[int, bytes]]] = {}
+    for rid, chunk, blob in session.execute(
+        select(lv.c.run_id, lv.c.chunk, lv.c.long_mm).where(
+            lv.c.track_id == track_id, lv.c.long_mm.is_not(None)
+        )
+    ):
+        out.setdefault(int(rid), []).append((int(chunk), bytes(blob)))
+    return out
+
+
+def _long_level_back(
+    rows: list[tuple[int, bytes]], offset_m: float, chainage_m: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """A run's kept long level (its ``(chunk, blob)`` rows) back on its chainage as processed
+    (m: the track-grid points minus ``offset_m``); None when none is kept."""
+    if not rows:
+        return None
+    c0, c1 = min(r[0] for r in rows), max(r[0] for r in rows)
+    long = np.full((c1 - c0 + 1) * CHUNK_POINTS, np.nan)
+    for chunk, blob in rows:
+        at = (chunk - c0) * CHUNK_POINTS
+        long[at : at + CHUNK_POINTS] = unpack_long_level(blob)
+    x = (c0 * CHUNK_POINTS + np.arange(long.size, dtype=np.float64)) * GRID_STEP_M
+    return sample_at(x - offset_m, long, chainage_m)
+
+
 def _shift_stored_levels(
     session: Session, track_id: int, run_id: int, offset_m: float
 ) -> tuple[int, int] | None:
-    """Move a run's stored aligned levels and forces by ``offset_m`` along the track; the
-    chunks covered before or after (None: it had none)."""
+    """Move a run's stored aligned levels, forces and long level by ``offset_m`` along the
+    track; the chunks covered before or after (None: it had none)."""
     lv = TrackRunLevels.__table__
     rows = session.execute(
-        select(lv.c.chunk, lv.c.levels, lv.c.force_n).where(lv.c.run_id == run_id)
+        select(lv.c.chunk, lv.c.levels, lv.c.force_n, lv.c.long_mm).where(lv.c.run_id == run_id)
     ).all()
     if not rows:
         return None
@@ -193,20 +243,25 @@ def _shift_stored_levels(
     n = (c1 - c0 + 1) * CHUNK_POINTS
     levels = np.full(n, np.nan)
     force = np.full(n, np.nan)
+    long = np.full(n, np.nan)
     has_force = all(r[2] is not None for r in rows)
-    for chunk, blob, fblob in rows:
+    has_long = any(r[3] is not None for r in rows)
+    for chunk, blob, fblob, lblob in rows:
         at = (chunk - c0) * CHUNK_POINTS
         levels[at : at + CHUNK_POINTS] = unpack_f4(blob)
         if has_force:
             force[at : at + CHUNK_POINTS] = unpack_f4(fblob)
+        if lblob is not None:
+            long[at : at + CHUNK_POINTS] = unpack_long_level(lblob)
     x = (c0 * CHUNK_POINTS + np.arange(n, dtype=np.float64)) * GRID_STEP_M
     i_lo, new_levels = on_track_grid(x, levels, offset_m)
     new_force = on_track_grid(x, force, offset_m)[1] if has_force else None
     if new_force is not None and new_force.size < new_levels.size:
         new_force = None
+    new_long = _on_points(x, long, offset_m, i_lo, new_levels.size) if has_long else None
     drop_run_levels(session, run_id)
     kept = None if new_force is None else new_force[: new_levels.size]
-    stored = store_run_levels(session, track_id, run_id, i_lo, new_levels, kept)
+    stored = store_run_levels(session, track_id, run_id, i_lo, new_levels, kept, new_long)
     lo, hi = (c0, c1) if stored is None else (min(c0, stored[0]), max(c1, stored[1]))
     return lo, hi
 
@@ -273,6 +328,9 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
     aligned levels: there is no profile left to align again.
     """
     lock_track(session, track_id)
+    # the long level is kept only on the track grid: taken aside (packed) with the offsets it
+    # was placed with, and put back on each run's own chainage as it is aligned again
+    kept_long = _kept_long_levels(session, track_id)
     with_detail = select(Run.id).where(Run.track_id == track_id, Run.detail_expired_at.is_(None))
     session.execute(delete(TrackRunLevels).where(TrackRunLevels.run_id.in_(with_detail)))
     session.execute(delete(TrackProfileChunk).where(TrackProfileChunk.track_id == track_id))
@@ -286,12 +344,15 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
         names = ("chainage_m", "level_mm", "front_force_n", "rear_force_n")
         cols = read_profile(session, run.id, columns=names)
         chainage = np.asarray(cols["chainage_m"], dtype=np.float64)
+        long = _long_level_back(kept_long.pop(run.id, []), run.offset_m, chainage)
         level, front, rear = (
             np.array([np.nan if v is None else v for v in cols[k]], dtype=np.float64)
             for k in names[1:]
         )
         force = fuse_axles(front, rear) if np.isfinite(front).any() else None
-        al = add_run_to_track(session, run, chainage, level, force, separation="caller")
+        al = add_run_to_track(
+            session, run, chainage, level, force, separation="caller", long_mm=long
+        )
         out.append((run.id, al))
     # where only runs without detail remain, their kept levels make the aggregate
     lv = TrackRunLevels.__table__

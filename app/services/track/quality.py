@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import defaultdict
+from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
@@ -39,6 +40,7 @@ from app.db.models import (
 )
 from app.services.errors import Invalid
 from app.services.storage.packing import unpack_f4
+from app.services.storage.profiles import unpack_long_level
 from app.services.track.aggregate import (
     CHUNK_POINTS,
     aggregate_chunk_range,
@@ -48,6 +50,7 @@ from app.services.track.aggregate import (
 from app.services.track.alignment import GRID_STEP_M
 from app.services.track.separation_store import read_stiffness
 from app.services.views.window import Window
+from engine.aggregate import column_nanmedian
 from engine.errors import ParameterError
 from engine.pipeline import ProcessConfig
 from engine.quality_limits import (
@@ -64,6 +67,7 @@ from engine.quality_limits import (
     unverified_defaults,
 )
 from engine.track_quality import (
+    BAND_LEVEL,
     BANDS,
     END_TRIM_M,
     LONG_LEVEL_LAMBDA_MAX_M,
@@ -157,14 +161,22 @@ def save_line_speeds(
 
 @dataclass(frozen=True)
 class _Levels:
-    """The track's analysed level on its grid, with its basis and the passes over it."""
+    """The track's analysed level on its grid, with its basis and the passes over it.
+
+    ``long_mm`` is the passes' median long level (D2's own: ``engine.track_quality.long_level``,
+    NaN where no pass kept one), ``long_passes`` each pass's; both empty until
+    :func:`with_passes`. The passes are float32 (as stored): a whole track's passes are in
+    memory at once.
+    """
 
     i0: int
     level_mm: NDArray[np.float64]
     unloaded: NDArray[np.bool_]
-    passes: dict[int, NDArray[np.float64]]
+    passes: dict[int, NDArray[np.float32]]
     recorded: dict[int, datetime | None]
     vehicle_speeds: dict[int, list[float]]
+    long_mm: NDArray[np.float64] | None = None
+    long_passes: dict[int, NDArray[np.float32]] = dataclasses.field(default_factory=dict)
 
     @property
     def ordered_runs(self) -> list[int]:
@@ -205,7 +217,29 @@ def read_levels(
         level[idx[ok]] = geo[ok]
         unloaded[idx[ok]] = True
     lv = _Levels(i0, level, unloaded, {}, {}, {})
-    return with_passes(session, track_id, lv) if passes else lv
+    if passes:
+        return with_passes(session, track_id, lv)
+    # D2's own level even without the passes: a screen for defects sees the D2 they will
+    return dataclasses.replace(lv, long_mm=_median(list(_long_levels(session, track_id, lv)), n))
+
+
+def _long_levels(session: Session, track_id: int, lv: _Levels) -> Iterator[NDArray[np.float32]]:
+    """Each pass's long level over ``lv``'s stretch (the newest passes of each chunk, those
+    that kept one), mm."""
+    n = lv.level_mm.size
+    c_lo = lv.i0 // CHUNK_POINTS
+    t = TrackRunLevels.__table__
+    keys = newest_runs(track_id, c_lo, c_lo + n // CHUNK_POINTS - 1)
+    longs: dict[int, NDArray[np.float32]] = {}
+    for rid, chunk, blob in session.execute(
+        select(t.c.run_id, t.c.chunk, t.c.long_mm)
+        .join(keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk))
+        .where(t.c.long_mm.is_not(None))
+    ):
+        arr = longs.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
+        at = (chunk - c_lo) * CHUNK_POINTS
+        arr[at : at + CHUNK_POINTS] = unpack_long_level(blob)
+    return iter(longs.values())
 
 
 def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
@@ -213,17 +247,21 @@ def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
     n = lv.level_mm.size
     c_lo = lv.i0 // CHUNK_POINTS
     c_hi = c_lo + n // CHUNK_POINTS - 1
-    passes: dict[int, NDArray[np.float64]] = {}
+    passes: dict[int, NDArray[np.float32]] = {}
+    longs: dict[int, NDArray[np.float32]] = {}
     t = TrackRunLevels.__table__
     keys = newest_runs(track_id, c_lo, c_hi)
-    for rid, chunk, blob in session.execute(
-        select(t.c.run_id, t.c.chunk, t.c.levels).join(
+    for rid, chunk, blob, long_blob in session.execute(
+        select(t.c.run_id, t.c.chunk, t.c.levels, t.c.long_mm).join(
             keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk)
         )
     ):
-        arr = passes.setdefault(int(rid), np.full(n, np.nan))
+        arr = passes.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
         at = (chunk - c_lo) * CHUNK_POINTS
         arr[at : at + CHUNK_POINTS] = unpack_f4(blob)
+        if long_blob is not None:
+            la = longs.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
+            la[at : at + CHUNK_POINTS] = unpack_long_level(long_blob)
     recorded: dict[int, datetime | None] = {}
     speeds: dict[int, list[float]] = defaultdict(list)
     if passes:
@@ -235,7 +273,22 @@ def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
         ):  # fmt: skip
             recorded[int(rid)] = when or created
             speeds[int(vid)].append(0.5 * (float(v_lo) + float(v_hi)))
-    return dataclasses.replace(lv, passes=passes, recorded=recorded, vehicle_speeds=dict(speeds))
+    return dataclasses.replace(
+        lv, passes=passes, recorded=recorded, vehicle_speeds=dict(speeds),
+        long_mm=_median(list(longs.values()), n), long_passes=longs,
+    )  # fmt: skip
+
+
+def _median(arrays: list[NDArray[np.float32]], n: int) -> NDArray[np.float64]:
+    """The median of the arrays' finite values point by point (NaN where none has one)."""
+    if not arrays:
+        return np.full(n, np.nan)
+    stack = np.vstack(arrays)
+    count = np.isfinite(stack).sum(axis=0)
+    out = np.full(n, np.nan)
+    has = count > 0
+    out[has] = column_nanmedian(stack[:, has].astype(np.float64), count[has])
+    return out
 
 
 def _observability(
@@ -325,6 +378,7 @@ def track_quality(
         answer["notes"].append("no aligned run over this track yet")
         return answer
     q = Analysis(lv, limits, speeds, window)
+    _say_d2_level(answer, q)
     answer["sections"] = _sections(q, section_m)
     answer["defects"] = _defects(q)
     answer["repeatability"] = _repeatability(lv)
@@ -338,8 +392,7 @@ def track_quality(
 def _answer_head(
     track: Track, section_m: float, limits: QualityLimits, limits_set: datetime | None
 ) -> dict[str, Any]:
-    """The answer's fixed part: filters, D2's band, limits' provenance; no results yet."""
-    d2_band = [BANDS["D2"].lambda_min_m, min(BANDS["D2"].lambda_max_m, PRODUCT_BAND_MAX_M)]
+    """The answer's fixed part: filters, limits' provenance; no results yet."""
     answer: dict[str, Any] = {
         "track_id": track.id,
         "track": track.name,
@@ -354,7 +407,7 @@ def _answer_head(
             }
             for name, b in BANDS.items()
         },  # fmt: skip
-        "d2_band_m": d2_band,
+        "d2_band_m": [BANDS["D2"].lambda_min_m, BANDS["D2"].lambda_max_m],
         "notes": [],
         "limits_default": limits_set is None,
         "unverified_limits": list(unverified_defaults(limits)),
@@ -365,18 +418,29 @@ def _answer_head(
         "observability": [],
         "survey_comparison": [],
     }
-    if d2_band[1] < BANDS["D2"].lambda_max_m:
-        answer["notes"].append(
-            f"the stored levels hold wavelengths up to {PRODUCT_BAND_MAX_M:g} m: D2 covers "
-            f"{d2_band[0]:g}-{d2_band[1]:g} m of its 25-70 m and understates a recording car's D2 "
-            f"(its own level, the passes' loaded level of a band reaching "
-            f"{LONG_LEVEL_LAMBDA_MAX_M:g} m, is not stored yet)"
-        )
     if answer["unverified_limits"]:
         answer["notes"].append(
             "limits not verified against EN 13848-5/-6: " + ", ".join(answer["unverified_limits"])
         )
     return answer
+
+
+def _say_d2_level(answer: dict[str, Any], q: Analysis) -> None:
+    """``d2_band_m`` and a note where D2 comes from the quality level: passes stored before
+    their long level was kept (or too short for its band) hold only 3-40 m."""
+    covered = np.isfinite(q.lv.level_mm)
+    old = q.d2_from_quality[covered]
+    if not old.any():
+        return
+    answer["d2_band_m"] = [BANDS["D2"].lambda_min_m, PRODUCT_BAND_MAX_M]
+    answer["notes"].append(
+        f"D2 over {100 * old.mean():.0f} % of the level comes from the stored "
+        f"{PRODUCT_BAND_MAX_M:g} m level (its passes were stored before their "
+        f"{LONG_LEVEL_LAMBDA_MAX_M:g} m level was kept, or are too short for it): there it "
+        f"covers {BANDS['D2'].lambda_min_m:g}-{PRODUCT_BAND_MAX_M:g} m of its 25-70 m and "
+        "understates a recording car's D2 (sections' d2_level; processing the runs again "
+        "keeps it)"
+    )
 
 
 class Analysis:
@@ -388,22 +452,33 @@ class Analysis:
     ) -> None:
         self.lv, self.limits, self.speeds = lv, limits, speeds
         self.x = lv.chainage_m
-        # only the quality level is stored: D2 falls back to it (the answer's d2_band_m)
-        self.filt = band_levels({"quality": lv.level_mm}, GRID_STEP_M, trim_m=END_TRIM_M)[0]
+        levels = {"quality": lv.level_mm}
+        long = lv.long_mm if lv.long_mm is not None else np.full(lv.level_mm.size, np.nan)
+        if np.isfinite(long).any():
+            levels["long"] = long
+        self.filt = band_levels(levels, GRID_STEP_M, trim_m=END_TRIM_M)[0]
+        # where no pass kept its long level D2 falls back to the quality level, flagged
+        self.d2_from_quality = np.isfinite(lv.level_mm) & ~np.isfinite(long)
+        if "long" in levels and self.d2_from_quality.any():
+            fallback = _band(BANDS["D2"], lv.level_mm)
+            self.filt["D2"] = np.where(self.d2_from_quality, fallback, self.filt["D2"])
         self.lo = -math.inf if window.from_m is None else window.from_m
         self.hi = math.inf if window.to_m is None else window.to_m
-        self._by_band: dict[str, dict[int, NDArray[np.float64]]] = {}
+        self._by_band: dict[str, dict[int, NDArray[np.float32]]] = {}
 
     @property
     def bounds(self) -> tuple[float, float]:
         return self.lo, self.hi
 
-    def pass_levels(self, band: str) -> dict[int, NDArray[np.float64]]:
+    def pass_levels(self, band: str) -> dict[int, NDArray[np.float32]]:
         """Each pass filtered to ``band`` (once), in recording order."""
         if band not in self._by_band:
             b = BANDS[band]
             lv = self.lv
-            self._by_band[band] = {r: _band(b, lv.passes[r]) for r in lv.ordered_runs}
+            own = lv.long_passes if BAND_LEVEL.get(band) == "long" else {}
+            self._by_band[band] = {
+                r: _band(b, own.get(r, lv.passes[r])).astype(np.float32) for r in lv.ordered_runs
+            }
         return self._by_band[band]
 
 
@@ -443,9 +518,16 @@ def _sections(q: Analysis, section_m: float) -> list[dict[str, Any]]:
             "repeatability_d1_mm": None if rep is None else _f(rep.r95_mm),
             "speed_kmh": speed, "quality_class": cls,
             "basis": _basis(float(q.lv.unloaded[covered].mean())),
+            "d2_level": _d2_level(float(q.d2_from_quality[covered].mean())),
             "next_class": _next_class(q, m, over, cls, speed),
         })  # fmt: skip
     return out
+
+
+def _d2_level(share_from_quality: float) -> str:
+    if share_from_quality <= 0.05:
+        return "long"
+    return "quality" if share_from_quality >= 0.95 else "mixed"
 
 
 def _basis(share_unloaded: float) -> str:
@@ -480,14 +562,17 @@ def _defects(q: Analysis) -> list[dict[str, Any]]:
             if not (q.lo <= d.peak_m <= q.hi):
                 continue
             i = int(round(d.peak_m / GRID_STEP_M)) - q.lv.i0
-            basis = "unloaded" if q.lv.unloaded[i] else "loaded"
+            own_long = BAND_LEVEL.get(name) == "long" and not q.d2_from_quality[i]
+            basis = "unloaded" if q.lv.unloaded[i] and not own_long else "loaded"
             out.append(_defect_dict(d, basis, q.limits, q.lv, q.pass_levels(name)))
     out.sort(key=lambda d: (LEVELS.index(d["level"]), -abs(d["value_mm"])))
     return out
 
 
 def _repeatability(lv: _Levels) -> dict[str, Any]:
-    rep_passes = [_band(REPEATABILITY_BAND, lv.passes[r]) for r in lv.ordered_runs]
+    rep_passes = [
+        _band(REPEATABILITY_BAND, lv.passes[r]).astype(np.float32) for r in lv.ordered_runs
+    ]
     rep = repeatability(rep_passes, pairs="successive")
     return {
         "band_m": [REPEATABILITY_BAND.lambda_min_m, REPEATABILITY_BAND.lambda_max_m],
@@ -513,7 +598,7 @@ def _defect_dict(
     basis: str,
     limits: QualityLimits,
     lv: _Levels,
-    filtered: dict[int, NDArray[np.float64]],
+    filtered: dict[int, NDArray[np.float32]],
 ) -> dict[str, Any]:
     band = d.band
     triple = limits.limits_at(band, d.speed_kmh)
@@ -526,7 +611,7 @@ def _defect_dict(
 
 
 def pass_values(
-    lv: _Levels, peak_m: float, filtered: dict[int, NDArray[np.float64]]
+    lv: _Levels, peak_m: float, filtered: dict[int, NDArray[np.float32]]
 ) -> list[tuple[int, datetime, float]]:
     """Each pass's value of a defect peaking at ``peak_m``: ``(run id, recorded, largest
     |level| within PEAK_MATCH_M of the peak, mm)``, passes in recording order."""
@@ -543,7 +628,7 @@ def pass_values(
 
 
 def defect_next_limit(
-    d: IsolatedDefect, limits: QualityLimits, lv: _Levels, filtered: dict[int, NDArray[np.float64]]
+    d: IsolatedDefect, limits: QualityLimits, lv: _Levels, filtered: dict[int, NDArray[np.float32]]
 ) -> dict[str, Any] | None:
     """When the defect's passes, trended, reach the next level it has not reached (3 passes)."""
     nxt = next_limit(d.value_mm, limits.limits_at(d.band, d.speed_kmh))
@@ -565,12 +650,19 @@ def _survey_comparison(
 ) -> list[dict[str, Any]]:
     out = []
     x = lv.chainage_m
+    # each band from its own level where the passes kept it (as the sections)
+    long = lv.long_mm if lv.long_mm is not None else lv.level_mm
+    own = {
+        n: np.where(np.isfinite(long), long, lv.level_mm)
+        if BAND_LEVEL.get(n) == "long" else lv.level_mm
+        for n in BANDS
+    }  # fmt: skip
     for survey, level in _read_surveys(session, track_id, lv.i0, lv.level_mm.size):
         # both filtered over the same stretch: the filters' transients at the ends of a
         # coverage are then alike and cancel in the differences
         common = np.isfinite(level) & np.isfinite(lv.level_mm)
         both = {n: _band(b, np.where(common, level, np.nan)) for n, b in BANDS.items()}
-        fleet = {n: _band(b, np.where(common, lv.level_mm, np.nan)) for n, b in BANDS.items()}
+        fleet = {n: _band(b, np.where(common, own[n], np.nan)) for n, b in BANDS.items()}
         s_stats = section_statistics(x, both, section_m, min_coverage=MIN_SECTION_COVERAGE)
         f_stats = section_statistics(x, fleet, section_m, min_coverage=MIN_SECTION_COVERAGE)
         rows = []
@@ -593,7 +685,7 @@ def _survey_comparison(
     return out
 
 
-def _band(band: BandFilter, level: NDArray[np.float64]) -> NDArray[np.float64]:
+def _band(band: BandFilter, level: NDArray[np.floating[Any]]) -> NDArray[np.float64]:
     """A level filtered to ``band``, without the ringing stretches at its coverage's ends."""
     return trim_ends(band.apply(level, GRID_STEP_M), GRID_STEP_M)
 

@@ -20,7 +20,7 @@ from app.services.views.window import Window
 
 QUALITY_CSV_COLUMNS = (
     "start_m", "end_m", "d1_sd_mm", "d2_sd_mm", "n_passes", "days_since_last_pass",
-    "repeatability_d1_mm", "speed_kmh", "quality_class", "basis",
+    "repeatability_d1_mm", "speed_kmh", "quality_class", "basis", "d2_level",
 )  # fmt: skip
 
 
