@@ -278,7 +278,7 @@ def main() -> None:
         s.score("tactical-mems", 1, tactical)
     ramps = Tally()
     for k in range(ns.ramp_tracks):
-        RampSet(8101 + 31 * k).score(ramps)
+        RampSet(9101 + 31 * k).score(ramps)
     print("tactical, ramps", cell(ramps), fmt_err(ramps), flush=True)
     two = Tally()
     for k in range(ns.two_load_tracks):
