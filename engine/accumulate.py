@@ -31,7 +31,15 @@ from numpy.typing import NDArray
 
 from .aggregate import aggregate_levels, column_nanmedian
 from .align import Alignment, align_profiles
-from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
+from .detect import (
+    DetectionConfig,
+    Dip,
+    add_dips,
+    find_dips,
+    robust_baseline,
+    robust_sigma,
+    running_mean,
+)
 from .errors import ParameterError
 from .geometry_check import is_smooth_rail
 from .track import TrackParams
@@ -399,13 +407,26 @@ def detect_on_aggregate(
     thr = np.maximum(cfg.min_depth_mm, cfg.noise_factor * np.sqrt(noise.noise_mm**2 + roughness**2))
     # the detector's own threshold is one number: scaling the residual by min_depth / thr(x)
     # makes "below -min_depth" mean "below -thr(x)" at every point
-    with np.errstate(invalid="ignore"):
-        scaled = mean * (cfg.min_depth_mm / thr)
     flat = DetectionConfig(
         baseline_window_m=cfg.baseline_window_m, min_depth_mm=cfg.min_depth_mm,
-        noise_factor=1e-12, min_length_m=cfg.min_length_m, edge_m=cfg.edge_m,
+        noise_factor=1e-12, min_length_m=cfg.min_length_m, edge_m=cfg.edge_m, matched_m=(),
     )  # fmt: skip
-    dips, _ = find_dips(grid, scaled, flat)
+    with np.errstate(invalid="ignore"):
+        dips, _ = find_dips(grid, mean * (cfg.min_depth_mm / thr), flat)
+    # the detector's running means (a matched filter for wide dips), each against the noise
+    # and roughness measured the same way on the passes' averaged residuals
+    for w in cfg.matched_m:
+        res_w = running_mean(res, step, w)
+        noise_w = combined_noise(res_w, pass_noise(lv, step, cfg.baseline_window_m, res=res_w))
+        thr_w = np.maximum(
+            cfg.min_depth_mm,
+            cfg.noise_factor * np.sqrt(noise_w.noise_mm**2 + noise_w.roughness_mm**2),
+        )
+        with np.errstate(invalid="ignore"):
+            found, _ = find_dips(
+                grid, running_mean(mean, step, w) * (cfg.min_depth_mm / thr_w), flat
+            )
+        dips = add_dips(grid, mean, dips, found)
     if peaks_in_m is not None:
         dips = dips_near(dips, *peaks_in_m)
     # a noisy mean of smooth rail is smooth rail: the roughness decides

@@ -11,6 +11,10 @@ from scipy.ndimage import median_filter, uniform_filter1d
 from .errors import ParameterError
 from .intervals import merge_intervals
 
+MATCHED_WIDTHS_M = (4.0, 8.0)
+"""Running-mean widths the detector also searches at by default, m (see
+:attr:`DetectionConfig.matched_m`)."""
+
 
 @dataclass(frozen=True)
 class DetectionConfig:
@@ -29,6 +33,12 @@ class DetectionConfig:
         Shortest dip reported (width at half depth), m.
     edge_m : float
         Dips closer than this to either end of the profile are ignored, m (filter edge effects).
+    matched_m : tuple of float
+        Widths of running means the residual is also searched at, m, each against the spread
+        of the residual averaged the same way (``noise_factor`` of it). A long zone's dip is
+        wider than the noise's correlation length, so the average keeps its depth and lowers
+        the noise: a matched filter for a flat-bottomed dip. Dips found only at a width are
+        added; empty: the residual alone.
     """
 
     baseline_window_m: float = 40.0
@@ -36,6 +46,7 @@ class DetectionConfig:
     noise_factor: float = 5.0
     min_length_m: float = 1.0
     edge_m: float = 6.0
+    matched_m: tuple[float, ...] = MATCHED_WIDTHS_M
 
     def __post_init__(self) -> None:
         for name in ("baseline_window_m", "min_depth_mm", "noise_factor", "min_length_m"):
@@ -44,6 +55,13 @@ class DetectionConfig:
                 raise ParameterError(f"detection {name} must be > 0, got {v}")
         if not (np.isfinite(self.edge_m) and self.edge_m >= 0):
             raise ParameterError(f"detection edge_m must be >= 0, got {self.edge_m}")
+        for w in self.matched_m:
+            if not (np.isfinite(w) and 0 < w < self.baseline_window_m):
+                raise ParameterError(
+                    f"detection matched_m widths must be > 0 m and shorter than the baseline "
+                    f"window {self.baseline_window_m} m, got {w}",
+                    field="matched_m",
+                )
 
 
 @dataclass(frozen=True)
@@ -89,23 +107,91 @@ def robust_sigma(x: NDArray[np.float64]) -> float:
     return float(1.4826 * np.median(np.abs(v - np.median(v))))
 
 
+def running_mean(x: NDArray[np.float64], step_m: float, width_m: float) -> NDArray[np.float64]:
+    """Running mean of ``x`` over ``width_m`` (m) along its last axis, NaN ignored and kept.
+
+    ``x`` is one profile (points,) or several (rows, points) on a grid of ``step_m`` (m).
+    """
+    n = max(1, int(round(width_m / step_m)))
+    ok = np.isfinite(x)
+    num = uniform_filter1d(np.where(ok, x, 0.0), n, axis=-1, mode="nearest")
+    den = uniform_filter1d(ok.astype(float), n, axis=-1, mode="nearest")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out: NDArray[np.float64] = np.where(ok & (den > 0), num / den, np.nan)
+    return out
+
+
+def dip_thresholds(
+    step_m: float, residual_mm: NDArray[np.float64], config: DetectionConfig
+) -> tuple[tuple[float, float], ...]:
+    """The detector's threshold at every width it searches: ``(width m, threshold mm)``, the
+    residual itself first (width 0), then each of ``config.matched_m``."""
+    out = [(0.0, max(config.min_depth_mm, config.noise_factor * robust_sigma(residual_mm)))]
+    for w in config.matched_m:
+        sm = running_mean(residual_mm, step_m, w)
+        out.append((float(w), max(config.min_depth_mm, config.noise_factor * robust_sigma(sm))))
+    return tuple(out)
+
+
 def find_dips(
     chainage_m: NDArray[np.float64], residual_mm: NDArray[np.float64], config: DetectionConfig
 ) -> tuple[list[Dip], float]:
     """Dips of a residual profile (level minus baseline) below the detection threshold.
 
-    Returns the dips ordered by chainage and the threshold used, mm. A dip's extent is where
-    the residual is below half its peak depth; dips at most ``min_length_m`` apart merge
-    (:func:`engine.intervals.merge_intervals`).
+    Returns the dips ordered by chainage and the threshold of the residual itself, mm. A dip's
+    extent is where the residual is below half its peak depth; dips at most ``min_length_m``
+    apart merge (:func:`engine.intervals.merge_intervals`). The residual's running means of
+    ``config.matched_m`` are searched the same way, each against its own threshold
+    (:func:`dip_thresholds`); a dip found there and not in the residual is added, its extent
+    the mean's half-depth extent, its depth the residual's deepest point inside it.
     """
     step = float(chainage_m[1] - chainage_m[0])
+    thresholds = dip_thresholds(step, residual_mm, config)
+    dips = _dips_below(chainage_m, residual_mm, thresholds[0][1], config)
+    for w, thr_w in thresholds[1:]:
+        found = _dips_below(chainage_m, running_mean(residual_mm, step, w), thr_w, config)
+        dips = add_dips(chainage_m, residual_mm, dips, found)
+    return dips, thresholds[0][1]
+
+
+def add_dips(
+    chainage_m: NDArray[np.float64],
+    residual_mm: NDArray[np.float64],
+    dips: list[Dip],
+    more: list[Dip],
+) -> list[Dip]:
+    """``dips`` and those of ``more`` that overlap none of them, by chainage.
+
+    ``more`` are dips of a running mean of ``residual_mm`` (mm): each keeps its extent and
+    takes its deepest point and depth from the residual itself inside it.
+    """
+    out = list(dips)
+    for d in more:
+        if any(d.start_m <= o.end_m and o.start_m <= d.end_m for o in dips):
+            continue
+        inside = (chainage_m >= d.start_m) & (chainage_m <= d.end_m) & np.isfinite(residual_mm)
+        if not inside.any():
+            out.append(d)
+            continue
+        k = int(np.argmin(np.where(inside, residual_mm, np.inf)))
+        out.append(Dip(d.start_m, d.end_m, float(chainage_m[k]), float(-residual_mm[k])))
+    out.sort(key=lambda d: d.start_m)
+    return out
+
+
+def _dips_below(
+    chainage_m: NDArray[np.float64],
+    residual_mm: NDArray[np.float64],
+    thr: float,
+    config: DetectionConfig,
+) -> list[Dip]:
+    """Dips of ``residual_mm`` deeper than ``thr`` (mm), grown to half depth and merged."""
+    step = float(chainage_m[1] - chainage_m[0])
     r = np.where(np.isfinite(residual_mm), residual_mm, 0.0)
-    sigma = robust_sigma(residual_mm)
-    thr = max(config.min_depth_mm, config.noise_factor * sigma)
     valid = np.isfinite(residual_mm)
     idx = np.flatnonzero(valid)
     if idx.size == 0:
-        return [], thr
+        return []
     lo_ok = chainage_m[idx[0]] + config.edge_m
     hi_ok = chainage_m[idx[-1]] - config.edge_m
     below = (r < -thr) & valid
@@ -145,4 +231,4 @@ def find_dips(
         deepest = max(members, key=lambda d: d.depth_mm)
         end = max(d.end_m for d in members)
         merged.append(Dip(members[0].start_m, end, deepest.peak_m, deepest.depth_mm))
-    return merged, thr
+    return merged

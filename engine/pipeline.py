@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from .budget import TimeBudget
 from .chainage import to_grid
-from .detect import Dip, find_dips, robust_baseline, robust_sigma
+from .detect import Dip, dip_thresholds, find_dips, robust_baseline, robust_sigma
 from .geometry_check import is_smooth_rail
 from .intervals import merge_intervals
 from .methods import METHODS, MethodInput
@@ -178,6 +178,7 @@ def process_run(run: PreparedRun, *, budget: TimeBudget | None = None) -> Proces
         thr, params=trk, load=load, lambda_min_m=cfg.lambda_min_m,
         lambda_max_m=cfg.lambda_max_m, taper=cfg.taper, step_m=step,
         baseline_window_m=cfg.detection.baseline_window_m, wheel_offsets_m=wheels,
+        matched=dip_thresholds(step, residual, cfg.detection)[1:],
     )  # fmt: skip
     spent("the soft-spot detection")
     # a wrong vehicle turns into dips no track can have: fail rather than report them

@@ -6,8 +6,10 @@ deviations of the residual, never less than ``min_depth_mm``. The residual's spr
 pass's own noise: the sensor noise carried through the inversion, plus rail geometry where the
 rail has it. A soft zone of a given length and loss makes a dip of a depth the static beam model
 gives (:mod:`engine.stiffness`), passed through the same wavelength band and baseline as a
-measured profile. The detection limit is the loss whose dip just reaches the threshold: a zone
-that weak is found about half the time; weaker ones are not seen, stronger ones are.
+measured profile. The detector also searches the residual's running means
+(``DetectionConfig.matched_m``) against their own spread; a zone's dip is measured through
+each. The detection limit is the loss whose dip just reaches a threshold: a zone that weak is
+found about half the time; weaker ones are not seen, stronger ones are.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from .detect import robust_baseline
+from .detect import robust_baseline, running_mean
 from .errors import ParameterError
 from .results import DetectionLimit
 from .stiffness import MAX_LOSS, InfluenceLine, _bandpass_rows, modal_dips
@@ -65,13 +67,14 @@ class DipModel:
 
 
 def zone_dip_depths(
-    zone_length_m: float, losses: NDArray[np.float64], model: DipModel
+    zone_length_m: float, losses: NDArray[np.float64], model: DipModel, matched_m: float = 0.0
 ) -> NDArray[np.float64]:
     """Depth of the dip a zone of ``zone_length_m`` (m) makes for each loss, mm (positive).
 
     The zone softens the ``round(length / spacing)`` supports (at least one) it covers; its
     modelled loaded-level change under the static wheel load is band-passed and measured
-    against the detector's running-median baseline, as ``model`` says.
+    against the detector's running-median baseline, as ``model`` says; with ``matched_m``
+    (m) as the detector sees it through its running mean of that width.
     """
     params, step_m = model.params, model.step_m
     lambda_min_m, lambda_max_m, taper = model.lambda_min_m, model.lambda_max_m, model.taper
@@ -94,17 +97,20 @@ def zone_dip_depths(
     near = np.abs(g) <= 0.5 * n * s + 2 * lambda_min_m
     depth = np.empty(losses.size)
     for i, d in enumerate(dips):
-        depth[i] = max(
-            0.0, -float(np.min((d - robust_baseline(d, step_m, baseline_window_m))[near]))
-        )
+        r = d - robust_baseline(d, step_m, baseline_window_m)
+        if matched_m > 0:
+            r = running_mean(r, step_m, matched_m)
+        depth[i] = max(0.0, -float(np.min(r[near])))
     return depth
 
 
 @lru_cache(maxsize=64)
-def _depth_curve(zone_length_m: float, model: DipModel) -> NDArray[np.float64]:
-    """Dip depth against :data:`_LOSSES`, made non-decreasing, mm: one per vehicle and band,
-    so a service's runs reuse it."""
-    depth = zone_dip_depths(zone_length_m, _LOSSES, model)
+def _depth_curve(
+    zone_length_m: float, model: DipModel, matched_m: float = 0.0
+) -> NDArray[np.float64]:
+    """Dip depth against :data:`_LOSSES`, made non-decreasing, mm: one per vehicle, band and
+    detector width, so a service's runs reuse it."""
+    depth = zone_dip_depths(zone_length_m, _LOSSES, model, matched_m)
     # the dip deepens with the loss (the maximum smooths the baseline's small wobbles)
     out: NDArray[np.float64] = np.maximum.accumulate(depth)
     out.flags.writeable = False
@@ -123,6 +129,7 @@ def detection_limit(
     step_m: float,
     baseline_window_m: float,
     wheel_offsets_m: tuple[float, ...] = (0.0,),
+    matched: tuple[tuple[float, float], ...] = (),
 ) -> DetectionLimit:
     """The smallest stiffness loss a detector with ``threshold_mm`` finds, per zone length.
 
@@ -139,12 +146,16 @@ def detection_limit(
         detector's baseline window (m): a :class:`DipModel`.
     wheel_offsets_m : tuple of float
         The wheels of a measured point relative to it, m (:class:`DipModel`).
+    matched : tuple of (float, float)
+        The detector's running-mean widths (m) and their thresholds (mm), as
+        :func:`engine.detect.dip_thresholds` gives them after the residual's own; a zone is
+        seen when it reaches the threshold at any width.
 
     Returns
     -------
     DetectionLimit
-        The loss (%) whose dip depth equals the threshold, per length; it falls as the noise
-        (the threshold) falls.
+        The loss (%) whose dip depth equals the threshold, per length (the smallest over the
+        widths); it falls as the noise (the threshold) falls.
     """
     if not (math.isfinite(threshold_mm) and threshold_mm > 0):
         raise ParameterError(
@@ -160,11 +171,18 @@ def detection_limit(
         float(taper), float(step_m), float(baseline_window_m),
         tuple(float(o) for o in wheel_offsets_m),
     )  # fmt: skip
+    for w, t in matched:
+        if not (math.isfinite(w) and w > 0 and math.isfinite(t) and t > 0):
+            raise ParameterError(
+                f"matched widths and thresholds must be positive m and mm, got ({w}, {t})",
+                field="matched",
+            )
     out = []
     for z in zone_lengths_m:
-        deepest = _depth_curve(float(z), model)
-        if threshold_mm > deepest[-1]:
-            out.append(float("nan"))
-        else:
-            out.append(float(100.0 * np.interp(threshold_mm, deepest, _LOSSES)))
+        best = float("nan")
+        for w, t in ((0.0, float(threshold_mm)), *matched):
+            deepest = _depth_curve(float(z), model, float(w))
+            if t <= deepest[-1]:
+                best = float(np.fmin(best, 100.0 * np.interp(t, deepest, _LOSSES)))
+        out.append(best)
     return DetectionLimit(tuple(float(z) for z in zone_lengths_m), tuple(out), float(threshold_mm))
