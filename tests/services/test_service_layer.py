@@ -91,3 +91,14 @@ def test_csv_options_are_derived_from_the_reader() -> None:
     argv = ["process", "run.csv", "--out", "out", "--chainage-unit", "km"]
     flags = build_parser().parse_args(argv)
     assert flags.chainage_unit == "km"
+
+
+def test_a_survey_over_the_upload_limit_is_too_large(tmp_path: Path) -> None:
+    """import_survey refuses a file over the upload limit before reading it (TooLarge, 413)."""
+    from app.services.track.surveys import SurveyInput, import_survey
+
+    ctx = _ctx(tmp_path)
+    limit = ctx.settings.max_upload_bytes
+    with pytest.raises(TooLarge) as err:
+        import_survey(ctx, "t", bytearray(limit + 1), SurveyInput(1e5, 3.0, 25.0))
+    assert err.value.facts["limit_bytes"] == limit and "upload limit" in err.value.message

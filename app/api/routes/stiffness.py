@@ -8,13 +8,19 @@ from typing import Any
 import orjson
 from fastapi import APIRouter, Request, Response
 from fastapi.concurrency import run_in_threadpool
-from pydantic import ValidationError
-from starlette.datastructures import UploadFile
 
 from app.api.answers import Format, add_csv_twin, csv_answer
 from app.api.convert import stiffness_public, survey_public
 from app.api.deps import CtxDep, SessionDep, WindowDep
-from app.core.errors import ApiError, validation_detail
+from app.api.uploads import (
+    JSON,
+    MULTIPART,
+    content_type,
+    read_body,
+    read_file_form,
+    validated,
+    validated_json,
+)
 from app.schemas.stiffness import (
     StiffnessPublic,
     SurveyCreateJson,
@@ -66,12 +72,8 @@ def read_track_stiffness(
     return Response(orjson.dumps(payload), media_type="application/json")
 
 
-def _fields(model: type[SurveyFields], data: Any) -> SurveyFields:
-    try:
-        return model.model_validate(data)
-    except ValidationError as exc:
-        detail = validation_detail(exc.errors(include_url=False, include_input=False))
-        raise ApiError(422, detail.pop("message"), **detail) from None
+SEND = f"{MULTIPART} or {JSON}"
+"""What a survey upload may be sent as (named when another content type comes)."""
 
 
 SURVEY_BODY_DOC: dict[str, Any] = {
@@ -117,32 +119,15 @@ async def create_track_survey(
     monotonic, a value not finite, a level beyond +-100 mm, no wheel load) is answered 422
     naming the column and row or the field, and nothing is stored.
     """
-    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    limit = ctx.settings.max_upload_bytes
-    if ctype == "multipart/form-data":
-        async with request.form(max_files=1, max_fields=16) as form:
-            upload = form.get("file")
-            if not isinstance(upload, UploadFile):
-                raise ApiError(422, "the upload has no 'file' part (the survey CSV)", field="file")
-            data = await upload.read(limit + 1)
-            filename = upload.filename
-            fields = {k: v for k, v in form.multi_items() if k != "file"}
-        meta = _fields(SurveyFields, fields)
-    elif ctype == "application/json":
-        body = await request.body()
-        try:
-            jmeta = SurveyCreateJson.model_validate_json(body)
-        except ValidationError as exc:
-            detail = validation_detail(exc.errors(include_url=False, include_input=False))
-            raise ApiError(422, detail.pop("message"), **detail) from None
-        data, filename, meta = jmeta.csv.encode(), jmeta.filename, jmeta
+    meta: SurveyFields
+    data: bytes | bytearray
+    if content_type(request, (MULTIPART, JSON), SEND) == MULTIPART:
+        form = await read_file_form(request, what="the survey CSV", max_fields=16)
+        data, filename = form.data, form.filename
+        meta = validated(SurveyFields, form.fields)
     else:
-        raise ApiError(
-            415, f"unsupported content type {ctype or '(none)'!r}: send multipart/form-data or "
-            "application/json", field="Content-Type",
-        )  # fmt: skip
-    if len(data) > limit:
-        raise ApiError(413, f"the survey is larger than the upload limit ({limit} bytes)")
+        jmeta = validated_json(SurveyCreateJson, await read_body(request))
+        data, filename, meta = jmeta.csv.encode(), jmeta.filename, jmeta
     survey_input = SurveyInput(
         wheel_load_n=meta.wheel_load_n, band_min_m=meta.band_min_m, band_max_m=meta.band_max_m,
         name=meta.name, recorded_at=meta.recorded_at, filename=clean_filename(filename),

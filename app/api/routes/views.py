@@ -26,8 +26,8 @@ from fastapi import APIRouter, File, Query, Request, UploadFile
 from starlette.datastructures import UploadFile as StarletteUpload
 
 from app.api.deps import ClosedWindowDep, RunId, SessionDep, WindowDep
-from app.core.errors import ApiError
 from app.schemas.views import ChainageMapPublic, CsvPreviewPublic, ProfileViewPublic, WindowPublic
+from app.services.errors import Invalid
 from app.services.lookup import get_track
 from app.services.views import charts as chart_views
 
@@ -95,10 +95,10 @@ async def csv_preview(
     """
     form = await request.form()
     if not isinstance(form.get("file"), StarletteUpload):  # a text field named "file"
-        raise ApiError(422, "'file' must be a file part (the log's first bytes)", field="file")
+        raise Invalid("'file' must be a file part (the log's first bytes)", field="file")
     unknown = sorted(set(form) - {"file", *chart_views.PREVIEW_OPTION_NAMES})
     if unknown:
-        raise ApiError(422, f"unexpected form field {unknown[0][:50]!r}", field=unknown[0][:50])
+        raise Invalid(f"unexpected form field {unknown[0][:50]!r}", field=unknown[0][:50])
     chosen = {
         k: str(v).strip()
         for k in chart_views.PREVIEW_OPTION_NAMES
