@@ -11,7 +11,15 @@ from app.core.errors import DOMAIN_STATUS, domain_status
 from app.db.migrate import upgrade
 from app.db.session import Database
 from app.services.context import AppContext
-from app.services.errors import Conflict, DomainError, Invalid, NotFound, TooLarge
+from app.services.errors import (
+    Conflict,
+    DomainError,
+    Invalid,
+    Malformed,
+    NotFound,
+    TooLarge,
+    Unsupported,
+)
 from app.services.run_lifecycle.logs import parse_csv
 from app.services.run_lifecycle.simulation import SimulationSpec, simulate_and_submit
 from app.services.views.window import Window
@@ -30,8 +38,10 @@ def _ctx(tmp_path: Path) -> AppContext:
 
 def test_status_codes_live_in_one_table() -> None:
     """Each domain error class has one status code; subclasses inherit their parent's."""
-    assert {cls: DOMAIN_STATUS[cls] for cls in (NotFound, Conflict, Invalid, TooLarge)} == {
-        NotFound: 404, Conflict: 409, Invalid: 422, TooLarge: 413,
+    classes = (NotFound, Conflict, Invalid, TooLarge, Unsupported, Malformed)
+    assert {cls: DOMAIN_STATUS[cls] for cls in classes} == {
+        NotFound: 404, Conflict: 409, Invalid: 422, TooLarge: 413, Unsupported: 415,
+        Malformed: 400,
     }  # fmt: skip
 
     class Gone(NotFound):

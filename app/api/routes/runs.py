@@ -10,21 +10,14 @@ from typing import Annotated, Any
 import orjson
 from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
+from app.api import uploads
 from app.api.access import key_from_headers
 from app.api.answers import Format, add_csv_twin, csv_answer
 from app.api.convert import run_public
-from app.api.deps import CallerDep, CtxDep, RunId, SessionDep, WindowDep
-from app.api.uploads import (
-    JSON,
-    MULTIPART,
-    content_type,
-    read_body,
-    read_file_form,
-    validated,
-    validation_error,
-)
+from app.api.deps import CallerDep, CtxDep, Limit, Offset, RunId, SessionDep, WindowDep
+from app.api.uploads import JSON, MULTIPART
 from app.schemas.common import Timestamp
 from app.schemas.runs import (
     ProfilePublic,
@@ -95,7 +88,7 @@ def _from_multipart(
     fields: dict[str, Any], body: bytearray, filename: str | None, key: str | None,
     max_bytes: int,
 ) -> Submission:  # fmt: skip
-    meta = validated(RunUploadForm, RunUploadForm.from_form(fields))
+    meta = uploads.validated(RunUploadForm, RunUploadForm.from_form(fields))
     return intake.from_upload(meta, body, filename, key, max_bytes)
 
 
@@ -112,7 +105,7 @@ def _from_json(
     except ValidationError as exc:
         if any(e.get("type") == "json_invalid" for e in exc.errors()):
             raise Malformed("the request body is not valid JSON", **_facts(exc)) from None
-        raise validation_error(exc) from None
+        raise uploads.validation_error(exc) from None
     columns = None if meta.columns is None else meta.columns.model_dump() | arrays
     return intake.from_json(meta, columns, key, max_bytes)
 
@@ -166,16 +159,22 @@ async def answer_submission(
     )
 
 
+def submission_responses(model: type[BaseModel], repeated: str) -> dict[int | str, Any]:
+    """The answers of a route that submits a run (see :func:`answer_submission`), documented
+    with their ``model``; ``repeated`` says when the same submission is answered 200."""
+    return {
+        200: {"model": model, "description": repeated},
+        201: {"model": model, "description": "Processed and stored"},
+        202: {"model": model, "description": "Accepted; the background worker processes it"},
+    }
+
+
 @router.post(
     "",
     response_model=RunCreated,
     status_code=202,
     openapi_extra=RUN_BODY_DOC,
-    responses={
-        200: {"model": RunCreated, "description": "Already stored (same content or key)"},
-        201: {"model": RunCreated, "description": "Processed and stored"},
-        202: {"model": RunCreated, "description": "Accepted; the background worker processes it"},
-    },
+    responses=submission_responses(RunCreated, "Already stored (same content or key)"),
 )
 async def create_run(
     request: Request,
@@ -209,15 +208,15 @@ async def create_run(
         known = await run_in_threadpool(request.app.state.keys.lookup, sent)
         owner = known.key_id if known is not None else None
     limits = ctx.settings
-    if content_type(request, (MULTIPART, JSON), SEND) == MULTIPART:
-        form = await read_file_form(request, what="the run log", max_fields=64)
+    if uploads.content_type(request, (MULTIPART, JSON), SEND) == MULTIPART:
+        form = await uploads.read_file_form(request, what="the run log", max_fields=64)
         sub = await run_in_threadpool(
             _from_multipart, form.fields, form.data, form.filename, idempotency_key,
             limits.max_upload_bytes,
         )  # fmt: skip
         del form
     else:
-        body = await read_body(request)
+        body = await uploads.read_body(request)
         sub = await run_in_threadpool(
             _from_json, body, idempotency_key, limits.max_body_bytes, limits.max_upload_bytes
         )
@@ -236,8 +235,8 @@ def list_runs(
     status: Annotated[RunStatus | None, Query()] = None,
     recorded_from: Annotated[Timestamp | None, Query(description="Recorded at or after")] = None,
     recorded_to: Annotated[Timestamp | None, Query(description="Recorded at or before")] = None,
-    offset: Annotated[int, Query(ge=0)] = 0,
-    limit: Annotated[int, Query(ge=1, le=1000)] = 50,
+    offset: Offset = 0,
+    limit: Limit = 50,
 ) -> RunsPublic:
     """Runs, newest recording first; filter by track, status and recording time."""
     rows, count = runs.list_runs(

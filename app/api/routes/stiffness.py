@@ -9,34 +9,16 @@ import orjson
 from fastapi import APIRouter, Request, Response
 from fastapi.concurrency import run_in_threadpool
 
+from app.api import uploads
 from app.api.answers import Format, add_csv_twin, csv_answer
 from app.api.convert import stiffness_public, survey_public
 from app.api.deps import CtxDep, SessionDep, WindowDep
-from app.api.uploads import (
-    JSON,
-    MULTIPART,
-    content_type,
-    read_body,
-    read_file_form,
-    validated,
-    validated_json,
-)
-from app.schemas.stiffness import (
-    StiffnessPublic,
-    SurveyCreateJson,
-    SurveyFields,
-    SurveyPublic,
-)
+from app.api.uploads import JSON, MULTIPART
+from app.schemas.stiffness import StiffnessPublic, SurveyCreateJson, SurveyFields, SurveyPublic
 from app.services.lookup import get_track
 from app.services.run_lifecycle.intake import clean_filename
+from app.services.track import surveys
 from app.services.track.separation_store import stiffness_with_vehicles
-from app.services.track.surveys import (
-    SurveyInput,
-    delete_survey,
-    get_survey,
-    import_survey,
-    list_surveys,
-)
 from app.services.vehicles.versions import read_settled
 from app.services.views import exports
 
@@ -121,18 +103,18 @@ async def create_track_survey(
     """
     meta: SurveyFields
     data: bytes | bytearray
-    if content_type(request, (MULTIPART, JSON), SEND) == MULTIPART:
-        form = await read_file_form(request, what="the survey CSV", max_fields=16)
+    if uploads.content_type(request, (MULTIPART, JSON), SEND) == MULTIPART:
+        form = await uploads.read_file_form(request, what="the survey CSV", max_fields=16)
         data, filename = form.data, form.filename
-        meta = validated(SurveyFields, form.fields)
+        meta = uploads.validated(SurveyFields, form.fields)
     else:
-        jmeta = validated_json(SurveyCreateJson, await read_body(request))
+        jmeta = uploads.validated_json(SurveyCreateJson, await uploads.read_body(request))
         data, filename, meta = jmeta.csv.encode(), jmeta.filename, jmeta
-    survey_input = SurveyInput(
+    survey_input = surveys.SurveyInput(
         wheel_load_n=meta.wheel_load_n, band_min_m=meta.band_min_m, band_max_m=meta.band_max_m,
         name=meta.name, recorded_at=meta.recorded_at, filename=clean_filename(filename),
     )  # fmt: skip
-    survey, created = await run_in_threadpool(import_survey, ctx, track, data, survey_input)
+    survey, created = await run_in_threadpool(surveys.import_survey, ctx, track, data, survey_input)
     response.status_code = 201 if created else 200
     return survey_public(survey, duplicate=not created)
 
@@ -141,14 +123,14 @@ async def create_track_survey(
 def read_track_surveys(session: SessionDep, track: str) -> list[SurveyPublic]:
     """The track's reference surveys, oldest first."""
     trk = get_track(session, track)
-    return [survey_public(s) for s in list_surveys(session, trk.id)]
+    return [survey_public(s) for s in surveys.list_surveys(session, trk.id)]
 
 
 @router.delete("/{track}/surveys/{survey_id}", status_code=204, response_class=Response)
 def delete_track_survey(session: SessionDep, track: str, survey_id: int) -> Response:
     """Delete a survey; the track's stiffness is separated again without it."""
     trk = get_track(session, track)
-    delete_survey(session, get_survey(session, trk.id, survey_id))
+    surveys.delete_survey(session, surveys.get_survey(session, trk.id, survey_id))
     session.commit()
     return Response(status_code=204)
 
