@@ -33,6 +33,9 @@ from app.services.views import charts as chart_views
 
 router = APIRouter(prefix="/views", tags=["views"])
 
+MaxRuns = Annotated[int, Query(ge=1, le=1000, description="Newest runs shown")]
+"""``?max_runs=``: how many of the track's runs a view shows at most (the newest)."""
+
 
 @router.get("/runs/{run_id}/profile", response_model=ProfileViewPublic)
 def run_profile_view(
@@ -54,7 +57,7 @@ def track_chainage_map(
     spots: Annotated[bool, Query(description="Include the soft spots")] = True,
     zones: Annotated[bool, Query(description="Include the zones (needs spots)")] = True,
     heatmap: Annotated[bool, Query(description="Include the level heatmap")] = True,
-    max_runs: Annotated[int, Query(ge=1, le=1000, description="Newest runs shown")] = 200,
+    max_runs: MaxRuns = 200,
 ) -> ChainageMapPublic:
     """The chainage map of a track (its name or id): runs x chainage, soft spots, zones.
 
@@ -73,7 +76,7 @@ def track_window(
     track: str,
     window: ClosedWindowDep,
     max_points: Annotated[int, Query(ge=100, le=20_000, description="Most points per run")] = 2000,
-    max_runs: Annotated[int, Query(ge=1, le=1000, description="Newest runs shown")] = 200,
+    max_runs: MaxRuns = 200,
 ) -> WindowPublic:
     """The fused profile of every processed run covering part of ``[from_m, to_m]``."""
     return chart_views.track_window(
