@@ -45,6 +45,13 @@ from .vehicle import VehicleParams
 from .vehicle_kinds import Vehicle
 
 
+def _of_kind(
+    vehicle_kind: str, half_car: tuple[str, ...], bogie: tuple[str, ...]
+) -> tuple[str, ...]:
+    """Parameter names of a vehicle of ``vehicle_kind``: the half car's or the bogie vehicle's."""
+    return {VehicleParams.kind: half_car, BogieParams.kind: bogie}[vehicle_kind]
+
+
 @dataclass(frozen=True)
 class Fittable:
     """How one fitted quantity moves the vehicle: ``apply(params, theta) -> changes``.
@@ -63,7 +70,7 @@ class Fittable:
 
     def targets_of(self, vehicle_kind: str) -> tuple[str, ...]:
         """The parameters this quantity moves on a vehicle of ``vehicle_kind``."""
-        return {VehicleParams.kind: self.targets, BogieParams.kind: self.bogie}[vehicle_kind]
+        return _of_kind(vehicle_kind, self.targets, self.bogie)
 
     def apply(self, base: Vehicle, theta: float) -> dict[str, float]:
         """Parameter values of ``base`` moved by ``theta``."""
@@ -126,14 +133,44 @@ statistical one: on runs of a vehicle that matches its registration the fit stil
 parameters by up to ~2-4 % (the front and rear loaded levels differ a little: different axle
 loads, dynamic wheel force), far more than the segment scatter says."""
 
-NOT_IDENTIFIABLE: dict[str, str] = {
-    "ms": "absolute body mass: the response depends only on ratios of masses, stiffnesses "
-    "and dampings (scaling all of them changes nothing); held at the registered value or the "
-    "given load figure",
-    "kt1/kt2": "contact stiffness: barely changes the response in the 3-40 m band; held",
-    "mu1/mu2": "axle masses: barely change the response in the band; held",
-}
-"""Parameters the logs cannot fix, and why (reported in every result)."""
+
+@dataclass(frozen=True)
+class Unidentifiable:
+    """A quantity the logs cannot fix, held at its registered value: ``reason`` says why;
+    ``targets`` are the half car's parameters it is, ``bogie`` those of a bogie vehicle."""
+
+    reason: str
+    targets: tuple[str, ...]
+    bogie: tuple[str, ...]
+
+    def name_of(self, vehicle_kind: str) -> str:
+        """How a result of a ``vehicle_kind`` vehicle names it (its parameters, ``/``-joined)."""
+        return "/".join(_of_kind(vehicle_kind, self.targets, self.bogie))
+
+
+NOT_IDENTIFIABLE: tuple[Unidentifiable, ...] = (
+    Unidentifiable(
+        "absolute body mass: the response depends only on ratios of masses, stiffnesses and "
+        "dampings (scaling all of them changes nothing); held at the registered value or the "
+        "given load figure",
+        ("ms",), ("body_mass_kg",),
+    ),
+    Unidentifiable(
+        "contact stiffness: barely changes the response in the 3-40 m band; held",
+        ("kt1", "kt2"), ("contact_k_n_per_m",),
+    ),
+    Unidentifiable(
+        "axle masses: barely change the response in the band; held",
+        ("mu1", "mu2"), ("wheelset_mass_kg",),
+    ),
+)  # fmt: skip
+"""Quantities the logs cannot fix, and why (reported in every result, named by the vehicle
+kind's own parameters: :func:`not_identifiable`)."""
+
+
+def not_identifiable(vehicle_kind: str) -> dict[str, str]:
+    """What a calibration of a ``vehicle_kind`` vehicle cannot fix, by its parameter names."""
+    return {q.name_of(vehicle_kind): q.reason for q in NOT_IDENTIFIABLE}
 
 
 @dataclass(frozen=True)
@@ -471,7 +508,7 @@ def calibrate(
     params = _vehicle_at(base, fit, theta)
     improvement = 1.0 - J1 / J0 if J0 > 0 else 0.0
     fitted: list[FittedParameter] = []
-    not_identified = dict(NOT_IDENTIFIABLE)
+    not_identified = not_identifiable(base.kind)
     for i, name in enumerate(fit):
         fdef = FITTABLE[name]
         change = math.expm1(theta[i]) if fdef.kind == "scale" else float(theta[i])

@@ -3,7 +3,9 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypeVar
+
+from pydantic import BaseModel
 
 from app.db.models import Calibration, Run, Survey, Track, Vehicle
 from app.schemas.runs import (
@@ -30,7 +32,16 @@ from engine.sensor import SensorModel, sensor_for_grade
 from engine.synthetic import REALISTIC_SENSOR
 from engine.track import SoftZone
 
+M = TypeVar("M", bound=BaseModel)
+
 _PROGRESS = {"queued": 0.05, "inverting": 0.35, "storing": 0.85}
+
+
+def from_row(model: type[M], row: Any, **derived: Any) -> M:
+    """``model`` from an ORM row: each field the row's attribute of the same name, but for
+    the fields ``derived`` (renamed, computed or aligned ones), given."""
+    same = {name: getattr(row, name) for name in model.model_fields if name not in derived}
+    return model(**same, **derived)
 
 
 def run_public(run: Run) -> RunPublic:
@@ -38,54 +49,29 @@ def run_public(run: Run) -> RunPublic:
     lo, hi = run.aligned_extent()
     progress = 1.0 if run.status != "processing" else _PROGRESS.get(run.stage or "queued", 0.05)
     basis, message = run_stiffness_basis(run.single_pass_valid)
-    return RunPublic(
-        id=run.id,
-        name=run.name,
-        track_id=run.track_id,
+    return from_row(
+        RunPublic,
+        run,
         track=run.track.name,
-        vehicle_id=run.vehicle_id,
         vehicle=run.vehicle.name,
-        vehicle_version=run.vehicle_version,
-        source=run.source,
-        original_filename=run.original_filename,
-        recorded_at=run.recorded_at,
-        created_at=run.created_at,
-        processed_at=run.processed_at,
-        start_chainage_m=run.start_chainage_m,
-        direction=run.direction,  # type: ignore[arg-type]
-        sample_rate_hz=run.sample_rate_hz,
-        n_samples=run.n_samples,
-        duration_s=run.duration_s,
-        speed_min_mps=run.speed_min_mps,
-        speed_max_mps=run.speed_max_mps,
         chainage_min_m=lo,
         chainage_max_m=hi,
         chainage_offset_m=run.offset_m,
         alignment=_alignment(run),
-        status=run.status,  # type: ignore[arg-type]
-        stage=run.stage if run.status == "processing" else None,  # type: ignore[arg-type]
+        stage=run.stage if run.status == "processing" else None,
         progress=progress,
         error=RunError.model_validate(run.error) if run.error else None,
-        quality=run.quality,
-        method=run.method,
-        n_soft_spots=run.n_soft_spots,
-        processing_s=run.processing_s,
-        payload_kg=run.payload_kg,
-        static_wheel_load_n=run.static_wheel_load_n,
-        mean_wheel_force_n=run.mean_wheel_force_n,
-        stiffness_basis=basis,  # type: ignore[arg-type]
+        stiffness_basis=basis,
         stiffness_message=message,
         detection_limit=(
             DetectionLimitPublic.model_validate(run.detection_limit)
             if run.detection_limit
             else None
         ),
-        content_hash=run.content_hash,
         options=run.options or {},
         positioning=(
             RunPositioningPublic.model_validate(run.positioning) if run.positioning else None
         ),
-        detail_expired_at=run.detail_expired_at,
     )
 
 
@@ -103,31 +89,12 @@ def _alignment(run: Run) -> RunAlignmentPublic | None:
 
 def track_public(track: Track, n_runs: int = 0) -> TrackPublic:
     """The public view of a track."""
-    return TrackPublic(
-        id=track.id,
-        name=track.name,
-        description=track.description,
-        rail=track.rail,
-        k_nominal=track.k_nominal,
-        spacing=track.spacing,
-        EI=track.EI,
-        mass_per_m=track.mass_per_m,
-        c_support=track.c_support,
-        created_at=track.created_at,
-        n_runs=n_runs,
-    )
+    return from_row(TrackPublic, track, n_runs=n_runs)
 
 
 def vehicle_public(vehicle: Vehicle) -> VehiclePublic:
     """The public view of a vehicle."""
-    return VehiclePublic(
-        id=vehicle.id,
-        name=vehicle.name,
-        description=vehicle.description,
-        params=dict(vehicle.params_dict()),
-        version=vehicle.version,
-        created_at=vehicle.created_at,
-    )
+    return from_row(VehiclePublic, vehicle, params=dict(vehicle.params_dict()))
 
 
 def calibration_public(cal: Calibration, vehicle_name: str) -> CalibrationPublic:
@@ -168,14 +135,9 @@ def calibration_public(cal: Calibration, vehicle_name: str) -> CalibrationPublic
 def survey_public(s: Survey, duplicate: bool = False) -> SurveyPublic:
     """A survey's public view (chainage aligned)."""
     off = s.chainage_offset_m or 0.0
-    return SurveyPublic(
-        id=s.id, track_id=s.track_id, name=s.name, original_filename=s.original_filename,
-        recorded_at=s.recorded_at, created_at=s.created_at, wheel_load_n=s.wheel_load_n,
-        band_min_m=s.band_min_m, band_max_m=s.band_max_m, n_points=s.n_points,
-        chainage_min_m=s.chainage_min_m + off, chainage_max_m=s.chainage_max_m + off,
-        chainage_offset_m=off, alignment_status=s.alignment_status,  # type: ignore[arg-type]
-        alignment_correlation=s.alignment_correlation, alignment_reason=s.alignment_reason,
-        duplicate=duplicate,
+    return from_row(
+        SurveyPublic, s, chainage_min_m=s.chainage_min_m + off,
+        chainage_max_m=s.chainage_max_m + off, chainage_offset_m=off, duplicate=duplicate,
     )  # fmt: skip
 
 

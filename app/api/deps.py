@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Annotated
 
 from fastapi import Depends, Path, Query, Request, Security
@@ -58,6 +59,28 @@ def check_access(
 
 CallerDep = Annotated[Caller, Depends(check_access)]
 
+
+Offset = Annotated[int, Query(ge=0)]
+"""``?offset=``: rows of a list skipped before the page."""
+Limit = Annotated[int, Query(ge=1, le=1000)]
+"""``?limit=``: most rows of a list answered (a page of at most 1000: a client pages through
+more)."""
+
+
+@dataclass(frozen=True)
+class Page:
+    """A page of a list: ``limit`` rows after the first ``offset``."""
+
+    offset: int
+    limit: int
+
+
+def page(offset: Offset = 0, limit: Limit = 100) -> Page:
+    """``?offset=&limit=``: a page of a list (100 rows unless told)."""
+    return Page(offset, limit)
+
+
+PageDep = Annotated[Page, Depends(page)]
 
 RunId = Annotated[int, Path(ge=1, description="Run id")]
 CalibrationId = Annotated[int, Path(ge=1, description="Calibration id")]

@@ -24,8 +24,10 @@ from app.services.errors import (
     DomainError,
     Gone,
     Invalid,
+    Malformed,
     NotFound,
     TooLarge,
+    Unsupported,
     engine_error_facts,
 )
 from engine.errors import EngineError
@@ -68,6 +70,8 @@ DOMAIN_STATUS: dict[type[DomainError], int] = {
     Invalid: 422,
     TooLarge: 413,
     Gone: 410,
+    Unsupported: 415,
+    Malformed: 400,
 }
 """Status code of each domain error of the services (the only place that knows them)."""
 

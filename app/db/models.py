@@ -487,7 +487,8 @@ class TrackStiffness(Base):
     each
     ``CHUNK_POINTS`` little-endian float32 values (NaN = not estimated); ``meta`` lists the
     passes that reached the chunk (``contributors``: kind, id, label, mean wheel force in N,
-    points) and the separation's message where it could not separate.
+    points). Why a stretch is not separable is derived when it is read (rows written before
+    may still carry a ``message``: it is not read).
     """
 
     __tablename__ = "track_stiffness"

@@ -9,6 +9,8 @@ them, and the engine's own errors, to status codes:
 - :class:`Invalid`: an input is wrong; ``field`` names it, ``column``/``row``/``unit`` point
   into an uploaded file;
 - :class:`TooLarge`: an input is over a size limit;
+- :class:`Unsupported`: an input comes in a form that is not taken (a body's content type);
+- :class:`Malformed`: an input cannot be read at all (an empty body, JSON that is not JSON);
 - :class:`Gone`: it existed and was removed on purpose (a run's detail after retention).
 
 Facts are keyword arguments; those left None are not reported. ``kind`` names the error class
@@ -75,6 +77,16 @@ class Invalid(DomainError):
 
 class TooLarge(DomainError):
     """An input is over a size limit (``limit_bytes`` says which)."""
+
+
+class Unsupported(DomainError):
+    """An input comes in a form that is not taken (``field`` names what says the form, such as
+    ``Content-Type``)."""
+
+
+class Malformed(DomainError):
+    """An input cannot be read at all, before any of its fields can be named (an empty body,
+    a body that is not the JSON it claims to be)."""
 
 
 def engine_error_facts(exc: EngineError) -> dict[str, Any]:

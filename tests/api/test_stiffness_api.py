@@ -331,3 +331,28 @@ def test_load_weigh_column_sets_the_wheel_force(
     assert r.status_code == 422, r.text
     assert r.json()["detail"]["field"] == "wheel_load_column"
     assert row_counts(settings) == before
+
+
+def test_survey_bodies_that_are_not_a_survey_upload(client: TestClient, settings: Settings):
+    """The survey intake refuses, naming what is wrong, and stores nothing: a content type it
+    does not take (415 naming Content-Type), a form without its file part or with ``file`` as
+    a text field (422 naming file), a JSON body that is not JSON (422)."""
+    url = f"/api/v1/tracks/{TRACK}/surveys"
+    before = row_counts(settings)
+    r = client.post(
+        url, content=b"chainage_m,level_mm\n0,0\n", headers={"content-type": "text/csv"}
+    )
+    assert r.status_code == 415, r.text
+    assert r.json()["detail"]["field"] == "Content-Type"
+    assert "multipart/form-data or application/json" in r.json()["detail"]["message"]
+    r = client.post(
+        url, files={"other": ("x.txt", b"x", "text/plain")}, data={"wheel_load_n": "1e5"}
+    )
+    assert r.status_code == 422 and r.json()["detail"]["field"] == "file", r.text
+    assert "(the survey CSV)" in r.json()["detail"]["message"]
+    r = client.post(url, files={"x": (None, b"")}, data={"file": "text", "wheel_load_n": "1e5"})
+    assert r.status_code == 422 and r.json()["detail"]["field"] == "file", r.text
+    assert "not a text field" in r.json()["detail"]["message"]
+    r = client.post(url, content=b"{not json", headers={"content-type": "application/json"})
+    assert r.status_code == 422, r.text
+    assert row_counts(settings) == before

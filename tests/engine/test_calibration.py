@@ -10,7 +10,8 @@ from datetime import datetime
 
 import pytest
 
-from engine.calibration import CalibrationConfig, CalibrationRun, calibrate
+from engine.bogie import BogieParams
+from engine.calibration import CalibrationConfig, CalibrationRun, calibrate, not_identifiable
 from engine.errors import ParameterError
 from engine.health import ParameterEstimate, health_alerts
 from engine.pipeline import process_run
@@ -219,3 +220,14 @@ def test_an_implausible_declared_load_skips_its_run(matching_runs):
     res = calibrate(cal, TABLE1)
     assert [r.label for r in res.runs] == ["run 0"]
     assert res.skipped and res.skipped[0][0] == "run 1" and "declared load" in res.skipped[0][1]
+
+
+@pytest.mark.parametrize("vehicle", [TABLE1, BogieParams()], ids=["half car", "bogie"])
+def test_not_identifiable_names_the_vehicle_kinds_own_parameters(vehicle):
+    """What a calibration reports as not identifiable is named by parameters the vehicle's
+    kind has (a bogie vehicle's result names no half-car parameter such as ``ms``)."""
+    own = {f.name for f in dataclasses.fields(vehicle)}
+    held = not_identifiable(vehicle.kind)
+    assert len(held) == 3
+    for name in held:
+        assert set(name.split("/")) <= own, name

@@ -11,7 +11,15 @@ from app.core.errors import DOMAIN_STATUS, domain_status
 from app.db.migrate import upgrade
 from app.db.session import Database
 from app.services.context import AppContext
-from app.services.errors import Conflict, DomainError, Invalid, NotFound, TooLarge
+from app.services.errors import (
+    Conflict,
+    DomainError,
+    Invalid,
+    Malformed,
+    NotFound,
+    TooLarge,
+    Unsupported,
+)
 from app.services.run_lifecycle.logs import parse_csv
 from app.services.run_lifecycle.simulation import SimulationSpec, simulate_and_submit
 from app.services.views.window import Window
@@ -30,8 +38,10 @@ def _ctx(tmp_path: Path) -> AppContext:
 
 def test_status_codes_live_in_one_table() -> None:
     """Each domain error class has one status code; subclasses inherit their parent's."""
-    assert {cls: DOMAIN_STATUS[cls] for cls in (NotFound, Conflict, Invalid, TooLarge)} == {
-        NotFound: 404, Conflict: 409, Invalid: 422, TooLarge: 413,
+    classes = (NotFound, Conflict, Invalid, TooLarge, Unsupported, Malformed)
+    assert {cls: DOMAIN_STATUS[cls] for cls in classes} == {
+        NotFound: 404, Conflict: 409, Invalid: 422, TooLarge: 413, Unsupported: 415,
+        Malformed: 400,
     }  # fmt: skip
 
     class Gone(NotFound):
@@ -91,3 +101,14 @@ def test_csv_options_are_derived_from_the_reader() -> None:
     argv = ["process", "run.csv", "--out", "out", "--chainage-unit", "km"]
     flags = build_parser().parse_args(argv)
     assert flags.chainage_unit == "km"
+
+
+def test_a_survey_over_the_upload_limit_is_too_large(tmp_path: Path) -> None:
+    """import_survey refuses a file over the upload limit before reading it (TooLarge, 413)."""
+    from app.services.track.surveys import SurveyInput, import_survey
+
+    ctx = _ctx(tmp_path)
+    limit = ctx.settings.max_upload_bytes
+    with pytest.raises(TooLarge) as err:
+        import_survey(ctx, "t", bytearray(limit + 1), SurveyInput(1e5, 3.0, 25.0))
+    assert err.value.facts["limit_bytes"] == limit and "upload limit" in err.value.message

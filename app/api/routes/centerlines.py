@@ -10,7 +10,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 
 from app.api.deps import CtxDep, SessionDep
-from app.core.errors import ApiError
+from app.api.uploads import content_type
 from app.db.models import TrackCenterline
 from app.schemas.centerlines import (
     CENTERLINE_CSV_SCHEMA,
@@ -18,6 +18,7 @@ from app.schemas.centerlines import (
     CenterlinePublic,
 )
 from app.services.context import AppContext
+from app.services.errors import Invalid
 from app.services.lookup import get_track
 from app.services.track.centerlines import (
     CONTENT_TYPES,
@@ -93,16 +94,10 @@ async def put_centerline(
     crosses itself, degrees out of range (naming a lat/lon swap when that is the cause) or a
     CSV chainage that does not grow is answered 422 naming the vertex or line; nothing is
     stored then."""
-    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if ctype not in CONTENT_TYPES:
-        raise ApiError(
-            415,
-            f"unsupported content type {ctype or '(none)'!r}: send {', '.join(CONTENT_TYPES)}",
-            field="Content-Type",
-        )
+    ctype = content_type(request, CONTENT_TYPES, ", ".join(CONTENT_TYPES))
     data = await request.body()
     if not data.strip():
-        raise ApiError(422, "the centerline body is empty", field="body")
+        raise Invalid("the centerline body is empty", field="body")
     public, created = await run_in_threadpool(_store, ctx, track, data, ctype, start_chainage_m)
     response.status_code = 201 if created else 200
     return public

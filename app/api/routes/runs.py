@@ -10,15 +10,14 @@ from typing import Annotated, Any
 import orjson
 from fastapi import APIRouter, Header, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
-from fastapi.exceptions import RequestValidationError
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
+from app.api import uploads
 from app.api.access import key_from_headers
 from app.api.answers import Format, add_csv_twin, csv_answer
 from app.api.convert import run_public
-from app.api.deps import CallerDep, CtxDep, RunId, SessionDep, WindowDep
-from app.api.multipart import BufferedUpload, read_form
-from app.core.errors import ApiError
+from app.api.deps import CallerDep, CtxDep, Limit, Offset, RunId, SessionDep, WindowDep
+from app.api.uploads import JSON, MULTIPART
 from app.schemas.common import Timestamp
 from app.schemas.runs import (
     ProfilePublic,
@@ -33,6 +32,7 @@ from app.schemas.runs import (
     SoftSpotPublic,
 )
 from app.services.context import AppContext
+from app.services.errors import Malformed
 from app.services.lookup import get_track
 from app.services.run_lifecycle import intake
 from app.services.run_lifecycle import stored_runs as runs
@@ -42,6 +42,9 @@ from app.services.run_lifecycle.json_log import has_columns, split_json_columns
 from app.services.views import exports
 
 router = APIRouter(prefix="/runs", tags=["runs"])
+
+SEND = f"{MULTIPART} (a file upload) or {JSON}"
+"""What a run upload may be sent as (named when another content type comes)."""
 
 IdempotencyKey = Annotated[
     str | None,
@@ -81,18 +84,11 @@ RUN_BODY_DOC: dict[str, Any] = {
 }
 
 
-def _validate(model: type[RunUploadForm], data: Any) -> RunUploadForm:
-    try:
-        return model.model_validate(data)
-    except ValidationError as exc:
-        raise RequestValidationError(exc.errors(include_url=False, include_input=False)) from None
-
-
 def _from_multipart(
     fields: dict[str, Any], body: bytearray, filename: str | None, key: str | None,
     max_bytes: int,
 ) -> Submission:  # fmt: skip
-    meta = _validate(RunUploadForm, RunUploadForm.from_form(fields))
+    meta = uploads.validated(RunUploadForm, RunUploadForm.from_form(fields))
     return intake.from_upload(meta, body, filename, key, max_bytes)
 
 
@@ -100,7 +96,7 @@ def _from_json(
     body: bytes | bytearray, key: str | None, max_rest_bytes: int, max_bytes: int
 ) -> Submission:
     if not body or body.isspace():  # (not strip(): a copy of the whole body)
-        raise ApiError(400, "the request body is empty: send a JSON object or a multipart upload")
+        raise Malformed("the request body is empty: send a JSON object or a multipart upload")
     arrays: dict[str, Any] = {}
     if has_columns(body):
         body, arrays = split_json_columns(body, RunColumns.model_fields, max_rest_bytes)
@@ -108,8 +104,8 @@ def _from_json(
         meta = RunCreateJson.model_validate_json(body)
     except ValidationError as exc:
         if any(e.get("type") == "json_invalid" for e in exc.errors()):
-            raise ApiError(400, "the request body is not valid JSON", **_facts(exc)) from None
-        raise RequestValidationError(exc.errors(include_url=False, include_input=False)) from None
+            raise Malformed("the request body is not valid JSON", **_facts(exc)) from None
+        raise uploads.validation_error(exc) from None
     columns = None if meta.columns is None else meta.columns.model_dump() | arrays
     return intake.from_json(meta, columns, key, max_bytes)
 
@@ -163,16 +159,22 @@ async def answer_submission(
     )
 
 
+def submission_responses(model: type[BaseModel], repeated: str) -> dict[int | str, Any]:
+    """The answers of a route that submits a run (see :func:`answer_submission`), documented
+    with their ``model``; ``repeated`` says when the same submission is answered 200."""
+    return {
+        200: {"model": model, "description": repeated},
+        201: {"model": model, "description": "Processed and stored"},
+        202: {"model": model, "description": "Accepted; the background worker processes it"},
+    }
+
+
 @router.post(
     "",
     response_model=RunCreated,
     status_code=202,
     openapi_extra=RUN_BODY_DOC,
-    responses={
-        200: {"model": RunCreated, "description": "Already stored (same content or key)"},
-        201: {"model": RunCreated, "description": "Processed and stored"},
-        202: {"model": RunCreated, "description": "Accepted; the background worker processes it"},
-    },
+    responses=submission_responses(RunCreated, "Already stored (same content or key)"),
 )
 async def create_run(
     request: Request,
@@ -205,43 +207,20 @@ async def create_run(
         # Idempotency-Keys of its own, as it would where keys are required.
         known = await run_in_threadpool(request.app.state.keys.lookup, sent)
         owner = known.key_id if known is not None else None
-    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if ctype == "multipart/form-data":
-        form = await read_form(request, max_files=1, max_fields=64)
-        upload = form.get("file")
-        if upload is None:
-            raise ApiError(422, "the upload has no 'file' part (the run log)", field="file")
-        if not isinstance(upload, BufferedUpload):
-            raise ApiError(422, "'file' must be a file, not a text field", field="file")
-        filename = upload.filename
-        fields = {k: v for k, v in form.multi_items() if k != "file"}
-        extra_files = [k for k, v in fields.items() if not isinstance(v, str)]
-        if extra_files:
-            raise ApiError(422, f"unexpected file part {extra_files[0]!r}", field=extra_files[0])
-        data = upload.buffer
-        del form, upload
+    limits = ctx.settings
+    if uploads.content_type(request, (MULTIPART, JSON), SEND) == MULTIPART:
+        form = await uploads.read_file_form(request, what="the run log", max_fields=64)
         sub = await run_in_threadpool(
-            _from_multipart, fields, data, filename, idempotency_key,
-            ctx.settings.max_upload_bytes,
+            _from_multipart, form.fields, form.data, form.filename, idempotency_key,
+            limits.max_upload_bytes,
         )  # fmt: skip
-        del data
-    elif ctype == "application/json":
-        # Read into one growing buffer (not chunks joined at the end: half the peak memory).
-        body = bytearray()
-        async for chunk in request.stream():
-            body += chunk
-        sub = await run_in_threadpool(
-            _from_json, body, idempotency_key, ctx.settings.max_body_bytes,
-            ctx.settings.max_upload_bytes,
-        )  # fmt: skip
-        del body
+        del form
     else:
-        raise ApiError(
-            415,
-            f"unsupported content type {ctype or '(none)'!r}: send multipart/form-data (a file "
-            "upload) or application/json",
-            field="Content-Type",
+        body = await uploads.read_body(request)
+        sub = await run_in_threadpool(
+            _from_json, body, idempotency_key, limits.max_body_bytes, limits.max_upload_bytes
         )
+        del body
     sub.idempotency_owner = owner
     run_id, created = await run_in_threadpool(submit, ctx, sub)
     ignored = [] if created else await run_in_threadpool(_ignored, ctx, run_id, sub)
@@ -256,8 +235,8 @@ def list_runs(
     status: Annotated[RunStatus | None, Query()] = None,
     recorded_from: Annotated[Timestamp | None, Query(description="Recorded at or after")] = None,
     recorded_to: Annotated[Timestamp | None, Query(description="Recorded at or before")] = None,
-    offset: Annotated[int, Query(ge=0)] = 0,
-    limit: Annotated[int, Query(ge=1, le=1000)] = 50,
+    offset: Offset = 0,
+    limit: Limit = 50,
 ) -> RunsPublic:
     """Runs, newest recording first; filter by track, status and recording time."""
     rows, count = runs.list_runs(

@@ -17,7 +17,7 @@ from app.services.views.charts import truth_view
 from engine.irregularity import SPECTRA
 from engine.sensor import SENSOR_GRADES
 
-from .runs import answer_submission
+from .runs import answer_submission, submission_responses
 
 router = APIRouter(tags=["simulate"])
 
@@ -38,10 +38,7 @@ def list_sensor_grades() -> dict[str, dict[str, float | str]]:
     "/simulate",
     response_model=SimulatePublic,
     status_code=201,
-    responses={
-        200: {"model": SimulatePublic, "description": "The same simulation was stored before"},
-        202: {"model": SimulatePublic, "description": "Accepted; processing in the background"},
-    },
+    responses=submission_responses(SimulatePublic, "The same simulation was stored before"),
 )
 async def simulate_run(
     ctx: CtxDep,

@@ -8,29 +8,17 @@ from typing import Any
 import orjson
 from fastapi import APIRouter, Request, Response
 from fastapi.concurrency import run_in_threadpool
-from pydantic import ValidationError
-from starlette.datastructures import UploadFile
 
+from app.api import uploads
 from app.api.answers import Format, add_csv_twin, csv_answer
 from app.api.convert import stiffness_public, survey_public
 from app.api.deps import CtxDep, SessionDep, WindowDep
-from app.core.errors import ApiError, validation_detail
-from app.schemas.stiffness import (
-    StiffnessPublic,
-    SurveyCreateJson,
-    SurveyFields,
-    SurveyPublic,
-)
+from app.api.uploads import JSON, MULTIPART
+from app.schemas.stiffness import StiffnessPublic, SurveyCreateJson, SurveyFields, SurveyPublic
 from app.services.lookup import get_track
 from app.services.run_lifecycle.intake import clean_filename
+from app.services.track import surveys
 from app.services.track.separation_store import stiffness_with_vehicles
-from app.services.track.surveys import (
-    SurveyInput,
-    delete_survey,
-    get_survey,
-    import_survey,
-    list_surveys,
-)
 from app.services.vehicles.versions import read_settled
 from app.services.views import exports
 
@@ -66,12 +54,8 @@ def read_track_stiffness(
     return Response(orjson.dumps(payload), media_type="application/json")
 
 
-def _fields(model: type[SurveyFields], data: Any) -> SurveyFields:
-    try:
-        return model.model_validate(data)
-    except ValidationError as exc:
-        detail = validation_detail(exc.errors(include_url=False, include_input=False))
-        raise ApiError(422, detail.pop("message"), **detail) from None
+SEND = f"{MULTIPART} or {JSON}"
+"""What a survey upload may be sent as (named when another content type comes)."""
 
 
 SURVEY_BODY_DOC: dict[str, Any] = {
@@ -117,37 +101,20 @@ async def create_track_survey(
     monotonic, a value not finite, a level beyond +-100 mm, no wheel load) is answered 422
     naming the column and row or the field, and nothing is stored.
     """
-    ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    limit = ctx.settings.max_upload_bytes
-    if ctype == "multipart/form-data":
-        async with request.form(max_files=1, max_fields=16) as form:
-            upload = form.get("file")
-            if not isinstance(upload, UploadFile):
-                raise ApiError(422, "the upload has no 'file' part (the survey CSV)", field="file")
-            data = await upload.read(limit + 1)
-            filename = upload.filename
-            fields = {k: v for k, v in form.multi_items() if k != "file"}
-        meta = _fields(SurveyFields, fields)
-    elif ctype == "application/json":
-        body = await request.body()
-        try:
-            jmeta = SurveyCreateJson.model_validate_json(body)
-        except ValidationError as exc:
-            detail = validation_detail(exc.errors(include_url=False, include_input=False))
-            raise ApiError(422, detail.pop("message"), **detail) from None
-        data, filename, meta = jmeta.csv.encode(), jmeta.filename, jmeta
+    meta: SurveyFields
+    data: bytes | bytearray
+    if uploads.content_type(request, (MULTIPART, JSON), SEND) == MULTIPART:
+        form = await uploads.read_file_form(request, what="the survey CSV", max_fields=16)
+        data, filename = form.data, form.filename
+        meta = uploads.validated(SurveyFields, form.fields)
     else:
-        raise ApiError(
-            415, f"unsupported content type {ctype or '(none)'!r}: send multipart/form-data or "
-            "application/json", field="Content-Type",
-        )  # fmt: skip
-    if len(data) > limit:
-        raise ApiError(413, f"the survey is larger than the upload limit ({limit} bytes)")
-    survey_input = SurveyInput(
+        jmeta = uploads.validated_json(SurveyCreateJson, await uploads.read_body(request))
+        data, filename, meta = jmeta.csv.encode(), jmeta.filename, jmeta
+    survey_input = surveys.SurveyInput(
         wheel_load_n=meta.wheel_load_n, band_min_m=meta.band_min_m, band_max_m=meta.band_max_m,
         name=meta.name, recorded_at=meta.recorded_at, filename=clean_filename(filename),
     )  # fmt: skip
-    survey, created = await run_in_threadpool(import_survey, ctx, track, data, survey_input)
+    survey, created = await run_in_threadpool(surveys.import_survey, ctx, track, data, survey_input)
     response.status_code = 201 if created else 200
     return survey_public(survey, duplicate=not created)
 
@@ -156,14 +123,14 @@ async def create_track_survey(
 def read_track_surveys(session: SessionDep, track: str) -> list[SurveyPublic]:
     """The track's reference surveys, oldest first."""
     trk = get_track(session, track)
-    return [survey_public(s) for s in list_surveys(session, trk.id)]
+    return [survey_public(s) for s in surveys.list_surveys(session, trk.id)]
 
 
 @router.delete("/{track}/surveys/{survey_id}", status_code=204, response_class=Response)
 def delete_track_survey(session: SessionDep, track: str, survey_id: int) -> Response:
     """Delete a survey; the track's stiffness is separated again without it."""
     trk = get_track(session, track)
-    delete_survey(session, get_survey(session, trk.id, survey_id))
+    surveys.delete_survey(session, surveys.get_survey(session, trk.id, survey_id))
     session.commit()
     return Response(status_code=204)
 

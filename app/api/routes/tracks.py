@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Annotated
-
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, Response
 
 from app.api.convert import track_public
-from app.api.deps import SessionDep
+from app.api.deps import PageDep, SessionDep
 from app.schemas.tracks import TrackCreate, TrackPublic, TracksPublic
 from app.services import lookup
 from app.services.track.deletion import delete_track as delete_track_and_runs
@@ -17,13 +15,9 @@ router = APIRouter(prefix="/tracks", tags=["tracks"])
 
 
 @router.get("", response_model=TracksPublic)
-def list_tracks(
-    session: SessionDep,
-    offset: Annotated[int, Query(ge=0)] = 0,
-    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
-) -> TracksPublic:
+def list_tracks(session: SessionDep, page: PageDep) -> TracksPublic:
     """Tracks by name, with how many runs each has."""
-    tracks, count = lookup.list_tracks(session, offset, limit)
+    tracks, count = lookup.list_tracks(session, page.offset, page.limit)
     counts = run_counts(session, [t.id for t in tracks])
     return TracksPublic(data=[track_public(t, counts.get(t.id, 0)) for t in tracks], count=count)
 

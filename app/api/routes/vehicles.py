@@ -9,7 +9,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Path, Query
 
 from app.api.convert import calibration_public, vehicle_public
-from app.api.deps import CalibrationId, CallerDep, CtxDep, SessionDep, caller_name
+from app.api.deps import CalibrationId, CallerDep, CtxDep, PageDep, SessionDep, caller_name
 from app.schemas.vehicles import (
     AnyVehicleParams,
     BogieParamsSchema,
@@ -41,13 +41,9 @@ router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 
 
 @router.get("", response_model=VehiclesPublic)
-def list_vehicles(
-    session: SessionDep,
-    offset: Annotated[int, Query(ge=0)] = 0,
-    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
-) -> VehiclesPublic:
+def list_vehicles(session: SessionDep, page: PageDep) -> VehiclesPublic:
     """Vehicles by name (``table1``, the paper's Table 1 vehicle, always exists)."""
-    rows, count = lookup.list_vehicles(session, offset, limit)
+    rows, count = lookup.list_vehicles(session, page.offset, page.limit)
     return VehiclesPublic(data=[vehicle_public(v) for v in rows], count=count)
 
 

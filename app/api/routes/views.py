@@ -26,12 +26,15 @@ from fastapi import APIRouter, File, Query, Request, UploadFile
 from starlette.datastructures import UploadFile as StarletteUpload
 
 from app.api.deps import ClosedWindowDep, RunId, SessionDep, WindowDep
-from app.core.errors import ApiError
 from app.schemas.views import ChainageMapPublic, CsvPreviewPublic, ProfileViewPublic, WindowPublic
+from app.services.errors import Invalid
 from app.services.lookup import get_track
 from app.services.views import charts as chart_views
 
 router = APIRouter(prefix="/views", tags=["views"])
+
+MaxRuns = Annotated[int, Query(ge=1, le=1000, description="Newest runs shown")]
+"""``?max_runs=``: how many of the track's runs a view shows at most (the newest)."""
 
 
 @router.get("/runs/{run_id}/profile", response_model=ProfileViewPublic)
@@ -54,7 +57,7 @@ def track_chainage_map(
     spots: Annotated[bool, Query(description="Include the soft spots")] = True,
     zones: Annotated[bool, Query(description="Include the zones (needs spots)")] = True,
     heatmap: Annotated[bool, Query(description="Include the level heatmap")] = True,
-    max_runs: Annotated[int, Query(ge=1, le=1000, description="Newest runs shown")] = 200,
+    max_runs: MaxRuns = 200,
 ) -> ChainageMapPublic:
     """The chainage map of a track (its name or id): runs x chainage, soft spots, zones.
 
@@ -73,7 +76,7 @@ def track_window(
     track: str,
     window: ClosedWindowDep,
     max_points: Annotated[int, Query(ge=100, le=20_000, description="Most points per run")] = 2000,
-    max_runs: Annotated[int, Query(ge=1, le=1000, description="Newest runs shown")] = 200,
+    max_runs: MaxRuns = 200,
 ) -> WindowPublic:
     """The fused profile of every processed run covering part of ``[from_m, to_m]``."""
     return chart_views.track_window(
@@ -95,10 +98,10 @@ async def csv_preview(
     """
     form = await request.form()
     if not isinstance(form.get("file"), StarletteUpload):  # a text field named "file"
-        raise ApiError(422, "'file' must be a file part (the log's first bytes)", field="file")
+        raise Invalid("'file' must be a file part (the log's first bytes)", field="file")
     unknown = sorted(set(form) - {"file", *chart_views.PREVIEW_OPTION_NAMES})
     if unknown:
-        raise ApiError(422, f"unexpected form field {unknown[0][:50]!r}", field=unknown[0][:50])
+        raise Invalid(f"unexpected form field {unknown[0][:50]!r}", field=unknown[0][:50])
     chosen = {
         k: str(v).strip()
         for k in chart_views.PREVIEW_OPTION_NAMES

@@ -262,14 +262,10 @@ def _chunk_rows(
             np.asarray(cols[name][lo:hi], dtype=_DTYPE).tobytes() for name in STIFFNESS_ARRAYS
         )
         contributors = _contributors(passes, lo, hi)
-        separable = cols["separable"][lo:hi]
         covered = cols["n_passes"][lo:hi] > 0
-        message = None
-        if (covered & ~(separable > 0.5)).any():
-            message = res.message or NOT_SEPARABLE
         rows.append({
             "track_id": track_id, "chunk": chunk, "data": data,
-            "meta": {"contributors": contributors, "message": message},
+            "meta": {"contributors": contributors},
         })  # fmt: skip
         written += int(covered.sum())
     return rows, written
@@ -506,7 +502,6 @@ def read_stiffness(
     parts: list[NDArray[np.float64]] = []
     chainage: list[NDArray[np.float64]] = []
     contributors: dict[tuple[str, int], dict[str, Any]] = {}
-    message = None
     for chunk, data, meta in rows:
         block = np.frombuffer(data, dtype=_DTYPE).reshape(k, CHUNK_POINTS).astype(np.float64)
         x = (chunk * CHUNK_POINTS + np.arange(CHUNK_POINTS)) * GRID_STEP_M
@@ -525,7 +520,6 @@ def read_stiffness(
                 contributors[key] = {**c, "force_sum": 0.0, "points": 0}
             contributors[key]["force_sum"] += c["mean_force_n"] * c["points"]
             contributors[key]["points"] += c["points"]
-        message = message or meta.get("message")
     if parts:
         block = np.concatenate(parts, axis=1)
         x = np.concatenate(chainage)

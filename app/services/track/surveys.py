@@ -25,7 +25,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Survey, SurveyLevels, Track
 from app.services.context import AppContext
-from app.services.errors import Invalid, NotFound
+from app.services.errors import Invalid, NotFound, TooLarge
 from app.services.lookup import get_track
 from app.services.run_lifecycle.logs import sha256_hex
 from app.services.storage.packing import pack_f4
@@ -65,7 +65,7 @@ def _bad(message: str, *, column: str | None = None, row: int | None = None) -> 
     return Invalid(message, field="file", column=column, row=row)
 
 
-def parse_survey_csv(data: bytes) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def parse_survey_csv(data: bytes | bytearray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Chainage (m) and level (mm) of a survey CSV; Invalid naming the column and row otherwise.
 
     Rows are numbered like the file's lines (header = 1). Chainage must be strictly monotonic
@@ -188,7 +188,7 @@ def survey_level_on_grid(
 
 
 def create_survey(
-    session: Session, track: Track, data: bytes, meta: SurveyInput
+    session: Session, track: Track, data: bytes | bytearray, meta: SurveyInput
 ) -> tuple[Survey, bool]:
     """Check, store, align and separate with a survey; ``(survey, created)`` (caller commits).
 
@@ -230,10 +230,21 @@ def create_survey(
 
 
 def import_survey(
-    ctx: AppContext, track: str, data: bytes, meta: SurveyInput
+    ctx: AppContext, track: str, data: bytes | bytearray, meta: SurveyInput
 ) -> tuple[Survey, bool]:
     """:func:`create_survey` on the track whose id or name is ``track``, in a transaction of
-    its own (committed); ``(survey, created)``."""
+    its own (committed); ``(survey, created)``.
+
+    Raises
+    ------
+    TooLarge
+        When the file is over the upload limit (``TRACKPROFILE_MAX_UPLOAD_MB``).
+    """
+    limit = ctx.settings.max_upload_bytes
+    if len(data) > limit:
+        raise TooLarge(
+            f"the survey is larger than the upload limit ({limit} bytes)", limit_bytes=limit
+        )
     with ctx.db.session() as s:
         survey, created = create_survey(s, get_track(s, track), data, meta)
         s.commit()
