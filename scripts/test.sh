@@ -3,9 +3,14 @@
 #   bash scripts/test.sh [pytest arguments]
 # Lint (ruff), type check (mypy: engine and app), then pytest. Installs Debian's chromium and npm
 # for the browser tests when missing (needs root or sudo; without it those tests are skipped).
-# Without arguments it then runs the API tests again on PostgreSQL (scripts/test_postgres.sh:
+# Without arguments it also runs the API tests again on PostgreSQL (scripts/test_postgres.sh:
 # installs Debian's postgresql when missing and starts a throwaway server);
-# TRACKPROFILE_TEST_POSTGRES=0 skips that pass.
+# TRACKPROFILE_TEST_POSTGRES=0 skips that pass. That pass runs beside tests/engine: the
+# engine's tests are pure numerics in one process (no database, server, port or shared file),
+# so they and the PostgreSQL pass each keep one core of a 2-core machine busy where one
+# pytest alone leaves the second mostly idle; tests/services, tests/api and tests/browser
+# (live servers, timing ceilings, the browser) run afterwards with the machine to themselves.
+# TRACKPROFILE_TEST_OVERLAP=0 runs everything one after the other.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/_venv.sh '.[test]'
@@ -43,9 +48,34 @@ python -m ruff check .
 echo "== mypy (engine, app)"
 python -m mypy
 python -m mypy app
-echo "== pytest"
-python -m pytest "$@"
-
-if [ "$#" -eq 0 ] && [ "${TRACKPROFILE_TEST_POSTGRES:-1}" != 0 ]; then
-  bash scripts/test_postgres.sh
+if [ "$#" -gt 0 ]; then
+  echo "== pytest"
+  exec python -m pytest "$@"
 fi
+
+postgres="${TRACKPROFILE_TEST_POSTGRES:-1}"
+if [ "$postgres" = 0 ] || [ "${TRACKPROFILE_TEST_OVERLAP:-1}" = 0 ]; then
+  echo "== pytest"
+  python -m pytest
+  if [ "$postgres" != 0 ]; then bash scripts/test_postgres.sh; fi
+  exit 0
+fi
+
+pg_log="$(mktemp "${TMPDIR:-/tmp}/trackprofile-pg-pass.XXXXXX")"
+echo "== PostgreSQL pass (scripts/test_postgres.sh) beside tests/engine; its output follows them"
+bash scripts/test_postgres.sh >"$pg_log" 2>&1 &
+pg_pid=$!
+trap 'kill "$pg_pid" 2>/dev/null || true' EXIT
+echo "== pytest tests/engine (SQLite run, part 1 of 2)"
+engine_rc=0
+python -m pytest tests/engine || engine_rc=$?
+pg_rc=0
+wait "$pg_pid" || pg_rc=$?
+trap - EXIT
+cat "$pg_log"
+rm -f "$pg_log"
+echo "== pytest tests/services tests/api tests/browser (SQLite run, part 2 of 2)"
+rest_rc=0
+python -m pytest --ignore=tests/engine || rest_rc=$?
+echo "== exit codes: tests/engine ${engine_rc}, PostgreSQL pass ${pg_rc}, the rest ${rest_rc}"
+[ "$engine_rc" = 0 ] && [ "$pg_rc" = 0 ] && [ "$rest_rc" = 0 ]

@@ -3,7 +3,14 @@
 # installed with apt-get when missing; see scripts/pg_server.sh) on a free local port, runs
 # tests/services and tests/api against it (each test gets its own database,
 # TEST_DATABASE_URL), then stops it.
-#   bash scripts/test_postgres.sh [pytest arguments]      (default: tests/services tests/api)
+#   bash scripts/test_postgres.sh [pytest arguments]
+#   default: -m "not slow or dialect or postgres" -p no:cacheprovider tests/services tests/api
+#   (no pytest cache: scripts/test.sh runs this pass beside the SQLite run's tests/engine)
+# The pass is there for the database dialect, so by default it leaves out the tests marked
+# slow (their time is numerics: simulating, inverting, fuzzing, real-server body limits, which
+# the SQLite run has checked) except those marked dialect (transactions, locking,
+# concurrency, column types of the answers) or postgres. Every quick test of tests/services
+# and tests/api still runs: each reads and writes the database through the app.
 # scripts/test.sh calls it after the main run when it is given no arguments.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -39,5 +46,5 @@ if ! url="$(bash scripts/pg_server.sh start "$dir" "$port")"; then
   exit 0
 fi
 echo "== pytest tests/services tests/api on PostgreSQL (${url})"
-if [ "$#" -eq 0 ]; then set -- tests/services tests/api; fi
+if [ "$#" -eq 0 ]; then set -- -m "not slow or dialect or postgres" -p no:cacheprovider tests/services tests/api; fi
 TEST_DATABASE_URL="$url" python -m pytest "$@"

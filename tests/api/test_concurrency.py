@@ -53,6 +53,7 @@ def _post(c: httpx.Client, data: bytes, track: str, key: str | None = None) -> h
 
 
 @pytest.mark.slow
+@pytest.mark.dialect
 def test_parallel_uploads_readers_and_deletes(settings, synthetic_run) -> None:
     """6 uploaders (24 runs, inline and queued), 2 threads resending one file with one
     Idempotency-Key, a thread deleting runs while they process, and 4 readers (lists, runs,
@@ -171,6 +172,7 @@ def test_parallel_uploads_readers_and_deletes(settings, synthetic_run) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.dialect
 def test_two_app_processes_process_each_run_exactly_once(settings) -> None:
     """Eight runs queued through two app processes (two worker threads each) on one database,
     four to each: every run is claimed once (attempts = 1, one claim in the two logs together)

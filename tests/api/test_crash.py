@@ -110,6 +110,7 @@ def _assert_whole_or_nothing(state: dict[str, Any], log: dict[str, Any]) -> None
 
 
 @pytest.mark.slow
+@pytest.mark.dialect
 def test_run_killed_mid_processing_is_resumed_whole(settings, long_log) -> None:
     """SIGKILL while the worker inverts a queued run leaves it 'processing' with no profile
     rows and its input kept; resending the file (same Idempotency-Key) to the restarted server
@@ -150,6 +151,7 @@ def test_run_killed_mid_processing_is_resumed_whole(settings, long_log) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.dialect
 def test_kills_at_any_moment_leave_whole_runs_or_none(settings, long_log) -> None:
     """Killed at several moments across the processing window (measured first), the run is
     each time either still processing with no profile rows or done with all of them; the
@@ -197,6 +199,7 @@ def test_kills_at_any_moment_leave_whole_runs_or_none(settings, long_log) -> Non
 
 
 @pytest.mark.slow
+@pytest.mark.dialect
 def test_run_interrupted_too_often_is_failed_with_its_error(settings, long_log) -> None:
     """With TRACKPROFILE_MAX_ATTEMPTS=1 a run whose processing was killed once is marked
     failed at the restart, with the reason, no profile rows and its input removed."""
@@ -224,6 +227,7 @@ def test_run_interrupted_too_often_is_failed_with_its_error(settings, long_log) 
 
 
 @pytest.mark.slow
+@pytest.mark.dialect
 def test_inline_upload_killed_mid_request_stores_all_or_nothing(settings, long_log) -> None:
     """A log processed inside the request (under the inline limit) is stored in one
     transaction with its track: killed at several moments of the request, the server leaves

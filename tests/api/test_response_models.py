@@ -151,6 +151,7 @@ def answered(
 
 
 @pytest.mark.slow
+@pytest.mark.dialect
 @pytest.mark.parametrize("route", sorted(ANSWERS), ids=lambda r: f"{r[0]} {r[1]}")
 def test_the_answer_is_the_declared_model(
     answered: tuple[TestClient, int], route: tuple[str, str]

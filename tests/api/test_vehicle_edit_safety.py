@@ -218,6 +218,7 @@ def test_failed_calibration_stores_its_cause(client: TestClient, three_runs, mon
 
 
 @pytest.mark.slow
+@pytest.mark.dialect
 def test_reads_during_a_reprocessing_storm_never_see_a_mixture(client: TestClient) -> None:
     """12 runs of one track reprocessed by a vehicle edit while 8 threads make 200 reads of
     the track's profile, register and stiffness: every answer is the complete new state or
