@@ -11,7 +11,7 @@ Units: SI throughout (m, s, m/s, Hz).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -170,6 +170,27 @@ class PreparedRun:
         log's plausibility is not checked again (it does not depend on the set-up)."""
         return self if setup == self.setup else prepare_run(self.log, setup, log_checked=True)
 
+    def with_config(self, config: ProcessConfig) -> PreparedRun:
+        """This run with another processing configuration (band, grid, method), itself when
+        it is the same: the positions and speeds depend on the log and the vehicle only, so
+        only the band's frequencies and the grid are derived again (no second preparation).
+
+        Raises
+        ------
+        InversionError
+            The run is too short or too coarsely sampled for ``config``'s band
+            (:func:`prepare_run`).
+        """
+        if config == self.setup.config:
+            return self
+        f_lo, f_hi, grid = _band_and_grid(
+            self.log, self.positions, self.speed, self.travelled_m, config
+        )
+        return PreparedRun(
+            self.log, replace(self.setup, config=config), self.positions, self.speed,
+            f_lo, f_hi, self.travelled_m, grid,
+        )  # fmt: skip
+
 
 def prepare_run(log: RunLog, setup: RunSetup, *, log_checked: bool = False) -> PreparedRun:
     """Check up front that a log can be processed with its set-up, without inverting it.
@@ -198,16 +219,30 @@ def prepare_run(log: RunLog, setup: RunSetup, *, log_checked: bool = False) -> P
     """
     if not log_checked:
         check_plausible(log)
-    cfg = setup.config
     pos = axle_positions(log, setup.vehicle, setup.start_chainage_m, setup.direction)
     speed = log.speed_mps if log.speed_mps is not None else np.abs(np.gradient(pos.body)) / log.dt
-    v_min, v_max = float(np.percentile(speed, 1)), float(np.percentile(speed, 99))
+    v_min = float(np.percentile(speed, 1))
     if v_min < MIN_SPEED_MPS:
         raise InversionError(
             f"speed drops to {v_min:.2f} m/s; the inversion needs >= {MIN_SPEED_MPS} m/s "
             "throughout (split the log at stops)"
         )
-    travelled = abs(pos.body[-1] - pos.body[0])
+    travelled = float(abs(pos.body[-1] - pos.body[0]))
+    f_lo, f_hi, grid = _band_and_grid(log, pos, speed, travelled, setup.config)
+    return PreparedRun(log, setup, pos, speed, f_lo, f_hi, travelled, grid)
+
+
+def _band_and_grid(
+    log: RunLog,
+    pos: AxlePositions,
+    speed: NDArray[np.float64],
+    travelled: float,
+    cfg: ProcessConfig,
+) -> tuple[float, float, NDArray[np.float64]]:
+    """The inversion's time-frequency band (Hz) and the profile's chainage grid (m) of a run
+    covering ``travelled`` m at ``speed`` (m/s), for ``cfg``; raises :class:`InversionError`
+    when the run is too short or too coarsely sampled for the band."""
+    v_min, v_max = float(np.percentile(speed, 1)), float(np.percentile(speed, 99))
     if travelled < 2 * cfg.lambda_max_m:
         raise InversionError(
             f"the run covers {travelled:.1f} m; at least {2 * cfg.lambda_max_m:.0f} m "
@@ -222,4 +257,4 @@ def prepare_run(log: RunLog, setup: RunSetup, *, log_checked: bool = False) -> P
             f"{v_max:.1f} m/s (needs > {2 * f_hi * tp:.0f} Hz)"
         )
     grid = axle_grid(pos.front, pos.rear, cfg.grid_step_m)
-    return PreparedRun(log, setup, pos, speed, f_lo, f_hi, float(travelled), grid)
+    return f_lo, f_hi, grid

@@ -234,7 +234,7 @@ def long_level(run: PreparedRun) -> NDArray[np.float64] | None:
     else:
         long_cfg = replace(cfg, method=LONG_LEVEL_METHOD, lambda_max_m=LONG_LEVEL_LAMBDA_MAX_M)
     try:
-        wide = run.with_setup(replace(run.setup, config=long_cfg))
+        wide = run.with_config(long_cfg)
     except InversionError:
         return None  # shorter than two longest wavelengths: no long level, D2 says so
     given = MethodInput(

@@ -280,3 +280,25 @@ def test_slower_loggers_still_work(rate):
         assert res.quality.noise_accel_mps2 == pytest.approx(0.005, rel=0.15)
     else:
         assert np.isnan(res.quality.noise_accel_mps2)
+
+
+def test_another_config_of_a_prepared_run_keeps_its_positions(monkeypatch):
+    """``with_config`` derives only the band and the grid for another configuration: the
+    same as preparing the log with it, without preparing it again (positions reused), and a
+    band the run is too short for is refused as ``prepare_run`` refuses it."""
+    import engine.setup as setup_mod
+    from engine.errors import InversionError
+
+    t = np.arange(0, 20.0, 1e-3)
+    log = RunLog(t, np.zeros_like(t), np.zeros_like(t), np.full_like(t, 25.0))
+    run = prepare_run(log, RunSetup(start_chainage_m=10.0))
+    wide = dataclasses.replace(run.setup.config, lambda_max_m=100.0, grid_step_m=0.2)
+    direct = prepare_run(log, dataclasses.replace(run.setup, config=wide))
+    monkeypatch.setattr(setup_mod, "axle_positions", lambda *a, **k: pytest.fail("prepared again"))
+    derived = run.with_config(wide)
+    assert derived.positions is run.positions and derived.setup == direct.setup
+    assert (derived.f_lo_hz, derived.f_hi_hz) == pytest.approx((direct.f_lo_hz, direct.f_hi_hz))
+    np.testing.assert_array_equal(derived.grid, direct.grid)
+    assert run.with_config(run.setup.config) is run
+    with pytest.raises(InversionError, match="twice the longest wavelength"):
+        run.with_config(dataclasses.replace(wide, lambda_max_m=400.0))
