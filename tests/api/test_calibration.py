@@ -174,6 +174,7 @@ def test_matching_vehicle_automatic_calibration_changes_nothing(start_app, healt
     assert all(c.get(f"/api/v1/runs/{i}").json()["vehicle_version"] == 1 for i in ids)
 
 
+@pytest.mark.slow
 def test_suspension_losing_stiffness_is_a_health_alert(
     client: TestClient, healthy_runs, coach_runs
 ) -> None:

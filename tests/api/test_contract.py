@@ -281,6 +281,7 @@ def test_docs_follow_the_read_key_unless_public(start_app, settings) -> None:
     assert start_app().get("/openapi.json").status_code == 200
 
 
+@pytest.mark.slow
 def test_no_server_header_from_the_served_process(settings) -> None:
     """uvicorn as the service is started (serve.sh, Dockerfile, the tests' live servers)
     sends no ``server`` header, which would name the server to a prober."""

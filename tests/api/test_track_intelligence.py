@@ -184,6 +184,7 @@ def test_runs_are_aligned_within_half_a_metre(
         assert al["correlation"] > 0.8 and al["overlap_m"] > 200
 
 
+@pytest.mark.slow
 def test_soft_spots_and_profile_come_back_in_aligned_chainage(
     steady: tuple[TestClient, list[dict[str, Any]]], steady_runs: list[SimRun]
 ) -> None:
@@ -208,6 +209,7 @@ def test_soft_spots_and_profile_come_back_in_aligned_chainage(
         assert np.corrcoef(common[ok], l0[ok])[0, 1] > 0.9
 
 
+@pytest.mark.slow
 def test_a_run_of_another_track_is_flagged_unaligned_and_kept_out(
     steady: tuple[TestClient, list[dict[str, Any]]], tmp_path: Path, steady_runs: list[SimRun]
 ) -> None:
@@ -397,6 +399,7 @@ def test_deepening_zone_is_worsening_at_the_simulated_rate(
 # ---- limits and alerts -------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_alerts_list_what_reached_its_level_since_a_date(
     deepening: tuple[TestClient, list[dict[str, Any]]], deepening_runs: list[SimRun]
 ) -> None:

@@ -144,7 +144,9 @@ def test_paper_method_fails_where_robust_succeeds():
     assert score(robust, run).profile_rms_mm < 0.05
 
 
-@pytest.mark.parametrize("method", ["filtered-direct", "least-squares"])
+@pytest.mark.parametrize(
+    "method", ["filtered-direct", pytest.param("least-squares", marks=pytest.mark.slow)]
+)
 def test_other_candidates_recover_the_zone(method):
     """The other robust candidates also work on noisy data (they are compared in accuracy.md)."""
     run = make_run(length=250.0, sensor=SENSOR_1KHZ, sim_rate_hz=2000.0, speed=25.0,
