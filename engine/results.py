@@ -10,8 +10,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 
+class _Figures:
+    """A dataclass whose every field is a float, turned into a plain dict of floats."""
+
+    def to_dict(self) -> dict[str, float]:
+        """Plain dict of the fields (what the API and the run's JSON files carry)."""
+        return {k: float(v) for k, v in vars(self).items()}
+
+
 @dataclass(frozen=True)
-class SoftSpot:
+class SoftSpot(_Figures):
     """A local dip of the loaded level: a place where the track support is weak.
 
     Attributes
@@ -32,13 +40,9 @@ class SoftSpot:
     depth_mm: float
     stiffness_loss_pct: float
 
-    def to_dict(self) -> dict[str, float]:
-        """Plain dict with the field names above (what the API and soft_spots.json carry)."""
-        return {k: float(v) for k, v in asdict(self).items()}
-
 
 @dataclass(frozen=True)
-class Quality:
+class Quality(_Figures):
     """Quality indicators of one processed run.
 
     Attributes
@@ -66,10 +70,6 @@ class Quality:
     speed_min_mps: float
     speed_max_mps: float
     sample_rate_hz: float
-
-    def to_dict(self) -> dict[str, float]:
-        """Plain dict of the indicators."""
-        return {k: float(v) for k, v in asdict(self).items()}
 
 
 @dataclass(frozen=True)
