@@ -13,13 +13,15 @@ double integration): on noisy, biased, rounded or resampled data its raw output 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
-from .errors import InversionError
+from .errors import InversionError, ParameterError
 from .newmark import Newmark
 from .vehicle import TABLE1, VehicleParams
 
@@ -146,49 +148,10 @@ def _state_filter(
     return [lfilter(np.append(num[j][1:], 0.0), den, p0) for j in range(n)]
 
 
-def direct_inverse(
-    accel: ArrayLike,
-    pitch_rate: ArrayLike,
-    dt: float,
-    vehicle: VehicleParams = TABLE1,
-    *,
-    gamma: float = 0.5,
-    beta: float = 0.25,
+def _direct_filtered(
+    a_m: NDArray[np.float64], qd: NDArray[np.float64], nm: Newmark, v: VehicleParams
 ) -> DirectResult:
-    """Rail level under each axle from body acceleration and pitch rate (paper, Fig. 2).
-
-    Parameters
-    ----------
-    accel : array_like, shape (n,)
-        Body vertical acceleration at the accelerometer (``vehicle.sensor_x_m`` ahead of the
-        centre of gravity), m/s², gravity removed, positive up, starting from static
-        equilibrium.
-    pitch_rate : array_like, shape (n,)
-        Body pitch rate, rad/s, positive nose-up.
-    dt : float
-        Sample step, s.
-    vehicle : VehicleParams
-        The half-car.
-    gamma, beta : float
-        Newmark parameters of the integration (0.5, 0.25: average acceleration).
-
-    Returns
-    -------
-    DirectResult
-        Levels relative to the first sample, m.
-
-    Notes
-    -----
-    With ``P_i = c_si u'_ui + k_si u_ui`` the suspension forces on the axles, the two body
-    equations give ``P_1 + P_2 = R_A`` and ``d1 P_1 - d2 P_2 = R_B`` with the right-hand
-    sides known from the integrated body motion; each ``P_i`` then drives a Newmark
-    recursion for axle ``i`` and the axle equation gives the contact deflection
-    ``y_i = u_ui + (m_ui u''_ui - S_i) / k_ti`` where ``S_i`` is the suspension force on the
-    axle. All quantities are deviations from the static start, so gravity drops out.
-    """
-    a_m, qd = _check(accel, pitch_rate)
-    nm = Newmark(dt, gamma, beta)
-    v = vehicle
+    """The whole run at once: each Newmark recursion as an IIR filter."""
     qd = qd - qd[0]
     qdd, th = _newmark_differentiate(qd, nm)
     # the accelerometer sits sensor_x_m ahead of the CG: remove the pitch acceleration it feels
@@ -218,24 +181,11 @@ def direct_inverse(
     return DirectResult(y_front=y1, y_rear=y2, u_s=u_s, theta_s=th, u_front=u1, u_rear=u2)
 
 
-def direct_inverse_loop(
-    accel: ArrayLike,
-    pitch_rate: ArrayLike,
-    dt: float,
-    vehicle: VehicleParams = TABLE1,
-    *,
-    gamma: float = 0.5,
-    beta: float = 0.25,
+def _direct_loop(
+    a_s: NDArray[np.float64], qd_in: NDArray[np.float64], nm: Newmark, v: VehicleParams
 ) -> DirectResult:
-    """Per-sample Python loop of the same algorithm as :func:`direct_inverse`.
-
-    The straightforward transcription of the paper's flow chart, kept as the reference the
-    vectorised version is checked and benchmarked against. Same parameters and units.
-    """
-    a_s, qd_in = _check(accel, pitch_rate)
-    Newmark(dt, gamma, beta)  # validates the step and parameters
-    v = vehicle
-    g, b = gamma, beta
+    """Per sample in Python: the straightforward transcription of the paper's flow chart."""
+    dt, g, b = nm.dt, nm.gamma, nm.beta
     n = a_s.size
     d1, d2 = v.d1, v.d2
     out = np.zeros((6, n))
@@ -288,6 +238,71 @@ def direct_inverse_loop(
     return DirectResult(
         y_front=out[0], y_rear=out[1], u_s=out[2], theta_s=out[3], u_front=out[4], u_rear=out[5]
     )
+
+
+_IMPLEMENTATIONS: dict[
+    str, Callable[[NDArray[np.float64], NDArray[np.float64], Newmark, VehicleParams], DirectResult]
+] = {"filter": _direct_filtered, "loop": _direct_loop}
+
+
+def direct_inverse(
+    accel: ArrayLike,
+    pitch_rate: ArrayLike,
+    dt: float,
+    vehicle: VehicleParams = TABLE1,
+    *,
+    gamma: float = 0.5,
+    beta: float = 0.25,
+    implementation: str = "filter",
+) -> DirectResult:
+    """Rail level under each axle from body acceleration and pitch rate (paper, Fig. 2).
+
+    Parameters
+    ----------
+    accel : array_like, shape (n,)
+        Body vertical acceleration at the accelerometer (``vehicle.sensor_x_m`` ahead of the
+        centre of gravity), m/s², gravity removed, positive up, starting from static
+        equilibrium.
+    pitch_rate : array_like, shape (n,)
+        Body pitch rate, rad/s, positive nose-up.
+    dt : float
+        Sample step, s.
+    vehicle : VehicleParams
+        The half-car.
+    gamma, beta : float
+        Newmark parameters of the integration (0.5, 0.25: average acceleration).
+    implementation : {'filter', 'loop'}
+        How the recursions run: ``'filter'`` as IIR filters over the whole run (the fast
+        one); ``'loop'`` per sample in Python, the transcription of the paper's flow chart
+        kept as the reference the filters are checked and benchmarked against.
+
+    Returns
+    -------
+    DirectResult
+        Levels relative to the first sample, m.
+
+    Notes
+    -----
+    With ``P_i = c_si u'_ui + k_si u_ui`` the suspension forces on the axles, the two body
+    equations give ``P_1 + P_2 = R_A`` and ``d1 P_1 - d2 P_2 = R_B`` with the right-hand
+    sides known from the integrated body motion; each ``P_i`` then drives a Newmark
+    recursion for axle ``i`` and the axle equation gives the contact deflection
+    ``y_i = u_ui + (m_ui u''_ui - S_i) / k_ti`` where ``S_i`` is the suspension force on the
+    axle. All quantities are deviations from the static start, so gravity drops out.
+    """
+    a_m, qd = _check(accel, pitch_rate)
+    nm = Newmark(dt, gamma, beta)
+    run = _IMPLEMENTATIONS.get(implementation)
+    if run is None:
+        raise ParameterError(
+            f"implementation must be one of {sorted(_IMPLEMENTATIONS)}, got {implementation!r}",
+            field="implementation",
+        )
+    return run(a_m, qd, nm, vehicle)
+
+
+direct_inverse_loop = partial(direct_inverse, implementation="loop")
+""":func:`direct_inverse` with ``implementation='loop'``: the per-sample reference."""
 
 
 def filtered_direct_inverse(

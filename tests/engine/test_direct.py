@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from engine.direct import direct_inverse, direct_inverse_loop
-from engine.errors import InversionError
+from engine.errors import InversionError, ParameterError
 from engine.simulate import simulate
 from engine.track import SoftZone, Track
 from engine.vehicle import VehicleParams
@@ -42,6 +42,14 @@ def test_vectorised_equals_per_sample_loop():
     scale = np.max(np.abs(loop.y_front))
     assert np.max(np.abs(v.y_front - loop.y_front)) < 1e-8 * scale
     assert np.max(np.abs(v.y_rear - loop.y_rear)) < 1e-8 * scale
+
+
+def test_unknown_implementation_is_refused_by_name():
+    """An implementation outside the registry raises ParameterError naming the field."""
+    a = np.zeros(10)
+    with pytest.raises(ParameterError, match="implementation") as err:
+        direct_inverse(a, a, 1e-3, implementation="vectorised")
+    assert err.value.field == "implementation"
 
 
 def test_known_weakness_noise_and_rounding_break_the_direct_method():
