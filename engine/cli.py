@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Sequence
-from dataclasses import fields
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -307,6 +307,162 @@ def _cmd_process(ns: argparse.Namespace) -> int:
     return 0
 
 
+def _simulate_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--length", type=float, default=200.0, help="track length, m (default 200)")
+    p.add_argument("--speed", type=float, default=20.0, help="speed, m/s (default 20)")
+    p.add_argument(
+        "--speed-end", type=float, default=None, help="speed at the end, m/s: linear ramp"
+    )
+    p.add_argument(
+        "--start-chainage",
+        type=float,
+        default=24.13,
+        help="chainage of the body centre at t=0, m (default 24.13)",
+    )
+    p.add_argument(
+        "--duration", type=float, default=None, help="duration, s (default: to the track end)"
+    )
+    _add_direction(p)
+    p.add_argument(
+        "--zone",
+        action="append",
+        default=[],
+        metavar="START:END:LOSS",
+        help="soft zone: first and last support chainage (m) and stiffness loss (fraction), "
+        "e.g. 60:65:0.5; repeatable",
+    )
+    p.add_argument(
+        "--jitter",
+        type=float,
+        default=0.0,
+        help="support stiffness scatter, standard deviation as a fraction (e.g. 0.05)",
+    )
+    p.add_argument(
+        "--irregularity",
+        help="CSV with header and columns chainage_m,level_mm: unloaded rail irregularity",
+    )
+    p.add_argument(
+        "--spectrum",
+        choices=sorted(SPECTRA),
+        default=None,
+        help="unloaded rail irregularity drawn from a standard spectrum (1-120 m wavelengths; "
+        "see docs/method.md)",
+    )
+    p.add_argument(
+        "--irregularity-seed", type=int, default=0, help="seed of the --spectrum profile (0)"
+    )
+    p.add_argument(
+        "--irregularity-scale",
+        type=float,
+        default=1.0,
+        help="amplitude multiplier of the --spectrum profile (default 1)",
+    )
+    p.add_argument("--dt", type=float, default=1e-3, help="simulation time step, s (0.001)")
+    p.add_argument("--rate", type=float, default=None, help="output sample rate, Hz")
+    p.add_argument("--accel-noise", type=float, default=0.0, help="accel noise sigma, m/s^2")
+    p.add_argument("--gyro-noise", type=float, default=0.0, help="gyro noise sigma, rad/s")
+    p.add_argument("--accel-bias", type=float, default=0.0, help="accel bias, m/s^2")
+    p.add_argument("--gyro-bias", type=float, default=0.0, help="gyro bias, rad/s")
+    p.add_argument("--digits", type=int, default=None, help="significant digits written")
+    p.add_argument(
+        "--sensor-grade",
+        choices=tuple(SENSOR_GRADES),
+        default=None,
+        help="an IMU class instead of the noise/bias figures (densities over the output "
+        "band, per-pass bias from --seed, wander, quantisation, jitter; docs/sensors.md)",
+    )
+    p.add_argument("--seed", type=int, default=None, help="random seed (noise, jitter)")
+    p.add_argument("--with-chainage", action="store_true", help="also write a chainage_m column, m")
+    p.add_argument("--out", required=True, help="output run CSV")
+    p.add_argument(
+        "--truth",
+        help="also write the true loaded levels (mm, absolute, positive up) under each axle",
+    )
+    _add_track(p)
+
+
+def _invert_arguments(p: argparse.ArgumentParser) -> None:
+    _add_run(p)
+    p.add_argument(
+        "--method",
+        choices=["spectral", "filtered-direct", "direct"],
+        default="spectral",
+        help="direct: the paper's integration (exact on noise-free Newmark data only); "
+        "spectral: band-limited inversion (default); filtered-direct: band-passed inputs "
+        "then dissipative direct integration",
+    )
+    p.add_argument("--gamma", type=float, default=0.5, help="Newmark gamma (direct)")
+    p.add_argument("--beta", type=float, default=0.25, help="Newmark beta (direct)")
+    _add_band(p)
+    p.add_argument("--out", required=True, help="output levels CSV")
+    _add_columns(p)
+
+
+def _process_arguments(p: argparse.ArgumentParser) -> None:
+    _add_run(p)
+    p.add_argument(
+        "--method",
+        choices=list(METHODS),
+        default=next(iter(METHODS)),
+        help=f"inversion method (default {next(iter(METHODS))}; see docs/method.md)",
+    )
+    _add_band(p)
+    p.add_argument("--grid-step", type=float, default=GRID_STEP_M, help="chainage grid step, m")
+    d = DetectionConfig()
+    p.add_argument(
+        "--baseline-window", type=float, default=d.baseline_window_m, help="baseline median, m"
+    )
+    p.add_argument(
+        "--min-depth", type=float, default=d.min_depth_mm, help="smallest dip reported, mm"
+    )
+    p.add_argument(
+        "--noise-factor", type=float, default=d.noise_factor, help="threshold in noise sigmas"
+    )
+    p.add_argument(
+        "--min-length", type=float, default=d.min_length_m, help="shortest dip reported, m"
+    )
+    p.add_argument("--out", required=True, help="output directory")
+    _add_columns(p)
+    _add_track(p)
+
+
+@dataclass(frozen=True)
+class _Command:
+    """A subcommand: its one-line help, its description, its own options and what runs it."""
+
+    help: str
+    description: str
+    arguments: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
+
+
+_COMMANDS = {
+    "simulate": _Command(
+        help="forward-simulate a run and write its log CSV",
+        description="Coupled vehicle-track simulation (Newmark-beta) written as a canonical "
+        "run CSV (time_s, accel_z_mps2, pitch_rate_radps, speed_mps).",
+        arguments=_simulate_arguments,
+        run=_cmd_simulate,
+    ),
+    "invert": _Command(
+        help="levels under each axle against time",
+        description="Invert a run log to the loaded level under each axle; writes time_s, "
+        "front_chainage_m, front_level_mm, rear_chainage_m, rear_level_mm (mm relative to the "
+        "first sample, positive up).",
+        arguments=_invert_arguments,
+        run=_cmd_invert,
+    ),
+    "process": _Command(
+        help="fused profile on chainage and soft spots",
+        description="Invert, fuse both axles on a chainage grid, detect soft spots and "
+        "estimate stiffness loss. Writes DIR/profile.csv (chainage_m,level_mm), "
+        "DIR/soft_spots.json and DIR/quality.json.",
+        arguments=_process_arguments,
+        run=_cmd_process,
+    ),
+}
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``python -m engine``."""
     p = argparse.ArgumentParser(
@@ -315,145 +471,12 @@ def build_parser() -> argparse.ArgumentParser:
         "track profiles, find soft spots.",
     )
     sub = p.add_subparsers(dest="command", required=True)
-
-    s = sub.add_parser(
-        "simulate",
-        help="forward-simulate a run and write its log CSV",
-        description="Coupled vehicle-track simulation (Newmark-beta) written as a canonical "
-        "run CSV (time_s, accel_z_mps2, pitch_rate_radps, speed_mps).",
-    )
-    s.add_argument("--length", type=float, default=200.0, help="track length, m (default 200)")
-    s.add_argument("--speed", type=float, default=20.0, help="speed, m/s (default 20)")
-    s.add_argument(
-        "--speed-end", type=float, default=None, help="speed at the end, m/s: linear ramp"
-    )
-    s.add_argument(
-        "--start-chainage",
-        type=float,
-        default=24.13,
-        help="chainage of the body centre at t=0, m (default 24.13)",
-    )
-    s.add_argument(
-        "--duration", type=float, default=None, help="duration, s (default: to the track end)"
-    )
-    _add_direction(s)
-    s.add_argument(
-        "--zone",
-        action="append",
-        default=[],
-        metavar="START:END:LOSS",
-        help="soft zone: first and last support chainage (m) and stiffness loss (fraction), "
-        "e.g. 60:65:0.5; repeatable",
-    )
-    s.add_argument(
-        "--jitter",
-        type=float,
-        default=0.0,
-        help="support stiffness scatter, standard deviation as a fraction (e.g. 0.05)",
-    )
-    s.add_argument(
-        "--irregularity",
-        help="CSV with header and columns chainage_m,level_mm: unloaded rail irregularity",
-    )
-    s.add_argument(
-        "--spectrum",
-        choices=sorted(SPECTRA),
-        default=None,
-        help="unloaded rail irregularity drawn from a standard spectrum (1-120 m wavelengths; "
-        "see docs/method.md)",
-    )
-    s.add_argument(
-        "--irregularity-seed", type=int, default=0, help="seed of the --spectrum profile (0)"
-    )
-    s.add_argument(
-        "--irregularity-scale",
-        type=float,
-        default=1.0,
-        help="amplitude multiplier of the --spectrum profile (default 1)",
-    )
-    s.add_argument("--dt", type=float, default=1e-3, help="simulation time step, s (0.001)")
-    s.add_argument("--rate", type=float, default=None, help="output sample rate, Hz")
-    s.add_argument("--accel-noise", type=float, default=0.0, help="accel noise sigma, m/s^2")
-    s.add_argument("--gyro-noise", type=float, default=0.0, help="gyro noise sigma, rad/s")
-    s.add_argument("--accel-bias", type=float, default=0.0, help="accel bias, m/s^2")
-    s.add_argument("--gyro-bias", type=float, default=0.0, help="gyro bias, rad/s")
-    s.add_argument("--digits", type=int, default=None, help="significant digits written")
-    s.add_argument(
-        "--sensor-grade",
-        choices=tuple(SENSOR_GRADES),
-        default=None,
-        help="an IMU class instead of the noise/bias figures (densities over the output "
-        "band, per-pass bias from --seed, wander, quantisation, jitter; docs/sensors.md)",
-    )
-    s.add_argument("--seed", type=int, default=None, help="random seed (noise, jitter)")
-    s.add_argument("--with-chainage", action="store_true", help="also write a chainage_m column, m")
-    s.add_argument("--out", required=True, help="output run CSV")
-    s.add_argument(
-        "--truth",
-        help="also write the true loaded levels (mm, absolute, positive up) under each axle",
-    )
-    _add_track(s)
-    _add_vehicle(s)
-    s.set_defaults(func=_cmd_simulate)
-
-    inv = sub.add_parser(
-        "invert",
-        help="levels under each axle against time",
-        description="Invert a run log to the loaded level under each axle; writes time_s, "
-        "front_chainage_m, front_level_mm, rear_chainage_m, rear_level_mm (mm relative to the "
-        "first sample, positive up).",
-    )
-    _add_run(inv)
-    inv.add_argument(
-        "--method",
-        choices=["spectral", "filtered-direct", "direct"],
-        default="spectral",
-        help="direct: the paper's integration (exact on noise-free Newmark data only); "
-        "spectral: band-limited inversion (default); filtered-direct: band-passed inputs "
-        "then dissipative direct integration",
-    )
-    inv.add_argument("--gamma", type=float, default=0.5, help="Newmark gamma (direct)")
-    inv.add_argument("--beta", type=float, default=0.25, help="Newmark beta (direct)")
-    _add_band(inv)
-    inv.add_argument("--out", required=True, help="output levels CSV")
-    _add_columns(inv)
-    _add_vehicle(inv)
-    inv.set_defaults(func=_cmd_invert)
-
-    pr = sub.add_parser(
-        "process",
-        help="fused profile on chainage and soft spots",
-        description="Invert, fuse both axles on a chainage grid, detect soft spots and "
-        "estimate stiffness loss. Writes DIR/profile.csv (chainage_m,level_mm), "
-        "DIR/soft_spots.json and DIR/quality.json.",
-    )
-    _add_run(pr)
-    pr.add_argument(
-        "--method",
-        choices=list(METHODS),
-        default=next(iter(METHODS)),
-        help=f"inversion method (default {next(iter(METHODS))}; see docs/method.md)",
-    )
-    _add_band(pr)
-    pr.add_argument("--grid-step", type=float, default=GRID_STEP_M, help="chainage grid step, m")
-    d = DetectionConfig()
-    pr.add_argument(
-        "--baseline-window", type=float, default=d.baseline_window_m, help="baseline median, m"
-    )
-    pr.add_argument(
-        "--min-depth", type=float, default=d.min_depth_mm, help="smallest dip reported, mm"
-    )
-    pr.add_argument(
-        "--noise-factor", type=float, default=d.noise_factor, help="threshold in noise sigmas"
-    )
-    pr.add_argument(
-        "--min-length", type=float, default=d.min_length_m, help="shortest dip reported, m"
-    )
-    pr.add_argument("--out", required=True, help="output directory")
-    _add_columns(pr)
-    _add_track(pr)
-    _add_vehicle(pr)
-    pr.set_defaults(func=_cmd_process)
+    for name, cmd in _COMMANDS.items():
+        sp = sub.add_parser(name, help=cmd.help, description=cmd.description)
+        cmd.arguments(sp)
+        # every command simulates or inverts with a vehicle
+        _add_vehicle(sp)
+        sp.set_defaults(func=cmd.run)
     return p
 
 
