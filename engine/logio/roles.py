@@ -14,11 +14,6 @@ G_UNIT_MPS2 = GRAVITY
 standard 9.80665) so that a logger at rest reading exactly 1 g gives exactly zero once gravity
 is removed."""
 
-ROLES = ("time", "accel", "pitch_rate", "speed", "chainage", "wheel_load", "lat", "lon")
-"""Every column role, in display order. ``wheel_load`` (a load-weigh system's static wheel load)
-and ``lat``/``lon`` (GNSS fixes) are optional; the others are needed (speed or chainage, at
-least one)."""
-
 SPARSE_ROLES = ("lat", "lon")
 """Roles whose column may have empty cells: GNSS fixes come at 1-10 Hz in a log sampled at
 hundreds of Hz, so most rows have no position (an empty cell reads as NaN, "no fix")."""
@@ -59,8 +54,12 @@ def _wgs84_role(key: str, label: str, aliases: str, examples: str) -> _Role:
     )
 
 
-_ROLES: dict[str, _Role] = {
-    "time": _Role(
+def _by_key(*roles: _Role) -> dict[str, _Role]:
+    return {r.key: r for r in roles}
+
+
+_ROLES = _by_key(
+    _Role(
         key="time",
         label="time",
         canonical="time_s",
@@ -82,7 +81,7 @@ _ROLES: dict[str, _Role] = {
         examples="time_s, time_ms, timestamp, time, t",
         alias_units={"epoch": "epoch_s", "unix_time": "epoch_s", "unixtime": "epoch_s"},
     ),
-    "accel": _Role(
+    _Role(
         key="accel",
         label="vertical acceleration",
         canonical="accel_z_mps2",
@@ -98,7 +97,7 @@ _ROLES: dict[str, _Role] = {
         factors={"m/s2": 1.0, "g": G_UNIT_MPS2},
         examples="accel_z_mps2, az_g, acc_z_ms2, accel_z, acc_z, az",
     ),
-    "pitch_rate": _Role(
+    _Role(
         key="pitch_rate",
         label="pitch rate",
         canonical="pitch_rate_radps",
@@ -118,7 +117,7 @@ _ROLES: dict[str, _Role] = {
         factors={"rad/s": 1.0, "deg/s": math.pi / 180.0},
         examples="pitch_rate_radps, gyro_y_dps, gyro_y_rads, gyro_y, pitch_rate, gy",
     ),
-    "speed": _Role(
+    _Role(
         key="speed",
         label="speed",
         canonical="speed_mps",
@@ -135,7 +134,7 @@ _ROLES: dict[str, _Role] = {
         factors={"m/s": 1.0, "km/h": 1.0 / 3.6},
         examples="speed_mps, speed_kmh, speed_kph, speed, v",
     ),
-    "chainage": _Role(
+    _Role(
         key="chainage",
         label="chainage",
         canonical="chainage_m",
@@ -153,7 +152,7 @@ _ROLES: dict[str, _Role] = {
     ),
     # A load-weigh system (air-spring pressure or strain gauges) measures the static load the
     # vehicle carries today: the wheel force the inversion cannot know from the log alone.
-    "wheel_load": _Role(
+    _Role(
         key="wheel_load",
         label="static wheel load",
         canonical="wheel_load_n",
@@ -168,21 +167,25 @@ _ROLES: dict[str, _Role] = {
         factors={"N": 1.0, "kN": 1e3, "t": 1e3 * GRAVITY},
         examples="wheel_load_kn, static_wheel_load_n, load_weigh_kn",
     ),
-    "lat": _wgs84_role(
+    _wgs84_role(
         "lat",
         "latitude",
         "lat latitude gps_lat gnss_lat lat_wgs84 latitude_wgs84 gps_latitude gnss_latitude "
         "pos_lat position_lat",
         examples="lat, latitude, gps_lat, gnss_lat, lat_deg",
     ),
-    "lon": _wgs84_role(
+    _wgs84_role(
         "lon",
         "longitude",
         "lon lng long longitude gps_lon gps_lng gnss_lon gnss_lng lon_wgs84 longitude_wgs84 "
         "gps_longitude gnss_longitude pos_lon position_lon",
         examples="lon, lng, longitude, gps_lon, gnss_lon, lon_deg",
     ),
-}
+)
+ROLES = tuple(_ROLES)
+"""Every column role, in display order. ``wheel_load`` (a load-weigh system's static wheel load)
+and ``lat``/``lon`` (GNSS fixes) are optional; the others are needed (speed or chainage, at
+least one)."""
 
 
 def role_aliases(role: str) -> frozenset[str]:
@@ -192,16 +195,7 @@ def role_aliases(role: str) -> frozenset[str]:
     return r.aliases | {r.canonical}
 
 
-_OPTION_UNITS: dict[str, tuple[str, ...]] = {
-    "time": ("s", "ms", "epoch_s"),
-    "accel": ("m/s2", "g"),
-    "pitch_rate": ("rad/s", "deg/s"),
-    "speed": ("m/s", "km/h"),
-    "chainage": ("m", "km"),
-    "wheel_load": ("N", "kN", "t"),
-    "lat": ("deg",),
-    "lon": ("deg",),
-}
+_OPTION_UNITS = {role: tuple(r.factors) for role, r in _ROLES.items()}
 _GRAVITY_MODES = ("auto", "included", "removed")
 OPTION_UNITS = _OPTION_UNITS
 """Role -> the units a column of that role can be read in (the ``<role>_unit`` options)."""
