@@ -39,6 +39,7 @@ from scipy.optimize import least_squares
 from . import axle_disagreement as disagreement
 from .axle_disagreement import Evaluation
 from .bogie import BogieParams
+from .chainage import PRODUCT_BAND_M
 from .errors import ParameterError
 from .runlog import RunLog
 from .vehicle import VehicleParams
@@ -233,8 +234,8 @@ class CalibrationConfig:
 
     fit: tuple[str, ...] | None = None
     load_kg: float | None = None
-    lambda_min_m: float = 3.0
-    lambda_max_m: float = 40.0
+    lambda_min_m: float = PRODUCT_BAND_M[0]
+    lambda_max_m: float = PRODUCT_BAND_M[1]
     segment_s: float = 40.0
     max_seconds_per_run: float | None = None
     significance: float = 3.0

@@ -17,6 +17,10 @@ GRID_STEP_M = 0.25
 """The product's chainage grid step, m: profiles are resampled to it (the finest allowed), the
 track grid of aligned runs is its multiples, and heatmap bins are never narrower."""
 
+PRODUCT_BAND_M = (3.0, 40.0)
+"""The product's wavelength band, m (shortest, longest): the default of every profile, of the
+calibration's comparison and of the command line."""
+
 
 @dataclass(frozen=True)
 class AxlePositions:

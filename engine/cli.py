@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .chainage import GRID_STEP_M
+from .chainage import GRID_STEP_M, PRODUCT_BAND_M
 from .detect import DetectionConfig
 from .direct import direct_inverse, filtered_direct_inverse
 from .errors import EngineError, ParameterError
@@ -98,8 +98,9 @@ def _add_run(p: argparse.ArgumentParser) -> None:
 
 def _add_band(p: argparse.ArgumentParser) -> None:
     """The wavelength band of the levels."""
-    p.add_argument("--lambda-min", type=float, default=3.0, help="shortest wavelength, m")
-    p.add_argument("--lambda-max", type=float, default=40.0, help="longest wavelength, m")
+    lo, hi = PRODUCT_BAND_M
+    p.add_argument("--lambda-min", type=float, default=lo, help="shortest wavelength, m")
+    p.add_argument("--lambda-max", type=float, default=hi, help="longest wavelength, m")
 
 
 def _add_columns(p: argparse.ArgumentParser) -> None:

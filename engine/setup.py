@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from .chainage import GRID_STEP_M, AxlePositions, axle_grid, axle_positions
+from .chainage import GRID_STEP_M, PRODUCT_BAND_M, AxlePositions, axle_grid, axle_positions
 from .detect import DetectionConfig
 from .errors import InversionError, ParameterError
 from .methods import METHODS
@@ -70,8 +70,8 @@ class ProcessConfig:
     """
 
     method: Method = "wiener"
-    lambda_min_m: float = 3.0
-    lambda_max_m: float = 40.0
+    lambda_min_m: float = PRODUCT_BAND_M[0]
+    lambda_max_m: float = PRODUCT_BAND_M[1]
     grid_step_m: float = GRID_STEP_M
     taper: float = 0.3
     detection: DetectionConfig = field(default_factory=DetectionConfig)
