@@ -6,6 +6,7 @@ only know the standard library can still catch it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -35,6 +36,26 @@ def reject_unknown_keys(data: Mapping[str, Any], known: Iterable[str], what: str
     unknown = sorted(set(data) - known)
     if unknown:
         raise ParameterError(f"unknown {what}(s) {unknown}; expected some of {sorted(known)}")
+
+
+def as_number(value: Any, name: str, what: str, unit: str) -> float:
+    """``value`` as a float, or :class:`ParameterError` (``field=name``) saying that ``what``
+    must be a number in ``unit``."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"{what} must be a number in {unit}, got {value!r}", field=name
+        ) from None
+
+
+def check_range(value: float, name: str, what: str, lo: float, hi: float, unit: str) -> None:
+    """:class:`ParameterError` (``field=name``) unless ``value`` is finite and within
+    ``lo..hi`` (inclusive, in ``unit``); the message names ``what``."""
+    if not (math.isfinite(value) and lo <= value <= hi):
+        raise ParameterError(
+            f"{what} must lie between {lo:g} and {hi:g} {unit}, got {value:g}", field=name
+        )
 
 
 class LogFormatError(EngineError):

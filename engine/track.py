@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ParameterError, reject_unknown_keys
+from .errors import ParameterError, as_number, check_range, reject_unknown_keys
 
 UIC60_E = 210e9
 """Young's modulus of rail steel, Pa."""
@@ -113,20 +113,9 @@ class TrackParams:
 
     def __post_init__(self) -> None:
         for name, (lo, hi, unit, what) in TRACK_RANGES.items():
-            value = getattr(self, name)
-            try:
-                value = float(value)
-            except (TypeError, ValueError):
-                raise ParameterError(
-                    f"track parameter {name} must be a number in {unit}", field=name
-                ) from None
+            value = as_number(getattr(self, name), name, f"track parameter {name}", unit)
             object.__setattr__(self, name, value)
-            if not (math.isfinite(value) and lo <= value <= hi):
-                raise ParameterError(
-                    f"track parameter {name} ({what}) must lie between {lo:g} and {hi:g} {unit}, "
-                    f"got {value:g}",
-                    field=name,
-                )
+            check_range(value, name, f"track parameter {name} ({what})", lo, hi, unit)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrackParams:

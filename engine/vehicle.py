@@ -14,7 +14,7 @@ from typing import Any, ClassVar, Protocol, Self
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import ParameterError, reject_unknown_keys
+from .errors import ParameterError, as_number, check_range, reject_unknown_keys
 
 GRAVITY = 9.81
 """Acceleration of gravity used by the model, m/s²."""
@@ -47,14 +47,7 @@ def check_fields(params: Any) -> None:
     """
     for f in fields(params):
         unit, kind = f.metadata["unit"], f.metadata["kind"]
-        value = getattr(params, f.name)
-        try:
-            value = float(value)
-        except (TypeError, ValueError):
-            raise ParameterError(
-                f"vehicle parameter {f.name} must be a number in {unit}, got {value!r}",
-                field=f.name,
-            ) from None
+        value = as_number(getattr(params, f.name), f.name, f"vehicle parameter {f.name}", unit)
         object.__setattr__(params, f.name, value)
         if not math.isfinite(value):
             raise ParameterError(
@@ -78,13 +71,10 @@ def check_fields(params: Any) -> None:
             raise ParameterError(
                 f"vehicle parameter {f.name} must be > 0 {unit}, got {value}", field=f.name
             )
-        lo, hi = f.metadata["bounds"]
-        if kind != "position" and not lo <= value <= hi:
-            raise ParameterError(
-                f"vehicle parameter {f.name} ({f.metadata['description'].lower()}) must lie "
-                f"between {lo:g} and {hi:g} {unit}, got {value:g}",
-                field=f.name,
-            )
+        if kind != "position":
+            lo, hi = f.metadata["bounds"]
+            what = f"vehicle parameter {f.name} ({f.metadata['description'].lower()})"
+            check_range(value, f.name, what, lo, hi, unit)
 
 
 Link = tuple[NDArray[np.float64], float, float]
