@@ -58,6 +58,11 @@ COMBINED_NOISE_FACTOR = 4.5
 16/16 zones with industrial passes where 5 finds 15/16, with no false zone in 36 combinations;
 4.0 gives a false zone with fibre-optic passes."""
 
+SHORT_BASELINE_M = 30.0
+"""Baseline window of the combination's second look, m: three times the longest zone (10 m)
+a design track holds, so a zone's dip is at most a third of the window and the running
+median stays on the rail beside it."""
+
 FIT_GAP_M = 40.0
 """Gap between chains of dips, m, that their stiffness fits do not bridge: a fit keeps a zone
 within seven support spacings (4-5 m) of the extent it starts from, and only zones whose
@@ -396,37 +401,26 @@ def detect_on_aggregate(
     res = residuals(lv, step, cfg.baseline_window_m, cache=cache)
     sigma = pass_noise(lv, step, cfg.baseline_window_m, res=res)
     mean, _ = weighted_mean(res, 1.0 / sigma**2)
-    noise = combined_noise(res, sigma)
-    if config is None and noise.halves:
+    if config is None and res.shape[0] >= 2:
         # one pass has nothing to measure its noise against: the single-pass detector's 5
         cfg = replace(cfg, noise_factor=COMBINED_NOISE_FACTOR)
-    # a dip must stand out of the noise and of the rail's own roughness (what every pass
-    # shares), as a single pass's dip must stand out of its residual's whole spread: the
-    # noise falls with passes, the roughness stays
+    # the dip is searched in several looks, each against the noise and roughness measured
+    # the same way (split halves) on the passes' residuals of that look: the detector's
+    # running means (a matched filter for wide dips), and the residuals against a shorter
+    # baseline, which leaves a zone's dip whole and removes the long-wave error that
+    # dominates the mean of noisy passes (one pass: the single-pass detector's looks)
+    looks = [(res, sigma, mean)]
+    if res.shape[0] >= 2:
+        short = residuals(lv, step, SHORT_BASELINE_M, cache=cache)
+        sigma_s = pass_noise(lv, step, SHORT_BASELINE_M, res=short)
+        looks.append((short, sigma_s, weighted_mean(short, 1.0 / sigma_s**2)[0]))
+    for r, _, m in list(looks):
+        for w in cfg.matched_m:
+            r_w = running_mean(r, step, w)
+            sigma_w = pass_noise(lv, step, cfg.baseline_window_m, res=r_w)
+            looks.append((r_w, sigma_w, running_mean(m, step, w)))
+    noise, thr, dips = _dips_in_looks(grid, mean, looks, cfg)
     roughness = noise.roughness_mm
-    thr = np.maximum(cfg.min_depth_mm, cfg.noise_factor * np.sqrt(noise.noise_mm**2 + roughness**2))
-    # the detector's own threshold is one number: scaling the residual by min_depth / thr(x)
-    # makes "below -min_depth" mean "below -thr(x)" at every point
-    flat = DetectionConfig(
-        baseline_window_m=cfg.baseline_window_m, min_depth_mm=cfg.min_depth_mm,
-        noise_factor=1e-12, min_length_m=cfg.min_length_m, edge_m=cfg.edge_m, matched_m=(),
-    )  # fmt: skip
-    with np.errstate(invalid="ignore"):
-        dips, _ = find_dips(grid, mean * (cfg.min_depth_mm / thr), flat)
-    # the detector's running means (a matched filter for wide dips), each against the noise
-    # and roughness measured the same way on the passes' averaged residuals
-    for w in cfg.matched_m:
-        res_w = running_mean(res, step, w)
-        noise_w = combined_noise(res_w, pass_noise(lv, step, cfg.baseline_window_m, res=res_w))
-        thr_w = np.maximum(
-            cfg.min_depth_mm,
-            cfg.noise_factor * np.sqrt(noise_w.noise_mm**2 + noise_w.roughness_mm**2),
-        )
-        with np.errstate(invalid="ignore"):
-            found, _ = find_dips(
-                grid, running_mean(mean, step, w) * (cfg.min_depth_mm / thr_w), flat
-            )
-        dips = add_dips(grid, mean, dips, found)
     if peaks_in_m is not None:
         dips = dips_near(dips, *peaks_in_m)
     # a noisy mean of smooth rail is smooth rail: the roughness decides
@@ -461,6 +455,41 @@ def detect_on_aggregate(
         supporting = tuple(int(j) for j, m in zip(cover, own, strict=True) if m <= 0.5 * m_all)
         spots.append(AggregateSpot(a, b, peak, depth, loss, sig, supporting, covering))
     return AggregateDetection(grid, mean, noise, thr, sigma, roughness, smooth, spots)
+
+
+def _dips_in_looks(
+    grid: NDArray[np.float64],
+    mean: NDArray[np.float64],
+    looks: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]],
+    cfg: DetectionConfig,
+) -> tuple[CombinedNoise, NDArray[np.float64], list[Dip]]:
+    """The dips of the combination ``mean`` (mm) found in any of its ``looks`` (each: the
+    passes' residuals of the look, their noise and the look's weighted mean), each look
+    against its own measured noise; with the first look's noise and threshold per point
+    (mm)."""
+    # the detector's own threshold is one number: scaling the residual by min_depth / thr(x)
+    # makes "below -min_depth" mean "below -thr(x)" at every point
+    flat = DetectionConfig(
+        baseline_window_m=cfg.baseline_window_m, min_depth_mm=cfg.min_depth_mm,
+        noise_factor=1e-12, min_length_m=cfg.min_length_m, edge_m=cfg.edge_m, matched_m=(),
+    )  # fmt: skip
+    out: tuple[CombinedNoise, NDArray[np.float64]] | None = None
+    dips: list[Dip] = []
+    for res_l, sigma_l, mean_l in looks:
+        noise = combined_noise(res_l, sigma_l)
+        # a dip must stand out of the noise and of the rail's own roughness (what every
+        # pass shares), as a single pass's dip must stand out of its residual's whole
+        # spread: the noise falls with passes, the roughness stays
+        thr = np.maximum(
+            cfg.min_depth_mm,
+            cfg.noise_factor * np.sqrt(noise.noise_mm**2 + noise.roughness_mm**2),
+        )
+        with np.errstate(invalid="ignore"):
+            found, _ = find_dips(grid, mean_l * (cfg.min_depth_mm / thr), flat)
+        dips = add_dips(grid, mean, dips, found) if out else found
+        out = out or (noise, thr)
+    assert out is not None
+    return out[0], out[1], dips
 
 
 def dips_near(dips: list[Dip], lo_m: float, hi_m: float, gap_m: float = FIT_GAP_M) -> list[Dip]:
