@@ -231,16 +231,21 @@ def _bandpass_block(
     ``pad - i`` (``1 <= i <= pad``) and ``pad + 2 n - 2 - i`` (``i >= n - 1 - pad``).
     """
     h, S, pad = _bandpass_kernel(n, step_m, lambda_min, lambda_max, taper)
-    nfft = h.size
-    r = np.asarray(rows, dtype=np.intp)[:, None]
-    q = pad + np.asarray(cols, dtype=np.intp)[None, :]
-    out = h[(q - pad - r) % nfft]
+    r = np.asarray(rows, dtype=np.intp)
+    c = np.asarray(cols, dtype=np.intp)[None, :]
+    # offsets within (-nfft, nfft): a negative one indexes h circularly as it should
+    out = h[c - r[:, None]]
+    count = np.ones(r.size)
     left = (r >= 1) & (r <= pad)
+    if left.any():
+        out[left] += h[c + r[left, None]]
+        count[left] += 1.0
     right = (r >= n - 1 - pad) & (r <= n - 2)
-    out += np.where(left, h[(q - pad + r) % nfft], 0.0)
-    out += np.where(right, h[(q - pad - 2 * n + 2 + r) % nfft], 0.0)
-    count = 1.0 + left.astype(np.float64) + right.astype(np.float64)
-    return out - (count / (n + 2 * pad)) * S[q]
+    if right.any():
+        out[right] += h[c - 2 * n + 2 + r[right, None]]
+        count[right] += 1.0
+    out -= (count / (n + 2 * pad))[:, None] * S[pad + c]
+    return out
 
 
 def softening_modes(
