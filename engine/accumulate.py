@@ -160,20 +160,28 @@ class ResidualCache:
     detection's cost besides the fits) are taken from here. A row is known by a digest of
     its bytes, grid step and window, so a changed row (a pass moved, the stretch grown) is
     filtered again and the residuals are the same numbers either way. Thread-safe; the
-    least recently used rows go first.
+    least recently used rows go first once the rows kept exceed ``max_bytes``.
 
     Parameters
     ----------
-    max_rows : int
-        Rows kept (a 1.5 km stretch on the 0.25 m grid: 48 kB each).
+    max_bytes : int
+        Memory the kept rows may take, bytes. The default, 64 MiB, keeps some 1300 rows of
+        a 1.5 km detection stretch on the 0.25 m grid (48 kB each): a 20 km run's 20 units
+        of 50 passes each, so a run over a long line finds its earlier units' rows.
     """
 
-    def __init__(self, max_rows: int = 256) -> None:
-        if max_rows < 1:
-            raise ParameterError("max_rows must be at least 1", field="max_rows")
-        self.max_rows = max_rows
+    def __init__(self, max_bytes: int = 64 * 2**20) -> None:
+        if max_bytes < 1:
+            raise ParameterError("max_bytes must be at least 1 byte", field="max_bytes")
+        self.max_bytes = max_bytes
         self._rows: OrderedDict[bytes, NDArray[np.float64]] = OrderedDict()
+        self._bytes = 0
         self._lock = threading.Lock()
+
+    @property
+    def nbytes(self) -> int:
+        """Memory the kept rows take, bytes."""
+        return self._bytes
 
     def residual(
         self, row: NDArray[np.float64], step_m: float, window_m: float
@@ -189,10 +197,15 @@ class ResidualCache:
                 self._rows.move_to_end(key)
                 return got.copy()
         out = row - robust_baseline(row, step_m, window_m)
+        if out.nbytes > self.max_bytes:
+            return out
         with self._lock:
-            self._rows[key] = out.copy()
-            while len(self._rows) > self.max_rows:
-                self._rows.popitem(last=False)
+            if key not in self._rows:
+                self._rows[key] = out.copy()
+                self._bytes += out.nbytes
+            while self._bytes > self.max_bytes:
+                _, dropped = self._rows.popitem(last=False)
+                self._bytes -= dropped.nbytes
         return out
 
 

@@ -30,6 +30,20 @@ from .track import TrackParams
 MAX_LOSS = 0.95
 """Largest stiffness loss the fit will report (fraction)."""
 
+_COARSE_LOSSES = np.linspace(0.02, MAX_LOSS, 32)
+"""The losses :func:`fit_zone` tries first, fraction."""
+
+_FINE_STEPS = np.arange(9, dtype=np.float64)
+
+
+def _fine_losses(lo: float, hi: float) -> NDArray[np.float64]:
+    """``np.clip(np.linspace(lo, hi, 9), 0, MAX_LOSS)``, the same numbers without the
+    overhead of either (the loss search runs it some ten thousand times per pass)."""
+    y = _FINE_STEPS * ((hi - lo) / 8) + lo
+    y[-1] = hi
+    np.minimum(y, MAX_LOSS, out=y)
+    return np.maximum(y, 0.0, out=y)
+
 
 @dataclass(frozen=True)
 class ZoneFit:
@@ -177,11 +191,61 @@ def _bandpass_rows(
 
 
 @lru_cache(maxsize=64)
-def _bandpass_matrix(
+def _bandpass_kernel(
     n: int, step_m: float, lambda_min: float, lambda_max: float, taper: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """What :func:`_bandpass_rows` does to rows of length ``n``, as a circular convolution.
+
+    The rows are mirrored by ``pad`` points either side, their mean removed, zero-padded to
+    ``nfft`` and weighted by the band window: each output point ``q`` (padded index) is
+    ``sum_p h[q - p] (ext_p - mean)``, ``h`` the window's impulse response. Returns ``h``,
+    ``S[q] = sum_{p < L} h[q - p]`` (what the mean removal takes away per unit mean, ``L`` the
+    mirrored length) and ``pad``; a few kB, where the matrix itself is ``n²`` floats.
+    """
+    pad = min(n - 1, int(np.ceil(lambda_max * (1 + taper) / step_m)))
+    length = n + 2 * pad
+    nfft = sfft.next_fast_len(length, real=True)
+    h = sfft.irfft(
+        band_window(sfft.rfftfreq(nfft, step_m), 1.0 / lambda_max, 1.0 / lambda_min, taper), nfft
+    )
+    box = np.zeros(nfft)
+    box[:length] = 1.0
+    S = sfft.irfft(sfft.rfft(h) * sfft.rfft(box), nfft)
+    return h, S, pad
+
+
+def _bandpass_block(
+    n: int,
+    step_m: float,
+    lambda_min: float,
+    lambda_max: float,
+    taper: float,
+    rows: NDArray[np.intp],
+    cols: NDArray[np.intp],
 ) -> NDArray[np.float64]:
-    """The linear map of :func:`_bandpass_rows` on rows of length ``n``: ``rows @ M``."""
-    return _bandpass_rows(np.eye(n), step_m, lambda_min, lambda_max, taper)
+    """Rows ``rows`` and columns ``cols`` of the linear map of :func:`_bandpass_rows` on rows
+    of length ``n`` (``y @ M`` band-passes ``y``): ``M[rows][:, cols]``, from the map's
+    convolution kernel (:func:`_bandpass_kernel`) instead of band-passing ``n`` unit rows.
+
+    Input point ``i`` stands in the mirrored row at ``pad + i`` and, near the ends, at
+    ``pad - i`` (``1 <= i <= pad``) and ``pad + 2 n - 2 - i`` (``i >= n - 1 - pad``).
+    """
+    h, S, pad = _bandpass_kernel(n, step_m, lambda_min, lambda_max, taper)
+    r = np.asarray(rows, dtype=np.intp)
+    c = np.asarray(cols, dtype=np.intp)[None, :]
+    # offsets within (-nfft, nfft): a negative one indexes h circularly as it should
+    out = h[c - r[:, None]]
+    count = np.ones(r.size)
+    left = (r >= 1) & (r <= pad)
+    if left.any():
+        out[left] += h[c + r[left, None]]
+        count[left] += 1.0
+    right = (r >= n - 1 - pad) & (r <= n - 2)
+    if right.any():
+        out[right] += h[c - 2 * n + 2 + r[right, None]]
+        count[right] += 1.0
+    out -= (count / (n + 2 * pad))[:, None] * S[pad + c]
+    return out
 
 
 def softening_modes(
@@ -335,24 +399,22 @@ def fit_zone(
     )
     kn = params.k_nominal
     # the band-pass is linear: only its rows near the zone and its fitted columns are needed
-    bp_fit = _bandpass_matrix(g.size, step, lambda_min, lambda_max, taper)[np.ix_(near, fit_w)]
+    bp_fit = _bandpass_block(
+        g.size, step, lambda_min, lambda_max, taper, np.flatnonzero(near), np.flatnonzero(fit_w)
+    )
     meas_fit = meas[fit_w]
 
     def modes(a: float, b: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         pick = np.flatnonzero((sup_x >= a - 1e-6) & (sup_x <= b + 1e-6))
+        # the zone's supports are consecutive: slices, not copies
+        on = slice(int(pick[0]), int(pick[-1]) + 1) if pick.size else slice(0, 0)
         # the dip is linear in each set's squared modal influence (modal_dips): weight them
         E = None
         for (offsets, w), B in zip(sets, Bs, strict=True):
-            lam, E_k = softening_modes(Fss[np.ix_(pick, pick)], B[pick], bp_fit)
+            lam, E_k = softening_modes(Fss[on, on], B[on], bp_fit)
             E = E_k * (w / offsets.size) if E is None else E + E_k * (w / offsets.size)
         assert E is not None
         return lam, E
-
-    def dips(
-        mode: tuple[NDArray[np.float64], NDArray[np.float64]], losses: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
-        """Band-passed modelled dips at the fitted columns, one row per loss, mm."""
-        return modal_dips(*mode, losses, kn, 1.0)
 
     tried: dict[tuple[float, float], tuple[float, float]] = {}
 
@@ -363,23 +425,33 @@ def fit_zone(
             tried[key] = _best_loss(a, b)
         return tried[key]
 
+    n_fit = meas_fit.size
+
+    def misfit(
+        lam: NDArray[np.float64], E: NDArray[np.float64], losses: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """RMS misfit of the band-passed modelled dips (one per loss) at the fitted columns."""
+        d = modal_dips(lam, E, losses, kn, 1.0)
+        d -= meas_fit
+        d *= d
+        return np.sqrt(d.sum(axis=1) / n_fit)
+
     def _best_loss(a: float, b: float) -> tuple[float, float]:
-        losses = np.linspace(0.02, MAX_LOSS, 32)
-        mode = modes(a, b)
+        lam, E = modes(a, b)
+        losses = _COARSE_LOSSES
         for _ in range(2):
-            d = dips(mode, losses)
-            err = np.sqrt(np.mean((d - meas_fit) ** 2, axis=1))
-            k = int(np.argmin(err))
+            err = misfit(lam, E, losses)
+            k = int(err.argmin())
             best_l, best_e = float(losses[k]), float(err[k])
             width = losses[1] - losses[0]
-            losses = np.clip(np.linspace(best_l - width, best_l + width, 9), 0.0, MAX_LOSS)
+            losses = _fine_losses(best_l - width, best_l + width)
         if 0 < k < err.size - 1:
             # vertex of the parabola through the best point and its neighbours
             e0, e1, e2 = err[k - 1] ** 2, err[k] ** 2, err[k + 1] ** 2
             den = e0 - 2 * e1 + e2
             if den > 0:
                 h = losses[1] - losses[0]
-                best_l = float(np.clip(best_l + 0.5 * h * (e0 - e2) / den, 0.0, MAX_LOSS))
+                best_l = min(max(float(best_l + 0.5 * h * (e0 - e2) / den), 0.0), MAX_LOSS)
         return best_l, best_e
 
     a = np.ceil(start_m / s - 1e-9) * s

@@ -95,10 +95,10 @@ def test_detection_of_one_stretch_gives_the_full_detections_spots_there_and_fits
 def test_residual_cache_gives_the_same_residuals_and_refilters_a_changed_row() -> None:
     """Residuals through the cache are the plain residuals, on first sight and when kept; a
     row that changed (a pass moved) is filtered again, not served stale; the cache holds
-    at most its size; a size below one is refused."""
+    at most its memory (the least recently used rows go); a size below one byte is refused."""
     lv = passes(3, (300.0,), n=2000, k=4)
     plain = residuals(lv, STEP, 40.0)
-    cache = ResidualCache(max_rows=5)
+    cache = ResidualCache(max_bytes=5 * lv[0].nbytes)
     for _ in range(2):
         got = residuals(lv, STEP, 40.0, cache=cache)
         np.testing.assert_array_equal(got, plain)
@@ -110,6 +110,30 @@ def test_residual_cache_gives_the_same_residuals_and_refilters_a_changed_row() -
         residuals(moved, STEP, 40.0, cache=cache), residuals(moved, STEP, 40.0)
     )
     assert len(cache._rows) == 5
+    assert cache.nbytes == 5 * lv[0].nbytes
     with pytest.raises(ParameterError) as e:
-        ResidualCache(max_rows=0)
-    assert e.value.field == "max_rows"
+        ResidualCache(max_bytes=0)
+    assert e.value.field == "max_bytes"
+
+
+def test_residual_cache_drops_the_least_recently_used_row_past_its_memory(monkeypatch) -> None:
+    """With room for two rows, a row used again stays and the one unused longest is filtered
+    again when asked for; a row larger than the whole cache is filtered and not kept."""
+    import engine.accumulate as acc
+
+    filtered = []
+    real = acc.robust_baseline
+    monkeypatch.setattr(
+        acc,
+        "robust_baseline",
+        lambda row, *args: filtered.append(row.tobytes()) or real(row, *args),
+    )
+    a, b, c = passes(3, (300.0,), n=2000, k=3)
+    cache = ResidualCache(max_bytes=2 * a.nbytes)
+    for row in (a, b, a, c, a, b):
+        cache.residual(row, STEP, 40.0)
+    assert filtered == [a.tobytes(), b.tobytes(), c.tobytes(), b.tobytes()]
+    assert cache.nbytes == 2 * a.nbytes
+    small = ResidualCache(max_bytes=a.nbytes - 1)
+    np.testing.assert_array_equal(small.residual(a, STEP, 40.0), residuals(a, STEP, 40.0)[0])
+    assert small.nbytes == 0

@@ -9,6 +9,9 @@ from engine.errors import ParameterError
 from engine.stiffness import (
     InfluenceLine,
     QuasiStaticModel,
+    _bandpass_block,
+    _bandpass_rows,
+    _fine_losses,
     fit_zone,
     modal_dips,
     softening_modes,
@@ -118,3 +121,27 @@ def test_fit_rejects_bad_wheel_offsets():
     with pytest.raises(ParameterError) as e:
         fit_zone(grid, np.zeros_like(grid), 20, 24, TrackParams(), 5e4, 3, 40, wheel_offsets_m=())
     assert e.value.field == "wheel_offsets_m"
+
+
+@pytest.mark.parametrize(
+    "n,lambda_max",
+    # mirrored ends apart, overlapping (a point mirrored at both ends) and as long as the row
+    [(517, 25.0), (300, 40.0), (300, 70.0), (5, 40.0), (2, 40.0)],
+)
+def test_bandpass_block_is_the_band_pass_of_unit_rows(n, lambda_max):
+    """The fit's band-pass map taken from its convolution kernel equals band-passing each
+    unit row (the map it replaces), rows and columns picked anywhere, ends included."""
+    full = _bandpass_rows(np.eye(n), 0.25, 3.0, lambda_max, 0.3)
+    rows = np.arange(0, n, 3)
+    cols = np.arange(n - 1, -1, -2)
+    block = _bandpass_block(n, 0.25, 3.0, lambda_max, 0.3, rows, cols)
+    assert np.abs(block - full[np.ix_(rows, cols)]).max() <= 1e-14 * np.abs(full).max()
+
+
+def test_fine_losses_are_the_clipped_linspace():
+    """The loss search's fine grid is np.clip(np.linspace(lo, hi, 9), 0, MAX_LOSS) exactly."""
+    from engine.stiffness import MAX_LOSS
+
+    for lo, hi in [(0.1, 0.2), (-0.03, 0.05), (0.9, 0.98), (0.3172, 0.3735)]:
+        want = np.clip(np.linspace(lo, hi, 9), 0.0, MAX_LOSS)
+        assert np.array_equal(_fine_losses(lo, hi), want)

@@ -19,11 +19,12 @@ import logging
 import math
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Subquery, delete, func, insert, select, update
+from sqlalchemy import Select, Subquery, delete, func, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
@@ -137,6 +138,13 @@ def newest_runs(track_id: int, c_lo: int, c_hi: int, *, with_force: bool = False
     one last), then by id; ``with_force``: only runs that kept the wheel force. A subquery
     (columns ``run_id``, ``chunk``) to join ``track_run_levels`` on; the ranking reads keys
     and recording times only, not the levels."""
+    return _newest_runs(track_id, c_lo, c_hi, with_force, NEWEST_PASSES)
+
+
+@lru_cache(maxsize=256)
+def _newest_runs(track_id: int, c_lo: int, c_hi: int, with_force: bool, newest: int) -> Subquery:
+    # Built once per stretch: a pass re-reads the same chunks for its aggregate and each
+    # detection unit, and building the statement costs about as much as running it.
     t = TrackRunLevels.__table__
     rank = func.row_number().over(
         partition_by=t.c.chunk,
@@ -147,7 +155,16 @@ def newest_runs(track_id: int, c_lo: int, c_hi: int, *, with_force: bool = False
     if with_force:
         ranked = ranked.where(t.c.force_n.is_not(None))
     keys = ranked.subquery()
-    return select(keys.c.run_id, keys.c.chunk).where(keys.c.rank <= NEWEST_PASSES).subquery()
+    return select(keys.c.run_id, keys.c.chunk).where(keys.c.rank <= newest).subquery()
+
+
+@lru_cache(maxsize=256)
+def _levels_query(track_id: int, a: int, b: int, with_force: bool, newest: int) -> Select[Any]:
+    """The statement :func:`newest_levels` runs (built once per stretch, as its keys)."""
+    t = TrackRunLevels.__table__
+    keys = _newest_runs(track_id, a, b, False, newest)
+    cols = [t.c.run_id, t.c.chunk, t.c.levels] + ([t.c.force_n] if with_force else [])
+    return select(*cols).join(keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk))
 
 
 def expected_points(
@@ -167,12 +184,7 @@ def newest_levels(
     (:func:`newest_runs`): the grid (m), the run ids (ascending), their levels (runs x points,
     mm, NaN where a run has none) and, with ``with_force``, the wheel force under them (N,
     NaN where not kept). Read only."""
-    t = TrackRunLevels.__table__
-    keys = newest_runs(track_id, a, b)
-    cols = [t.c.run_id, t.c.chunk, t.c.levels] + ([t.c.force_n] if with_force else [])
-    rows = session.execute(
-        select(*cols).join(keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk))
-    ).all()
+    rows = session.execute(_levels_query(track_id, a, b, with_force, NEWEST_PASSES)).all()
     i0 = a * CHUNK_POINTS
     n = (b - a + 1) * CHUNK_POINTS
     run_ids = sorted({r[0] for r in rows})
