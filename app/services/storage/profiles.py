@@ -11,6 +11,7 @@ read is one range scan of the ``(run_id, block)`` key; a 2 km window touches thr
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from typing import Any
 
@@ -72,6 +73,16 @@ def nullable(a: NDArray[np.float64]) -> list[float | None]:
     for i in bad:
         values[i] = None
     return values
+
+
+def finite_or_none(value: Any) -> float | None:
+    """One value as :func:`nullable` keeps it: a float, or None for NaN, infinities and what
+    is not a number."""
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
 
 
 def grid_index(chainage_m: NDArray[np.float64]) -> int:
