@@ -3,8 +3,10 @@
 FastAPI checks an answer against the route's ``response_model`` only when the route returns
 data; routes that serialise themselves (``orjson`` for long arrays) return a ``Response`` and
 skip the check. Here each such route is listed, asked for a real answer on a track with a run,
-a survey and its separation, and the answer is validated against the declared model, with no
-key the model does not declare. A new route that returns a ``Response`` under a
+a survey and its separation, and the bytes sent are validated against the declared model in
+strict mode (a number sent as a string, a float where the model says integer fail), with every
+key the model declares and no other: what FastAPI itself would send. A new route that returns
+a ``Response`` under a
 ``response_model`` fails :func:`test_every_self_serialising_route_is_checked` until it is added
 to :data:`ANSWERS`.
 """
@@ -18,10 +20,11 @@ from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
+import orjson
 import pytest
 from fastapi import Response
 from fastapi.routing import APIRoute
-from pydantic import BaseModel, TypeAdapter
+from pydantic import BaseModel, TypeAdapter, ValidationError
 from starlette.testclient import TestClient
 
 from app.main import create_app
@@ -85,38 +88,57 @@ def declared_model(app: Any, method: str, path: str) -> Any:
     return model
 
 
-def undeclared_keys(sent: Any, model: Any, where: str = "") -> list[str]:
-    """Keys of ``sent`` (the JSON answer) that ``model`` (validated from it) does not declare."""
+def key_differences(sent: Any, model: Any, where: str = "") -> list[str]:
+    """Keys of ``sent`` (the JSON answer) that ``model`` (validated from it) does not declare
+    (``+path``), and keys it declares that ``sent`` lacks (``-path``: validation fills a
+    default in, FastAPI would have sent it)."""
     if isinstance(model, BaseModel) and isinstance(sent, dict):
         fields = type(model).model_fields
-        extra = [f"{where}.{k}" for k in sent if k not in fields]
+        out = [f"+{where}.{k}" for k in sent if k not in fields]
+        out += [f"-{where}.{k}" for k in fields if k not in sent]
         for k, v in sent.items():
             if k in fields:
-                extra += undeclared_keys(v, getattr(model, k), f"{where}.{k}")
-        return extra
+                out += key_differences(v, getattr(model, k), f"{where}.{k}")
+        return out
     if isinstance(sent, list) and isinstance(model, list):
         return [
             e
             for i, (s, m) in enumerate(zip(sent, model, strict=True))
-            for e in undeclared_keys(s, m, f"{where}[{i}]")
+            for e in key_differences(s, m, f"{where}[{i}]")
         ]  # noqa: E501
     if isinstance(sent, dict) and isinstance(model, dict):
-        return [e for k in sent for e in undeclared_keys(sent[k], model.get(k), f"{where}.{k}")]
+        return [e for k in sent for e in key_differences(sent[k], model.get(k), f"{where}.{k}")]
     return []
 
 
-def test_the_key_check_finds_an_undeclared_key() -> None:
-    """The check itself: a key the model does not declare, also inside a list, is named."""
+def test_the_key_check_finds_an_undeclared_or_missing_key() -> None:
+    """The check itself: a key the model does not declare and a declared one left out (it has
+    a default, so validation alone passes), also inside a list, are named."""
 
     class Item(BaseModel):
         a: int
+        note: str | None = None
 
     class Page(BaseModel):
         data: list[Item]
 
-    sent = {"data": [{"a": 1}, {"a": 2, "b": 3}], "count": 2}
-    model = TypeAdapter(Page).validate_python(sent)
-    assert undeclared_keys(sent, model) == [".count", ".data[1].b"]
+    sent = {"data": [{"a": 1, "note": None}, {"a": 2, "b": 3}], "count": 2}
+    model = TypeAdapter(Page).validate_json(orjson.dumps(sent), strict=True)
+    assert key_differences(sent, model) == ["+.count", "+.data[1].b", "-.data[1].note"]
+
+
+def test_strict_validation_refuses_what_lax_validation_coerces() -> None:
+    """Why the answer is validated strictly: a number sent as a string, or a float under an
+    integer field, is a wrong type that lax validation would quietly accept."""
+
+    class Counted(BaseModel):
+        n: int
+        level_mm: float
+
+    for wrong in ({"n": 2.0, "level_mm": 1.5}, {"n": 2, "level_mm": "1.5"}):
+        TypeAdapter(Counted).validate_json(orjson.dumps(wrong))  # lax: accepted
+        with pytest.raises(ValidationError):
+            TypeAdapter(Counted).validate_json(orjson.dumps(wrong), strict=True)
 
 
 @pytest.mark.slow  # the module's app, run and survey: ~8 s, paid by the first test
@@ -156,12 +178,13 @@ def answered(
 def test_the_answer_is_the_declared_model(
     answered: tuple[TestClient, int], route: tuple[str, str]
 ) -> None:  # noqa: E501
-    """The real answer validates against the route's response model and has no other key."""
+    """The bytes of the real answer validate strictly against the route's response model, with
+    exactly the keys the model declares."""
     client, run_id = answered
     model = declared_model(client.app, *route)
     r = client.get(ANSWERS[route].format(run=run_id))
     assert r.status_code == 200, r.text
     sent = r.json()
     assert sent, "an empty answer checks nothing"
-    validated = TypeAdapter(model).validate_python(sent)
-    assert undeclared_keys(sent, validated) == []
+    validated = TypeAdapter(model).validate_json(r.content, strict=True)
+    assert key_differences(sent, validated) == []

@@ -677,7 +677,7 @@ def stiffness_with_vehicles(
     ).all()
     names = {int(r[0]): str(r[1]) for r in rows}
     contributors = [
-        c | ({"vehicle": names.get(c["id"])} if c["kind"] == "run" else {})
+        c | {"vehicle": names.get(c["id"]) if c["kind"] == "run" else None}
         for c in window.contributors
     ]
     return dataclasses.replace(window, contributors=contributors)
