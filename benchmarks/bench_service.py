@@ -179,7 +179,7 @@ def main() -> int:
         # The same window read in-process: the storage layer's single indexed query.
         from app.core.config import Settings
         from app.db.session import Database
-        from app.services.storage.profiles import read_profile
+        from app.services.storage.profiles import json_columns, profile_arrays
 
         db = Database(Settings(data_dir=Path(data_dir)).sqlalchemy_url)
         gc.collect()
@@ -188,7 +188,7 @@ def main() -> int:
         with db.session() as s:
             for a in starts:
                 t = time.perf_counter()
-                cols = read_profile(s, run["id"], float(a), float(a) + 2000.0)
+                cols = json_columns(profile_arrays(s, run["id"], float(a), float(a) + 2000.0))
                 db_ms.append(1e3 * (time.perf_counter() - t))
         with db.engine.connect() as conn:
             conn.exec_driver_sql("PRAGMA wal_checkpoint(TRUNCATE)")

@@ -30,6 +30,20 @@ SECURITY_HEADERS = [
 ]
 
 
+class AnswerStarted:
+    """A ``send`` that remembers whether the answer has begun: after its start is sent, an
+    error can no longer be answered with a status of its own."""
+
+    def __init__(self, send: Send) -> None:
+        self.send = send
+        self.started = False
+
+    async def __call__(self, message: Message) -> None:
+        if message["type"] == "http.response.start":
+            self.started = True
+        await self.send(message)
+
+
 class SecurityHeadersMiddleware:
     """Adds the security headers (and a Content-Security-Policy) to every HTTP answer."""
 
@@ -56,20 +70,14 @@ class SecurityHeadersMiddleware:
                 message["headers"] = headers
             await send(message)
 
-        started = False
-
-        async def tracking_send(message: Message) -> None:
-            nonlocal started
-            if message["type"] == "http.response.start":
-                started = True
-            await send_with_headers(message)
+        tracking_send = AnswerStarted(send_with_headers)
 
         # Starlette answers an unhandled exception from its outermost layer, outside every
         # middleware: the 500 is sent from here instead, so that it carries the headers too.
         try:
             await self.app(scope, receive, tracking_send)
         except Exception:
-            if started:
+            if tracking_send.started:
                 raise
             log.exception("unhandled error on %s %s", scope.get("method"), path)
             await _send_error(tracking_send, 500, internal_error_detail())
@@ -120,7 +128,7 @@ class BodySizeLimitMiddleware:
             return
         seen = 0
         refused = False
-        started = False
+        sending = AnswerStarted(send)
 
         async def counting_receive() -> Message:
             nonlocal seen, refused
@@ -131,18 +139,15 @@ class BodySizeLimitMiddleware:
                 seen += len(message.get("body", b""))
                 if seen > limit:
                     refused = True
-                    if not started:
+                    if not sending.started:
                         await _send_413(send, limit)
                     raise BodyTooLarge(limit)
             return message
 
         async def guarded_send(message: Message) -> None:
-            nonlocal started
             if refused:
                 return  # the 413 went out already
-            if message["type"] == "http.response.start":
-                started = True
-            await send(message)
+            await sending(message)
 
         try:
             await self.app(scope, counting_receive, guarded_send)

@@ -17,12 +17,23 @@ _POSITION: dict[str, Any] = {
     "minItems": 2,
     "maxItems": 3,
 }
-_LINE_STRING: dict[str, Any] = {
-    "type": "object",
-    "title": "LineString",
-    "required": ["type", "coordinates"],
-    "properties": {
-        "type": {"const": "LineString"},
+
+
+def _geojson_object(kind: str, member: str, properties: dict[str, Any]) -> dict[str, Any]:
+    """The schema of a GeoJSON object of type ``kind``: its ``type`` member names the kind, and
+    ``member`` (of ``properties``, the members besides ``type``) is required with it."""
+    return {
+        "type": "object",
+        "title": kind,
+        "required": ["type", member],
+        "properties": {"type": {"const": kind}, **properties},
+    }
+
+
+_LINE_STRING = _geojson_object(
+    "LineString",
+    "coordinates",
+    {
         "coordinates": {
             "type": "array",
             "items": _POSITION,
@@ -32,13 +43,11 @@ _LINE_STRING: dict[str, Any] = {
             "the line may not cross itself)",
         },
     },
-}
-_FEATURE: dict[str, Any] = {
-    "type": "object",
-    "title": "Feature",
-    "required": ["type", "geometry"],
-    "properties": {
-        "type": {"const": "Feature"},
+)
+_FEATURE = _geojson_object(
+    "Feature",
+    "geometry",
+    {
         "geometry": _LINE_STRING,
         "properties": {
             "type": ["object", "null"],
@@ -47,7 +56,7 @@ _FEATURE: dict[str, Any] = {
             "properties": {"start_chainage_m": {"type": "number"}},
         },
     },
-}
+)
 CENTERLINE_GEOJSON_SCHEMA: dict[str, Any] = {
     "title": "CenterlineGeoJson",
     "description": "A GeoJSON LineString in WGS84 [longitude, latitude], bare, as a Feature or "
@@ -56,15 +65,11 @@ CENTERLINE_GEOJSON_SCHEMA: dict[str, Any] = {
     "oneOf": [
         _LINE_STRING,
         _FEATURE,
-        {
-            "type": "object",
-            "title": "FeatureCollection",
-            "required": ["type", "features"],
-            "properties": {
-                "type": {"const": "FeatureCollection"},
-                "features": {"type": "array", "items": _FEATURE, "minItems": 1, "maxItems": 1},
-            },
-        },
+        _geojson_object(
+            "FeatureCollection",
+            "features",
+            {"features": {"type": "array", "items": _FEATURE, "minItems": 1, "maxItems": 1}},
+        ),
     ],
 }
 """The JSON body of ``PUT /tracks/{track}/centerline`` (documentation: the engine reads and

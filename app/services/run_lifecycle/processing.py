@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from concurrent.futures import Future
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from app.db.base import utcnow
 from app.db.models import Run, SoftSpot
-from app.services.storage.profiles import insert_profile
+from app.services.storage.profiles import finite_or_none, insert_profile
 from app.services.track.integrate import Separation, add_run_to_track
 from engine.budget import TimeBudget
 from engine.pipeline import PreparedRun, fuse_axles, process_run
@@ -81,15 +79,6 @@ def start_inversion(
 
     threading.Thread(target=work, name="early-inversion", daemon=True).start()
     return future
-
-
-def finite_or_none(value: Any) -> float | None:
-    """A JSON-safe number: NaN and infinities become None."""
-    try:
-        f = float(value)
-    except (TypeError, ValueError):
-        return None
-    return f if math.isfinite(f) else None
 
 
 def mean_wheel_load(processed: Processed) -> float | None:

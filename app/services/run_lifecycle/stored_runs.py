@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session, undefer
 
 from app.db.models import Run, RunSignals, SoftSpot
 from app.services.errors import Conflict, Invalid, NotFound
-from app.services.storage.profiles import PROFILE_COLUMNS, read_profile
+from app.services.storage.profiles import PROFILE_COLUMNS, json_columns, profile_arrays
 from app.services.storage.retention import require_detail
 from app.services.track.integrate import remove_run_from_track
 from app.services.track.separation_store import run_stiffness_basis
@@ -118,7 +118,7 @@ def profile_window(
     """A processed run's profile columns in a window, chainage aligned (JSON-ready)."""
     off = run.offset_m
     lo, hi = window.stored(off)
-    cols = read_profile(session, run.id, lo, hi, columns)
+    cols = json_columns(profile_arrays(session, run.id, lo, hi, columns))
     require_detail(session, run, "profile")  # a sweep may have removed it meanwhile
     chainage = cols["chainage_m"] if off == 0 else [c + off for c in cols["chainage_m"]]
     return {

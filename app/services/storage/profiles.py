@@ -11,6 +11,7 @@ read is one range scan of the ``(run_id, block)`` key; a 2 km window touches thr
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from typing import Any
 
@@ -72,6 +73,16 @@ def nullable(a: NDArray[np.float64]) -> list[float | None]:
     for i in bad:
         values[i] = None
     return values
+
+
+def finite_or_none(value: Any) -> float | None:
+    """One value as :func:`nullable` keeps it: a float, or None for NaN, infinities and what
+    is not a number."""
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return None
+    return f if math.isfinite(f) else None
 
 
 def grid_index(chainage_m: NDArray[np.float64]) -> int:
@@ -213,18 +224,8 @@ def profile_arrays(
     return _decode_window(_block_rows(session, run_id, from_m, to_m), from_m, to_m, columns)
 
 
-def read_profile(
-    session: Session,
-    run_id: int,
-    from_m: float | None = None,
-    to_m: float | None = None,
-    columns: tuple[str, ...] = PROFILE_COLUMNS,
-) -> dict[str, list[Any]]:
-    """A run's stored profile between two chainages (m, inclusive, as stored), by column.
-
-    Missing values come back as None.
-    """
-    arrays = profile_arrays(session, run_id, from_m, to_m, columns)
+def json_columns(arrays: dict[str, NDArray[np.float64]]) -> dict[str, list[Any]]:
+    """Columns of :func:`profile_arrays` as JSON-ready lists (missing values as None)."""
     return {
         name: (a.tolist() if name == "chainage_m" else nullable(a)) for name, a in arrays.items()
     }

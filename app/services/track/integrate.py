@@ -22,7 +22,7 @@ from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
 from app.services.storage.packing import unpack_f4
-from app.services.storage.profiles import fuse_axles, read_profile, unpack_long_level
+from app.services.storage.profiles import fuse_axles, profile_arrays, unpack_long_level
 from app.services.track.aggregate import (
     CHUNK_POINTS,
     drop_run_levels,
@@ -342,13 +342,10 @@ def realign_track(session: Session, track_id: int) -> list[tuple[int, RunAlignme
     out = []
     for run in runs:
         names = ("chainage_m", "level_mm", "front_force_n", "rear_force_n")
-        cols = read_profile(session, run.id, columns=names)
-        chainage = np.asarray(cols["chainage_m"], dtype=np.float64)
+        cols = profile_arrays(session, run.id, columns=names)
+        chainage = cols["chainage_m"]
         long = _long_level_back(kept_long.pop(run.id, []), run.offset_m, chainage)
-        level, front, rear = (
-            np.array([np.nan if v is None else v for v in cols[k]], dtype=np.float64)
-            for k in names[1:]
-        )
+        level, front, rear = (cols[k] for k in names[1:])
         force = fuse_axles(front, rear) if np.isfinite(front).any() else None
         al = add_run_to_track(
             session, run, chainage, level, force, separation="caller", long_mm=long

@@ -417,6 +417,7 @@ def _answer_head(
         "repeatability": None,
         "observability": [],
         "survey_comparison": [],
+        "traces": None,
     }
     if answer["unverified_limits"]:
         answer["notes"].append(

@@ -46,6 +46,7 @@ from app.db.models import (
     VehicleVersion,
 )
 from app.services.storage.packing import unpack_f4
+from app.services.storage.profiles import finite_or_none
 from app.services.track.aggregate import CHUNK_POINTS, newest_runs
 from app.services.track.alignment import GRID_STEP_M
 from app.services.track.separation_history import record_separation
@@ -283,10 +284,10 @@ def _spot_rows(
             "end_m": float(sp.end_m),
             "peak_m": float(sp.peak_m),
             "loss_pct": float(sp.loss_pct),
-            "loss_lo_pct": _finite(sp.loss_lo_pct),
-            "loss_hi_pct": _finite(sp.loss_hi_pct),
-            "confidence": _finite(sp.confidence),
-            "depth_mm": _finite(sp.depth_mm),
+            "loss_lo_pct": finite_or_none(sp.loss_lo_pct),
+            "loss_hi_pct": finite_or_none(sp.loss_hi_pct),
+            "confidence": finite_or_none(sp.confidence),
+            "depth_mm": finite_or_none(sp.depth_mm),
             "support": _support(passes, grid, sp.start_m, sp.end_m),
         }  # fmt: skip
         for sp in res.soft_spots
@@ -369,14 +370,6 @@ def _support(
             load = per_wheel(float(f[ok].mean()), p.wheel_offsets_m)
             out.append({"kind": p.kind, "id": p.id, "force_n": round(load, 1)})
     return out
-
-
-def _finite(v: Any) -> float | None:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return None
-    return f if math.isfinite(f) else None
 
 
 def pending_chunks(session: Session, track_id: int) -> tuple[int, int] | None:
@@ -684,7 +677,7 @@ def stiffness_with_vehicles(
     ).all()
     names = {int(r[0]): str(r[1]) for r in rows}
     contributors = [
-        c | ({"vehicle": names.get(c["id"])} if c["kind"] == "run" else {})
+        c | {"vehicle": names.get(c["id"]) if c["kind"] == "run" else None}
         for c in window.contributors
     ]
     return dataclasses.replace(window, contributors=contributors)

@@ -45,7 +45,7 @@ from app.schemas.views import (
 from app.services.errors import Invalid
 from app.services.run_lifecycle.simulation import Truth
 from app.services.run_lifecycle.stored_runs import detail_run
-from app.services.storage.profiles import nullable, profile_arrays, read_profile
+from app.services.storage.profiles import nullable, profile_arrays
 from app.services.storage.retention import require_detail
 from app.services.track.register import LOAD_RATIO, separated_observations
 from app.services.views.window import Window
@@ -104,11 +104,11 @@ def run_profile_view(
     ``max_points`` for display."""
     run = detail_run(session, run_id, "profile")
     lo, hi = window.stored(run.offset_m)
-    data = read_profile(session, run.id, lo, hi)
+    data = profile_arrays(session, run.id, lo, hi)
     require_detail(session, run, "profile")  # a sweep may have removed it meanwhile
-    x = np.asarray(data["chainage_m"], dtype=np.float64) + run.offset_m
+    x = data["chainage_m"] + run.offset_m
     names = ("level_mm", "front_level_mm", "rear_level_mm", "baseline_mm")
-    cols = {k: _as_array(data[k]) for k in names}
+    cols = {k: data[k] for k in names}
     xd, cd, decimated = minmax_decimate(x, cols, max_points)
     a, b = run.aligned_extent()
     from_m = window.from_m if window.from_m is not None else (a if a is not None else 0.0)
@@ -408,11 +408,11 @@ def track_window(
         if lo is None or hi is None or hi < from_m or lo > to_m:
             continue
         a, b = window.stored(run.offset_m)
-        data = read_profile(session, run.id, a, b, ("chainage_m", "level_mm"))
-        if not data["chainage_m"]:
+        data = profile_arrays(session, run.id, a, b, ("chainage_m", "level_mm"))
+        if not data["chainage_m"].size:
             continue
-        x = np.asarray(data["chainage_m"], dtype=np.float64) + run.offset_m
-        level = _as_array(data["level_mm"])
+        x = data["chainage_m"] + run.offset_m
+        level = data["level_mm"]
         xd, cd, decimated = minmax_decimate(x, {"level_mm": level}, max_points)
         out.append(
             WindowRunPublic(

@@ -147,6 +147,7 @@ def defect_dict(d: Defect, with_history: bool = False) -> dict[str, Any]:
             out[k] = out[k].isoformat()
     out["evidence"] = [e.to_dict() for e in d.evidence]
     out["evidence_text"] = d.evidence_text
+    out["history"] = None  # DefectPublic declares it: sent as null when not asked for
     return out
 
 
