@@ -47,6 +47,7 @@ from .chainage import bandpass_distance
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
 from .errors import ParameterError
 from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
+from .pass_equalise import EqualiseConfig, equalise_passes
 from .passes import Pass, align_passes, column_mean_sd, on_grid, pass_from_result
 from .stiffness import InfluenceLine, fit_zone, modal_dips, softening_modes
 from .track import TrackParams
@@ -103,6 +104,9 @@ class SeparationConfig:
         The band of the passes' levels (the product's, 3-40 m).
     grid_step_m : float or None
         Step of the common grid, m (default: the first pass's).
+    equalise : EqualiseConfig or None
+        Each pass's transfer error relative to the others fitted and taken out before the
+        fit (:func:`engine.pass_equalise.equalise_passes`); None: the levels as they are.
     """
 
     min_passes: int = 2
@@ -119,6 +123,7 @@ class SeparationConfig:
     lambda_max_m: float = 40.0
     taper: float = 0.3
     grid_step_m: float | None = None
+    equalise: EqualiseConfig | None = field(default_factory=EqualiseConfig)
 
     def __post_init__(self) -> None:
         checks = {
@@ -518,6 +523,10 @@ def separate(
     # with the rail's roughness (docs/method.md, measured) enters as extra variance
     viewed = np.array([_shift_mean(grid, levels[j], shifts[j]) for j in range(n_pass)])
     edge_var = _edge_variance(grid, viewed, step, cfg)
+    if cfg.equalise is not None:
+        trust = cfg.prior_noise_mm**2 / (cfg.prior_noise_mm**2 + edge_var)
+        z = equalise_passes(z, step, cfg.lambda_min_m, cfg.lambda_max_m, trust, fbar,
+                            cfg.equalise).levels_mm  # fmt: skip
     # per-pass noise from the residuals (two rounds); the prior where no dof is left
     noise_mm = np.full(n_pass, cfg.prior_noise_mm)
     fit_ok = (n_cov >= 2) & (ratio > 1.0 + 1e-6)
