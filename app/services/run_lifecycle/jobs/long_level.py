@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import time
 from datetime import datetime, timedelta
 
 import numpy as np
@@ -12,7 +11,7 @@ from sqlalchemy import select
 from app.db.base import utcnow
 from app.db.models import Run, RunInput
 from app.services.run_lifecycle.inversion import ClaimedRun
-from app.services.run_lifecycle.jobs.base import Crew, Job
+from app.services.run_lifecycle.jobs.base import Crew, Job, Retries
 from app.services.track.integrate import runs_pending_long_level, store_long_level
 from engine.setup import PreparedRun
 from engine.track_quality import long_level
@@ -36,25 +35,23 @@ class LongLevelJob(Job):
 
     def __init__(self, crew: Crew) -> None:
         super().__init__(crew)
-        self._failed: dict[int, float] = {}  # run id: time.monotonic() of its failure
+        self._retries = Retries(LONG_LEVEL_RETRY_S)
 
     def complete(self, run_id: int, processed_at: datetime | None, run: PreparedRun) -> bool:
         """Invert ``run``'s long level under a processing slot and store it as the long level
         of run ``run_id`` as processed at ``processed_at`` (one transaction,
         :func:`~app.services.track.integrate.store_long_level`); False when the run changed
         meanwhile or it failed (logged; the mark stays, retried at a later idle look)."""
-        try:
+
+        def work() -> bool:
             with self.ctx.slots:
                 long = long_level(run)
             with self.ctx.db.session() as s:
                 done = store_long_level(s, run_id, processed_at, run.grid, long)
                 s.commit()
-        except Exception:
-            log.exception("long level of run %s failed", run_id)
-            self._failed[run_id] = time.monotonic()
-            return False
-        self._failed.pop(run_id, None)
-        return done
+            return done
+
+        return self._retries.attempt(run_id, f"long level of run {run_id}", work)
 
     def look(self) -> bool:
         """Store one waiting long level older than ``LONG_LEVEL_GRACE_S``; False when none
@@ -62,10 +59,8 @@ class LongLevelJob(Job):
         processed again), has its mark cleared without one: its D2 says so."""
         with self.ctx.db.session() as s:
             waiting = runs_pending_long_level(s, utcnow() - timedelta(seconds=LONG_LEVEL_GRACE_S))
-        now = time.monotonic()
         for run_id, processed_at in waiting:
-            failed_at = self._failed.get(run_id)
-            if failed_at is not None and now - failed_at <= LONG_LEVEL_RETRY_S:
+            if not self._retries.due(run_id):
                 continue
             run = self._stored(run_id)
             if run is None:
