@@ -113,7 +113,9 @@ def test_the_long_level_follows_the_done_run_and_survives_a_stop(
     waiting = _quality(c, "W")
     assert any("still being inverted (run id " + f"{w_id})" in n for n in waiting["notes"])
     assert waiting["sections"] and {s["d2_level"] for s in waiting["sections"]} == {"quality"}
-    assert waiting["d2_band_m"] == [25.0, 40.0]
+    assert waiting["d2_band_m"] == [25.0, 40.0] and waiting["d2_waiting_runs"] == [w_id]
+    csv = c.get("/api/v1/tracks/W/quality.csv").text
+    assert csv.startswith(f"# D2 leaves out run id {w_id}:")
 
     with ctx.db.session() as s:
         # a level inverted for an earlier result of the run is not stored
@@ -151,6 +153,7 @@ def test_the_long_level_follows_the_done_run_and_survives_a_stop(
     for name in ("W", "L"):
         got = _quality(c, name)
         assert not any("still being inverted" in n for n in got["notes"])
+        assert got["d2_waiting_runs"] == []
         assert [s["d2_level"] for s in got["sections"]] == [s["d2_level"] for s in want["sections"]]
         for a, b in zip(got["sections"], want["sections"], strict=True):
             assert a["d2_sd_mm"] == pytest.approx(b["d2_sd_mm"], abs=0.002)

@@ -416,6 +416,7 @@ def _answer_head(
             for name, b in BANDS.items()
         },  # fmt: skip
         "d2_band_m": [BANDS["D2"].lambda_min_m, BANDS["D2"].lambda_max_m],
+        "d2_waiting_runs": [],
         "notes": [],
         "limits_default": limits_set is None,
         "unverified_limits": list(unverified_defaults(limits)),
@@ -439,6 +440,7 @@ def _say_d2_level(answer: dict[str, Any], q: Analysis) -> None:
     their long level was kept (or too short for its band, or still waiting for it) hold only
     3-40 m."""
     if pending := sorted(q.lv.long_pending):
+        answer["d2_waiting_runs"] = pending
         answer["notes"].append(
             f"D2 leaves out {len(pending)} pass(es) answered done moments ago whose "
             f"{LONG_LEVEL_LAMBDA_MAX_M:g} m level is still being inverted (run id "
