@@ -24,6 +24,7 @@ from sqlalchemy import (
     String,
     Text,
     UniqueConstraint,
+    false,
 )
 from sqlalchemy.orm import Mapped, mapped_column, relationship
 
@@ -238,6 +239,9 @@ class Run(Base):
     n_soft_spots: Mapped[int | None] = mapped_column(Integer)
     vehicle_version: Mapped[int | None] = mapped_column(Integer)  # produced the results
     processing_s: Mapped[float | None] = mapped_column(Float)
+    # Done, its long level (track_run_levels.long_mm) not stored yet: the worker's next step
+    # (app.services.run_lifecycle.jobs.long_level).
+    long_level_pending: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
     # Load: what the client declared, the inversion's mean wheel force, and whether
     # the run's own stiffness-loss figures are valid (rail smooth at the noise level).
     payload_kg: Mapped[float | None] = mapped_column(Float)

@@ -77,6 +77,11 @@ class QualityPublic(BaseModel):
     section_m: float
     filters: dict[str, dict[str, Any]]
     d2_band_m: list[float] = Field(description="Wavelengths D2 actually covers here, m")
+    d2_waiting_runs: list[int] = Field(
+        default_factory=list,
+        description="Runs answered done moments ago whose long level (D2's) is still being "
+        "inverted: D2 leaves them out until it is stored (ask again in a few seconds)",
+    )
     notes: list[str]
     limits_default: bool
     unverified_limits: list[str] = Field(

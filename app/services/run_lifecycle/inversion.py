@@ -35,8 +35,11 @@ def invert_now(ctx: AppContext, prepared: PreparedRun) -> Processed:
 
 def start_early(ctx: AppContext, prepared: PreparedRun) -> Future[Processed] | None:
     """Start a queued submission's inversion now, for this process's worker to take (None
-    when no slot is free: the worker inverts it after claiming the run)."""
-    return start_inversion(ctx.slots, prepared, ctx.settings.processing_budget_s)
+    when no slot is free: the worker inverts it after claiming the run); its long level is
+    left for after the run is done, as the worker's own inversion leaves it."""
+    return start_inversion(
+        ctx.slots, prepared, ctx.settings.processing_budget_s, long_level_at="later"
+    )
 
 
 @dataclass
@@ -75,11 +78,12 @@ class ClaimedRun:
 
 def invert_claimed(ctx: AppContext, claimed: ClaimedRun) -> Processed:
     """The claimed run's inversion: the one its request started, when it is of the same
-    set-up, else a new one under a slot."""
+    set-up, else a new one under a slot; both leave the long level for after the run is
+    done (``Processed.later``)."""
     started = None if claimed.handed is None else claimed.handed.started_for(claimed.setup)
     if started is not None:
         # The request's inversion (holding its own slot); a vehicle version or start changed
         # since inverts again.
         return started.result()
     with ctx.slots:
-        return invert(claimed.prepared(), ctx.settings.processing_budget_s)
+        return invert(claimed.prepared(), ctx.settings.processing_budget_s, long_level_at="later")

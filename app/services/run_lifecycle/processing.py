@@ -6,6 +6,7 @@ import threading
 import time
 from concurrent.futures import Future
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,23 +22,34 @@ from engine.results import ProcessResult
 from engine.track_quality import long_level
 from engine.vehicle_kinds import per_wheel
 
+LongLevelAt = Literal["now", "later"]
+"""When a run's long level (:func:`engine.track_quality.long_level`) is inverted: with its
+result, or after the run is answered done (the worker's next step,
+:mod:`app.services.run_lifecycle.jobs.long_level`): it costs about as much again as the run's
+own inversion, and only D2 needs it."""
+
 
 @dataclass(frozen=True)
 class Processed:
-    """An engine result, the run's long level on its grid (mm; None: too short for its band)
-    and how long both took, s."""
+    """An engine result, the run's long level on its grid (mm; None: too short for its band,
+    or left for later) and how long they took, s."""
 
     result: ProcessResult
     seconds: float
     wheel_offsets_m: tuple[float, ...] = (0.0,)
     """The wheels of a measured point about it, m (the vehicle's): they share its force."""
     long_level_mm: NDArray[np.float64] | None = None
+    later: PreparedRun | None = None
+    """The run whose long level is left for after it is stored (``long_level_at="later"``);
+    None when it was inverted with the result."""
 
 
-def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
-    """Invert and detect (engine pipeline), then the long level D2 is filtered from
-    (:func:`engine.track_quality.long_level`); raises the engine's errors unchanged, and
-    :class:`~engine.errors.BudgetExceeded` past ``budget_s`` of wall time (s;
+def invert(
+    run: PreparedRun, budget_s: float | None = None, *, long_level_at: LongLevelAt = "now"
+) -> Processed:
+    """Invert and detect (engine pipeline), then (``long_level_at="now"``) the long level D2
+    is filtered from (:func:`engine.track_quality.long_level`); raises the engine's errors
+    unchanged, and :class:`~engine.errors.BudgetExceeded` past ``budget_s`` of wall time (s;
     ``TRACKPROFILE_PROCESSING_BUDGET_S``)."""
     t0 = time.perf_counter()
     budget = (
@@ -47,6 +59,8 @@ def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
     )
     result = process_run(run, budget=budget)
     wheels = tuple(run.setup.vehicle.axle_wheel_offsets_m[0])
+    if long_level_at == "later":
+        return Processed(result, time.perf_counter() - t0, wheels, later=run)
     long = long_level(run)
     if budget is not None:
         budget.check("the long level")
@@ -54,7 +68,11 @@ def invert(run: PreparedRun, budget_s: float | None = None) -> Processed:
 
 
 def start_inversion(
-    slots: threading.BoundedSemaphore, run: PreparedRun, budget_s: float | None
+    slots: threading.BoundedSemaphore,
+    run: PreparedRun,
+    budget_s: float | None,
+    *,
+    long_level_at: LongLevelAt = "now",
 ) -> Future[Processed] | None:
     """Invert a queued run now, on a thread of its own, while its input is still being
     stored, instead of after a worker has claimed it; None when no processing slot is free
@@ -71,7 +89,7 @@ def start_inversion(
     def work() -> None:
         try:
             if future.set_running_or_notify_cancel():
-                future.set_result(invert(run, budget_s))
+                future.set_result(invert(run, budget_s, long_level_at=long_level_at))
         except BaseException as exc:  # handed to whoever takes the result
             future.set_exception(exc)
         finally:
@@ -112,7 +130,9 @@ def store_result(
     The run is then aligned to its track and merged into the track's aggregated profile
     (``app.services.track.integrate``), in the same transaction; the track's geometry/stiffness
     separation there is redone in it too, or marked for after it (``separation="later"``:
-    the worker's, :func:`~app.services.track.integrate.separate_pending`).
+    the worker's, :func:`~app.services.track.integrate.separate_pending`). A long level left
+    for later (``processed.later``) is marked pending (:func:`~app.services.track.integrate.
+    store_long_level` stores it).
     """
     res = processed.result
     no_force = np.full(res.chainage_m.shape, np.nan)
@@ -158,6 +178,7 @@ def store_result(
     run.error = None
     run.processed_at = utcnow()
     run.vehicle_version = vehicle_version
+    run.long_level_pending = processed.later is not None
     add_run_to_track(
         session, run, res.chainage_m, res.level_mm, force if under_level.size else None,
         separation=separation, long_mm=processed.long_level_mm,

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -83,6 +83,41 @@ def chunked(
         if np.isfinite(buf).any():
             out[chunk] = buf
     return c_lo, c_hi, out
+
+
+def unchunked_by_run(
+    rows: Iterable[tuple[int, int, bytes | None]],
+    c_lo: int,
+    n: int,
+    unpack: Callable[[bytes], NDArray[np.floating[Any]]] = unpack_f4,
+    dtype: type[np.floating[Any]] = np.float64,
+) -> dict[int, NDArray[np.floating[Any]]]:
+    """The inverse of :func:`chunked` for stored rows ``(run id, chunk, blob)``: each run's
+    chunks unpacked (``unpack``) onto ``n`` grid points from chunk ``c_lo``'s first, NaN
+    where it has none; NULL blobs are skipped, a run with none is left out."""
+    out: dict[int, NDArray[np.floating[Any]]] = {}
+    for rid, chunk, blob in rows:
+        at = (int(chunk) - c_lo) * CHUNK_POINTS
+        if blob is None or not 0 <= at < n:
+            continue
+        arr = out.get(int(rid))
+        if arr is None:
+            arr = out[int(rid)] = np.full(n, np.nan, dtype=dtype)
+        part = unpack(bytes(blob))
+        arr[at : at + part.size] = part[: n - at]
+    return out
+
+
+def unchunked(
+    rows: Iterable[tuple[int, bytes | None]],
+    c_lo: int,
+    n: int,
+    unpack: Callable[[bytes], NDArray[np.floating[Any]]] = unpack_f4,
+) -> NDArray[np.float64] | None:
+    """One run's stored chunks ``(chunk, blob)`` unpacked as :func:`unchunked_by_run` does;
+    None when it has no blob."""
+    one = unchunked_by_run(((0, c, b) for c, b in rows), c_lo, n, unpack)
+    return cast("NDArray[np.float64] | None", one.get(0))
 
 
 def store_run_levels(

@@ -13,22 +13,29 @@ at the same time are aligned one after the other, each against the other's data.
 
 from __future__ import annotations
 
-from typing import Literal
+from datetime import datetime
+from typing import Literal, cast
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import case, delete, func, select, update
+from sqlalchemy import Table, bindparam, case, delete, func, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
-from app.services.storage.packing import unpack_f4
-from app.services.storage.profiles import fuse_axles, profile_arrays, unpack_long_level
+from app.services.storage.profiles import (
+    fuse_axles,
+    pack_long_level,
+    profile_arrays,
+    unpack_long_level,
+)
 from app.services.track.aggregate import (
     CHUNK_POINTS,
+    chunked,
     drop_run_levels,
     newest_levels,
     recompute_aggregate,
     store_run_levels,
+    unchunked,
 )
 from app.services.track.alignment import (
     MAX_SHIFT_M,
@@ -220,10 +227,8 @@ def _long_level_back(
     if not rows:
         return None
     c0, c1 = min(r[0] for r in rows), max(r[0] for r in rows)
-    long = np.full((c1 - c0 + 1) * CHUNK_POINTS, np.nan)
-    for chunk, blob in rows:
-        at = (chunk - c0) * CHUNK_POINTS
-        long[at : at + CHUNK_POINTS] = unpack_long_level(blob)
+    long = unchunked(rows, c0, (c1 - c0 + 1) * CHUNK_POINTS, unpack_long_level)
+    assert long is not None
     x = (c0 * CHUNK_POINTS + np.arange(long.size, dtype=np.float64)) * GRID_STEP_M
     return sample_at(x - offset_m, long, chainage_m)
 
@@ -241,24 +246,17 @@ def _shift_stored_levels(
         return None
     c0, c1 = min(r[0] for r in rows), max(r[0] for r in rows)
     n = (c1 - c0 + 1) * CHUNK_POINTS
-    levels = np.full(n, np.nan)
-    force = np.full(n, np.nan)
-    long = np.full(n, np.nan)
+    levels = unchunked(((c, b) for c, b, _, _ in rows), c0, n)
+    assert levels is not None  # levels is NOT NULL
     has_force = all(r[2] is not None for r in rows)
-    has_long = any(r[3] is not None for r in rows)
-    for chunk, blob, fblob, lblob in rows:
-        at = (chunk - c0) * CHUNK_POINTS
-        levels[at : at + CHUNK_POINTS] = unpack_f4(blob)
-        if has_force:
-            force[at : at + CHUNK_POINTS] = unpack_f4(fblob)
-        if lblob is not None:
-            long[at : at + CHUNK_POINTS] = unpack_long_level(lblob)
+    force = unchunked(((c, f) for c, _, f, _ in rows), c0, n) if has_force else None
+    long = unchunked(((c, lb) for c, _, _, lb in rows), c0, n, unpack_long_level)
     x = (c0 * CHUNK_POINTS + np.arange(n, dtype=np.float64)) * GRID_STEP_M
     i_lo, new_levels = on_track_grid(x, levels, offset_m)
-    new_force = on_track_grid(x, force, offset_m)[1] if has_force else None
+    new_force = None if force is None else on_track_grid(x, force, offset_m)[1]
     if new_force is not None and new_force.size < new_levels.size:
         new_force = None
-    new_long = _on_points(x, long, offset_m, i_lo, new_levels.size) if has_long else None
+    new_long = None if long is None else _on_points(x, long, offset_m, i_lo, new_levels.size)
     drop_run_levels(session, run_id)
     kept = None if new_force is None else new_force[: new_levels.size]
     stored = store_run_levels(session, track_id, run_id, i_lo, new_levels, kept, new_long)
@@ -306,6 +304,73 @@ def tracks_pending_separation(session: Session) -> list[int]:
             select(Track.id).where(Track.separation_pending_lo.is_not(None)).order_by(Track.id)
         )
     )
+
+
+def store_long_level(
+    session: Session,
+    run_id: int,
+    processed_at: datetime | None,
+    grid_m: NDArray[np.float64],
+    long_mm: NDArray[np.float64] | None,
+) -> bool:
+    """Store the long level a run was answered done without (``Run.long_level_pending``) and
+    clear its mark (caller commits).
+
+    ``long_mm`` (mm, None: the run is too short for its band) is on the run's grid as
+    processed (``grid_m``, m); it is placed, as :func:`add_run_to_track` places it, on the
+    points of the run's kept levels at the run's present offset (a realignment since moved
+    them). Takes the track's lock first. False, and nothing written, when the run is not the
+    result the level was inverted for any more (deleted, processed again: another
+    ``processed_at``) or its level is stored already.
+    """
+    track_id = session.scalar(select(Run.track_id).where(Run.id == run_id))
+    if track_id is None:
+        return False
+    lock_track(session, track_id)
+    run = session.get(Run, run_id, populate_existing=True)  # as it is now, under the lock
+    if (
+        run is None or run.status != "done" or not run.long_level_pending
+        or run.processed_at != processed_at
+    ):  # fmt: skip
+        return False
+    run.long_level_pending = False
+    lv = TrackRunLevels.__table__
+    rows = session.execute(select(lv.c.chunk, lv.c.levels).where(lv.c.run_id == run_id)).all()
+    if long_mm is None or not rows:
+        return True  # too short for the band, or not merged into the track: nothing to keep
+    c0 = min(r[0] for r in rows)
+    levels = unchunked(rows, c0, (max(r[0] for r in rows) - c0 + 1) * CHUNK_POINTS)
+    assert levels is not None  # levels is NOT NULL
+    finite = np.flatnonzero(np.isfinite(levels))
+    if not finite.size:
+        return True
+    i_lo = c0 * CHUNK_POINTS + int(finite[0])
+    placed = _on_points(grid_m, long_mm, run.offset_m, i_lo, int(finite[-1] - finite[0]) + 1)
+    parts = chunked(i_lo, placed)[2]
+    if parts:
+        session.execute(
+            update(cast("Table", lv))
+            .where(lv.c.run_id == run_id, lv.c.chunk == bindparam("at"))
+            .values(long_mm=bindparam("blob")),
+            [{"at": c, "blob": pack_long_level(v)} for c, v in parts.items()],
+        )
+    return True
+
+
+def runs_pending_long_level(
+    session: Session, before: datetime
+) -> list[tuple[int, datetime | None]]:
+    """``(id, processed_at)`` of the done runs processed before ``before`` whose long level
+    is still to be stored: normally none, the worker that stored a run stores its long level
+    next; after a stop in between, any worker's idle look."""
+    return [
+        (int(rid), when)
+        for rid, when in session.execute(
+            select(Run.id, Run.processed_at)
+            .where(Run.long_level_pending, Run.status == "done", Run.processed_at < before)
+            .order_by(Run.id)
+        )
+    ]
 
 
 def remove_run_from_track(session: Session, run: Run, *, lock: bool = True) -> None:

@@ -20,7 +20,7 @@ from collections import defaultdict
 from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,6 +46,7 @@ from app.services.track.aggregate import (
     aggregate_chunk_range,
     newest_runs,
     read_aggregate,
+    unchunked_by_run,
 )
 from app.services.track.alignment import GRID_STEP_M
 from app.services.track.separation_store import read_stiffness
@@ -164,9 +165,10 @@ class _Levels:
     """The track's analysed level on its grid, with its basis and the passes over it.
 
     ``long_mm`` is the passes' median long level (D2's own: ``engine.track_quality.long_level``,
-    NaN where no pass kept one), ``long_passes`` each pass's; both empty until
-    :func:`with_passes`. The passes are float32 (as stored): a whole track's passes are in
-    memory at once.
+    NaN where no pass kept one), ``long_passes`` each pass's (empty until :func:`with_passes`);
+    ``long_pending`` the passes whose long level is still being inverted (answered done before
+    it: ``Run.long_level_pending``), left out of both. The passes are float32 (as stored): a
+    whole track's passes are in memory at once.
     """
 
     i0: int
@@ -177,6 +179,7 @@ class _Levels:
     vehicle_speeds: dict[int, list[float]]
     long_mm: NDArray[np.float64] | None = None
     long_passes: dict[int, NDArray[np.float32]] = dataclasses.field(default_factory=dict)
+    long_pending: frozenset[int] = frozenset()
 
     @property
     def ordered_runs(self) -> list[int]:
@@ -220,48 +223,52 @@ def read_levels(
     if passes:
         return with_passes(session, track_id, lv)
     # D2's own level even without the passes: a screen for defects sees the D2 they will
-    return dataclasses.replace(lv, long_mm=_median(list(_long_levels(session, track_id, lv)), n))
+    rows = _pass_rows(session, track_id, lv, TrackRunLevels.__table__.c.long_mm)
+    longs = _spread(((r, c, b) for r, c, b, _ in rows), lv, unpack_long_level)
+    return dataclasses.replace(
+        lv, long_mm=_median(list(longs.values()), n),
+        long_pending=_pending_long(session, {int(r[0]) for r in rows if r[3]}),
+    )  # fmt: skip
 
 
-def _long_levels(session: Session, track_id: int, lv: _Levels) -> Iterator[NDArray[np.float32]]:
-    """Each pass's long level over ``lv``'s stretch (the newest passes of each chunk, those
-    that kept one), mm."""
-    n = lv.level_mm.size
+def _pass_rows(session: Session, track_id: int, lv: _Levels, *columns: Any) -> list[Any]:
+    """The stored rows ``(run id, chunk, *columns, long_mm IS NULL)`` of the passes over
+    ``lv``'s stretch: the newest runs of each chunk."""
     c_lo = lv.i0 // CHUNK_POINTS
     t = TrackRunLevels.__table__
-    keys = newest_runs(track_id, c_lo, c_lo + n // CHUNK_POINTS - 1)
-    longs: dict[int, NDArray[np.float32]] = {}
-    for rid, chunk, blob in session.execute(
-        select(t.c.run_id, t.c.chunk, t.c.long_mm)
-        .join(keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk))
-        .where(t.c.long_mm.is_not(None))
-    ):
-        arr = longs.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
-        at = (chunk - c_lo) * CHUNK_POINTS
-        arr[at : at + CHUNK_POINTS] = unpack_long_level(blob)
-    return iter(longs.values())
+    keys = newest_runs(track_id, c_lo, c_lo + lv.level_mm.size // CHUNK_POINTS - 1)
+    return list(
+        session.execute(
+            select(t.c.run_id, t.c.chunk, *columns, t.c.long_mm.is_(None)).join(
+                keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk)
+            )
+        )
+    )
+
+
+def _spread(rows: Iterator[Any], lv: _Levels, unpack: Any) -> dict[int, NDArray[np.float32]]:
+    """Each pass's chunks (``(run id, chunk, blob)`` rows) on ``lv``'s points, float32."""
+    c_lo = lv.i0 // CHUNK_POINTS
+    spread = unchunked_by_run(rows, c_lo, lv.level_mm.size, unpack, np.float32)
+    return cast("dict[int, NDArray[np.float32]]", spread)
+
+
+def _pending_long(session: Session, without_long: set[int]) -> frozenset[int]:
+    """Those of ``without_long`` (run ids) whose long level is still being inverted."""
+    if not without_long:
+        return frozenset()
+    return frozenset(
+        session.scalars(select(Run.id).where(Run.id.in_(without_long), Run.long_level_pending))
+    )
 
 
 def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
     """``lv`` with the passes over its stretch: each chunk's newest aligned runs."""
     n = lv.level_mm.size
-    c_lo = lv.i0 // CHUNK_POINTS
-    c_hi = c_lo + n // CHUNK_POINTS - 1
-    passes: dict[int, NDArray[np.float32]] = {}
-    longs: dict[int, NDArray[np.float32]] = {}
     t = TrackRunLevels.__table__
-    keys = newest_runs(track_id, c_lo, c_hi)
-    for rid, chunk, blob, long_blob in session.execute(
-        select(t.c.run_id, t.c.chunk, t.c.levels, t.c.long_mm).join(
-            keys, (keys.c.run_id == t.c.run_id) & (keys.c.chunk == t.c.chunk)
-        )
-    ):
-        arr = passes.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
-        at = (chunk - c_lo) * CHUNK_POINTS
-        arr[at : at + CHUNK_POINTS] = unpack_f4(blob)
-        if long_blob is not None:
-            la = longs.setdefault(int(rid), np.full(n, np.nan, dtype=np.float32))
-            la[at : at + CHUNK_POINTS] = unpack_long_level(long_blob)
+    rows = _pass_rows(session, track_id, lv, t.c.levels, t.c.long_mm)
+    passes = _spread(((r, c, b) for r, c, b, _, _ in rows), lv, unpack_f4)
+    longs = _spread(((r, c, b) for r, c, _, b, _ in rows), lv, unpack_long_level)
     recorded: dict[int, datetime | None] = {}
     speeds: dict[int, list[float]] = defaultdict(list)
     if passes:
@@ -276,6 +283,7 @@ def with_passes(session: Session, track_id: int, lv: _Levels) -> _Levels:
     return dataclasses.replace(
         lv, passes=passes, recorded=recorded, vehicle_speeds=dict(speeds),
         long_mm=_median(list(longs.values()), n), long_passes=longs,
+        long_pending=_pending_long(session, {int(r[0]) for r in rows if r[4]}),
     )  # fmt: skip
 
 
@@ -408,6 +416,7 @@ def _answer_head(
             for name, b in BANDS.items()
         },  # fmt: skip
         "d2_band_m": [BANDS["D2"].lambda_min_m, BANDS["D2"].lambda_max_m],
+        "d2_waiting_runs": [],
         "notes": [],
         "limits_default": limits_set is None,
         "unverified_limits": list(unverified_defaults(limits)),
@@ -427,8 +436,17 @@ def _answer_head(
 
 
 def _say_d2_level(answer: dict[str, Any], q: Analysis) -> None:
-    """``d2_band_m`` and a note where D2 comes from the quality level: passes stored before
-    their long level was kept (or too short for its band) hold only 3-40 m."""
+    """A note naming the passes D2 leaves out while their long level is being inverted, and
+    ``d2_band_m`` and a note where D2 comes from the quality level: passes stored before
+    their long level was kept (or too short for its band, or still waiting for it) hold only
+    3-40 m."""
+    if pending := sorted(q.lv.long_pending):
+        answer["d2_waiting_runs"] = pending
+        answer["notes"].append(
+            f"D2 leaves out {len(pending)} pass(es) answered done moments ago whose "
+            f"{LONG_LEVEL_LAMBDA_MAX_M:g} m level is still being inverted (run id "
+            f"{', '.join(map(str, pending))}): ask again in a few seconds"
+        )
     covered = np.isfinite(q.lv.level_mm)
     old = q.d2_from_quality[covered]
     if not old.any():
@@ -437,7 +455,8 @@ def _say_d2_level(answer: dict[str, Any], q: Analysis) -> None:
     answer["notes"].append(
         f"D2 over {100 * old.mean():.0f} % of the level comes from the stored "
         f"{PRODUCT_BAND_MAX_M:g} m level (its passes were stored before their "
-        f"{LONG_LEVEL_LAMBDA_MAX_M:g} m level was kept, or are too short for it): there it "
+        f"{LONG_LEVEL_LAMBDA_MAX_M:g} m level was kept, are too short for it, or wait for "
+        "it): there it "
         f"covers {BANDS['D2'].lambda_min_m:g}-{PRODUCT_BAND_MAX_M:g} m of its 25-70 m and "
         "understates a recording car's D2 (sections' d2_level; processing the runs again "
         "keeps it)"
@@ -476,9 +495,14 @@ class Analysis:
         if band not in self._by_band:
             b = BANDS[band]
             lv = self.lv
-            own = lv.long_passes if BAND_LEVEL.get(band) == "long" else {}
+            long = BAND_LEVEL.get(band) == "long"
+            own = lv.long_passes if long else {}
+            # a pass still waiting for its own level is left out, not filtered from another
+            waiting = lv.long_pending if long else frozenset()
             self._by_band[band] = {
-                r: _band(b, own.get(r, lv.passes[r])).astype(np.float32) for r in lv.ordered_runs
+                r: _band(b, own.get(r, lv.passes[r])).astype(np.float32)
+                for r in lv.ordered_runs
+                if r not in waiting
             }
         return self._by_band[band]
 

@@ -25,8 +25,12 @@ QUALITY_CSV_COLUMNS = (
 
 
 def quality_csv(answer: dict[str, Any]) -> str:
-    """The sections as CSV (one row each), then a blank line and the defects."""
-    lines = [",".join(QUALITY_CSV_COLUMNS)]
+    """The sections as CSV (one row each), then a blank line and the defects; first a ``#``
+    line when D2 leaves out runs still waiting for their long level."""
+    waiting = answer.get("d2_waiting_runs") or []
+    lines = [f"# D2 leaves out run id {', '.join(map(str, waiting))}: its long level is still "
+             "being inverted"] if waiting else []  # fmt: skip
+    lines.append(",".join(QUALITY_CSV_COLUMNS))
     for s in answer["sections"]:
         lines.append(",".join("" if s[c] is None else str(s[c]) for c in QUALITY_CSV_COLUMNS))
     lines.append("")

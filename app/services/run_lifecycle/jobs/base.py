@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Hashable
 from typing import Any, ClassVar, Protocol, TypeVar
 
 from sqlalchemy.orm import Session
@@ -57,6 +58,32 @@ class Job:
     def look(self) -> bool:
         """Do one piece of this work if some waits; True when it did (more may wait)."""
         return False
+
+
+class Retries:
+    """Idle work that failed, by key, tried again only after ``retry_s`` (s): a failure that
+    repeats does not take every look."""
+
+    def __init__(self, retry_s: float) -> None:
+        self.retry_s = retry_s
+        self._failed: dict[Hashable, float] = {}  # key: time.monotonic() of its failure
+
+    def due(self, key: Hashable) -> bool:
+        """Whether ``key``'s work may be tried (never failed, or failed ``retry_s`` ago)."""
+        failed_at = self._failed.get(key)
+        return failed_at is None or time.monotonic() - failed_at > self.retry_s
+
+    def attempt(self, key: Hashable, doing: str, work: Callable[[], bool]) -> bool:
+        """``work()``'s answer; False when it raised (logged as ``doing``, ``key`` then waits
+        ``retry_s``)."""
+        try:
+            done = work()
+        except Exception:
+            log.exception("%s failed", doing)
+            self._failed[key] = time.monotonic()
+            return False
+        self._failed.pop(key, None)
+        return done
 
 
 def failure_facts(exc: Exception, doing: str) -> dict[str, Any]:

@@ -1,8 +1,10 @@
-"""Processing a queued run: invert its log, store the result, separate its track."""
+"""Processing a queued run: invert its log, store the result, then its long level, separate
+its track."""
 
 from __future__ import annotations
 
 import logging
+from datetime import datetime
 from typing import Any
 
 from sqlalchemy import Update, select, update
@@ -12,6 +14,7 @@ from app.db.base import utcnow
 from app.db.models import Run, RunInput
 from app.services.run_lifecycle.inversion import ClaimedRun, invert_claimed
 from app.services.run_lifecycle.jobs.base import Job, attempt
+from app.services.run_lifecycle.jobs.long_level import LongLevelJob
 from app.services.run_lifecycle.jobs.separate import SeparateJob
 from app.services.run_lifecycle.lease import Claimable, Heartbeat
 from app.services.run_lifecycle.processing import Processed
@@ -52,9 +55,14 @@ class ProcessJob(Job):
         processed = attempt(self.ctx, "processing", job_id, self._fail, work)
         if processed is None:
             return
-        track_id = self._store(job_id, processed, claimed.vehicle_version)
-        if track_id is not None:
-            self.crew.job(SeparateJob).separate_track(track_id)
+        stored = self._store(job_id, processed, claimed.vehicle_version)
+        if stored is None:
+            return
+        track_id, processed_at = stored
+        # the run is answered done: its long level (D2's) and the separation follow
+        if processed.later is not None:
+            self.crew.job(LongLevelJob).complete(job_id, processed_at, processed.later)
+        self.crew.job(SeparateJob).separate_track(track_id)
 
     def _claimed(self, run_id: int) -> ClaimedRun | None:
         """The claimed run's set-up and log; None (and the run failed) when it cannot be
@@ -84,10 +92,12 @@ class ProcessJob(Job):
                     return None
             return ClaimedRun.of(run, handed, packed)
 
-    def _store(self, run_id: int, processed: Processed, vehicle_version: int) -> int | None:
+    def _store(
+        self, run_id: int, processed: Processed, vehicle_version: int
+    ) -> tuple[int, datetime | None] | None:
         """Store the result (computed with ``vehicle_version``) while the claim is still this
-        worker's; the run's track id (None: the run was deleted or taken over meanwhile, the
-        result is dropped)."""
+        worker's; the run's track id and its ``processed_at`` as stored (None: the run was
+        deleted or taken over meanwhile, the result is dropped)."""
         # The stage is committed on its own, so that clients see "storing" while the store
         # (which may wait for the track's lock) runs.
         with self.ctx.db.session() as s:
@@ -109,7 +119,8 @@ class ProcessJob(Job):
                 s, run, processed, vehicle_version,
                 auto_calibrate_runs=self.ctx.settings.auto_calibrate_runs, separation="later",
             )  # fmt: skip
-        return track_id
+            processed_at = s.scalar(select(Run.processed_at).where(Run.id == run_id))
+        return track_id, processed_at
 
     def _owned(self, run_id: int) -> Update:
         """An UPDATE of run ``run_id`` while this worker still owns its processing."""
