@@ -174,7 +174,7 @@ def _unpack_chunks(conn: sa.Connection, table: str, key: str, columns: Sequence[
 
 def downgrade() -> None:
     from app.services.run_lifecycle.logs import LOG_COLUMNS, unpack_log
-    from app.services.storage.profiles import PROFILE_COLUMNS, read_profile
+    from app.services.storage.profiles import PROFILE_COLUMNS, json_columns, profile_arrays
     from sqlalchemy.orm import Session
 
     conn = op.get_bind()
@@ -194,7 +194,7 @@ def downgrade() -> None:
     points = sa.table("profile_points", sa.column("run_id"), *map(sa.column, _OLD_COLUMNS))
     run_ids = conn.execute(sa.text("SELECT DISTINCT run_id FROM run_profile_blocks")).scalars()
     for run_id in run_ids.all():
-        cols = read_profile(session, run_id, columns=PROFILE_COLUMNS)
+        cols = json_columns(profile_arrays(session, run_id, columns=PROFILE_COLUMNS))
         rows = [
             {"run_id": run_id, **dict(zip(PROFILE_COLUMNS, r, strict=True))}
             for r in zip(*(cols[c] for c in PROFILE_COLUMNS), strict=True)
