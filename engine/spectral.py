@@ -431,13 +431,15 @@ class AxleDelay:
     rear_s: NDArray[np.float64]
 
 
-TIE_PHASE = 0.25
+TIE_PHASE = 1.0
 """Largest phase, rad at the band's top frequency, between neighbouring delays the tie is
 evaluated at (:func:`delay_nodes`): a level between two of them blends two estimates whose
-delays are off by at most that."""
+delays are off by at most that. Measured on ramp runs of every grade: 0.25-4 rad give the same
+profile error (the top of the band is where the track is weakest against the noise), so 1 rad
+leaves a margin at a quarter of the cost of 0.25."""
 
 TIE_NODES_MAX = 48
-"""Most delays the tie is evaluated at (a ±15 % speed ramp needs about 40); a wider range of
+"""Most delays the tie is evaluated at (a ±15 % speed ramp needs about 12); a wider range of
 speeds spreads them further apart than :data:`TIE_PHASE`."""
 
 
