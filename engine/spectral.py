@@ -550,15 +550,13 @@ def wiener_bins(
     if coherence is None:
         return np.einsum("mij,mj->mi", _inv2(PN + np.eye(2)[None]), Pb)
     c = np.atleast_2d(coherence)
-    out = np.empty(c.shape + (2,), dtype=np.complex128)
     d = 1.0 + independent
-    Cinv = np.empty((omega.size, 2, 2), dtype=np.complex128)
-    for j in range(c.shape[0]):
-        det = d * d - np.abs(c[j]) ** 2
-        Cinv[:, 0, 0] = Cinv[:, 1, 1] = d / det
-        Cinv[:, 0, 1] = -np.conj(c[j]) / det
-        Cinv[:, 1, 0] = -c[j] / det
-        out[j] = np.einsum("mij,mj->mi", _inv2(PN + Cinv), Pb)
+    det = d * d - np.abs(c) ** 2
+    Cinv = np.empty(c.shape + (2, 2), dtype=np.complex128)
+    Cinv[..., 0, 0] = Cinv[..., 1, 1] = d / det
+    Cinv[..., 0, 1] = -np.conj(c) / det
+    Cinv[..., 1, 0] = -c / det
+    out = np.einsum("kmij,mj->kmi", _inv2(PN[None] + Cinv), Pb)
     return out if np.ndim(coherence) == 2 else out[0]
 
 
@@ -574,28 +572,36 @@ def tied_band(
     samples of ``like`` (its bins, frame and step), and transformed back to the band's bins.
     """
     tk, acc = like.with_values(np.zeros((2, Y.shape[1]), dtype=np.complex128)).decimated()
-    weights = [
-        node_weights(np.interp(tk, delay.t_s, tau), nodes) for tau in (delay.front_s, delay.rear_s)
-    ]
+    # per axle, the samples grouped by the node below their delay: each node then touches
+    # only the samples it is blended into (its own group, and the group of the node below)
+    groups = []
+    for tau in (delay.front_s, delay.rear_s):
+        below, frac = node_weights(np.interp(tk, delay.t_s, tau), nodes)
+        order = np.argsort(below, kind="stable")
+        edges = np.searchsorted(below[order], np.arange(nodes.size + 1))
+        groups.append((order, edges, frac))
     for j in range(nodes.size):
         yk = like.with_values(Y[j].T).decimated()[1]
-        for axle, (below, frac) in enumerate(weights):
-            w = np.where(below == j, 1.0 - frac, 0.0) + np.where(below == j - 1, frac, 0.0)
-            acc[axle] += w * yk[axle]
+        for axle, (order, edges, frac) in enumerate(groups):
+            own = order[edges[j] : edges[j + 1]]
+            acc[axle, own] += (1.0 - frac[own]) * yk[axle, own]
+            if j > 0:
+                under = order[edges[j - 1] : edges[j]]
+                acc[axle, under] += frac[under] * yk[axle, under]
     spec = sfft.rfft(acc * like.step, tk.size, axis=-1, workers=FFT_WORKERS)
     return like.with_values(np.asarray(spec[:, like.bins], dtype=np.complex128))
 
 
 def _inv2(M: NDArray[np.complex128]) -> NDArray[np.complex128]:
-    """Inverses of a stack of 2x2 matrices (m, 2, 2) in closed form (a few times faster than
-    ``np.linalg.inv`` on small matrices)."""
-    a, b, c, d = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
+    """Inverses of a stack of 2x2 matrices (..., 2, 2) in closed form (a few times faster
+    than ``np.linalg.inv`` on small matrices)."""
+    a, b, c, d = M[..., 0, 0], M[..., 0, 1], M[..., 1, 0], M[..., 1, 1]
     det = a * d - b * c
     out = np.empty_like(M)
-    out[:, 0, 0] = d / det
-    out[:, 0, 1] = -b / det
-    out[:, 1, 0] = -c / det
-    out[:, 1, 1] = a / det
+    out[..., 0, 0] = d / det
+    out[..., 0, 1] = -b / det
+    out[..., 1, 0] = -c / det
+    out[..., 1, 1] = a / det
     return out
 
 
