@@ -20,7 +20,7 @@ from .direct import direct_inverse, filtered_direct_inverse
 from .errors import ParameterError
 from .optimisation import windowed_least_squares
 from .runlog import RunLog
-from .spectral import BandSpectrum, estimate_white_noise, spectral_inverse
+from .spectral import AxleDelay, BandSpectrum, estimate_white_noise, spectral_inverse
 from .vehicle import VehicleModel, VehicleParams
 
 
@@ -122,13 +122,13 @@ def _noise(log: RunLog) -> tuple[float, float]:
 
 
 def _from_band(
-    m: MethodInput, *, wiener: bool = False, axle_delay_s: NDArray[np.float64] | None = None
+    m: MethodInput, *, wiener: bool = False, axle_delay: AxleDelay | None = None
 ) -> Inversion:
     """The spectral inversion (:func:`spectral_inverse`, its Wiener weighting when asked)."""
     log = m.log
     inv = spectral_inverse(
         log.accel_z_mps2, log.pitch_rate_radps, log.dt, m.vehicle, m.f_lo_hz, m.f_hi_hz,
-        taper=m.taper, wiener=wiener, axle_delay_s=axle_delay_s,
+        taper=m.taper, wiener=wiener, axle_delay=axle_delay,
     )  # fmt: skip
     # the levels where the axles pass the grid points, straight from the band spectrum
     # (no full-rate transform of an hour's samples), then band-passed in distance as above
@@ -144,21 +144,37 @@ def spectral(m: MethodInput) -> Inversion:
     return _from_band(m)
 
 
-def _axle_delays(m: MethodInput, most: int = 64) -> NDArray[np.float64]:
-    """The rear axle's delay behind the front one at up to ``most`` samples, s."""
-    body = m.positions.body
-    speed = np.abs(np.gradient(body)) / m.log.dt
-    pick = np.linspace(0, body.size - 1, min(most, body.size)).astype(np.intp)
+SPEED_WINDOW_S = 0.5
+"""Time over which the speed behind the axle delay is taken, s: a chainage column's steps
+average out, a speed ramp's change over it is negligible."""
+
+
+def _axle_delay(m: MethodInput, most: int = 1024) -> AxleDelay:
+    """The rear axle's delay behind the front one at up to ``most`` instants: the measured
+    points' spacing over the speed half-way along the delay (second-order in the speed's
+    change), either way from each instant."""
+    body, dt = m.positions.body, m.log.dt
+    n = body.size
+    pick = np.linspace(0, n - 1, min(most, n)).astype(np.intp)
+    h = max(1, int(0.5 * SPEED_WINDOW_S / dt))
+    lo, hi = np.clip(pick - h, 0, n - 1), np.clip(pick + h, 0, n - 1)
+    t = pick.astype(np.float64) * dt
+    speed = np.abs(body[hi] - body[lo]) / (np.maximum(hi - lo, 1) * dt)
+    # a stop would put the delay at infinity: a tenth of the usual speed bounds it
+    speed = np.maximum(speed, max(0.1 * float(np.median(speed)), 1e-3))
     spacing = np.abs(m.positions.front[pick] - m.positions.rear[pick])  # any vehicle kind
-    out: NDArray[np.float64] = spacing / np.maximum(speed[pick], 1e-3)
-    return out
+    first = spacing / speed
+    ahead = spacing / np.interp(t + 0.5 * first, t, speed)
+    behind = spacing / np.interp(t - 0.5 * first, t, speed)
+    return AxleDelay(t, ahead, behind)
 
 
 def wiener(m: MethodInput) -> Inversion:
     """The spectral inversion with each bin weighted by the log's own signal-to-noise ratio:
-    the measured sensor noise against the levels' measured power spectrum (Wiener); the
-    default."""
-    return _from_band(m, wiener=True, axle_delay_s=_axle_delays(m))
+    the measured sensor noise against the levels' measured power spectrum (Wiener), the two
+    axles tied as riding the same track at the run's own delay between them, which follows
+    the speed; the default."""
+    return _from_band(m, wiener=True, axle_delay=_axle_delay(m))
 
 
 def _half_car(m: MethodInput, method: str) -> VehicleParams:

@@ -409,6 +409,87 @@ WIENER_SMOOTHING = 0.15
 against the spectrum's slope over the band."""
 
 
+@dataclass(frozen=True)
+class AxleDelay:
+    """How far in time the rear measured point trails the front one along the run.
+
+    Under a changing speed the delay changes, so it is given per time and per axle: the front
+    level at ``t`` is met again by the rear axle ``front_s`` later, the rear level at ``t``
+    was under the front axle ``rear_s`` earlier (the two differ by the speed's change over the
+    delay).
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (k,)
+        Times, s from the first sample, increasing.
+    front_s, rear_s : ndarray, shape (k,)
+        The delays at those times, s (> 0).
+    """
+
+    t_s: NDArray[np.float64]
+    front_s: NDArray[np.float64]
+    rear_s: NDArray[np.float64]
+
+
+TIE_PHASE = 1.0
+"""Largest phase, rad at the band's top frequency, between neighbouring delays the tie is
+evaluated at (:func:`delay_nodes`): a level between two of them blends two estimates whose
+delays are off by at most that. Measured on ramp runs of every grade: 0.25-4 rad give the same
+profile error (the top of the band is where the track is weakest against the noise), so 1 rad
+leaves a margin at a quarter of the cost of 0.25."""
+
+TIE_NODES_MAX = 48
+"""Most delays the tie is evaluated at (a ±15 % speed ramp needs about 12); a wider range of
+speeds spreads them further apart than :data:`TIE_PHASE`."""
+
+
+def delay_nodes(delay: AxleDelay, omega_top: float) -> NDArray[np.float64]:
+    """The delays (s) the tie is evaluated at: one where the run's delay hardly changes (by
+    less than ``TIE_PHASE / omega_top``), else at most that far apart over the run's delays,
+    placed where the run spends its time (quantiles), at most :data:`TIE_NODES_MAX`."""
+    tau = np.concatenate([delay.front_s, delay.rear_s])
+    spread = float(np.ptp(tau)) if tau.size else 0.0
+    gap = TIE_PHASE / max(omega_top, 1e-9)
+    if spread <= gap:
+        return np.array([float(np.mean(tau))])
+    k = int(min(TIE_NODES_MAX, np.ceil(spread / gap) + 1))
+    nodes = np.quantile(tau, np.linspace(0.0, 1.0, k))
+    # quantiles bunch where the speed dwells: keep them at least a tenth of the gap apart
+    keep = np.concatenate([[True], np.diff(nodes) > 0.1 * gap])
+    return np.asarray(nodes[keep], dtype=np.float64)
+
+
+def node_weights(
+    tau: NDArray[np.float64], nodes: NDArray[np.float64]
+) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """Linear interpolation of delays ``tau`` between ``nodes`` (clamped at the ends): the
+    node below each (``nodes.size - 2`` at most) and the weight of the one above it; the
+    node below weighs the rest."""
+    if nodes.size == 1:
+        return np.full(tau.shape, -1, dtype=np.intp), np.zeros_like(tau)
+    t = np.clip(tau, nodes[0], nodes[-1])
+    below = np.clip(np.searchsorted(nodes, t, side="right") - 1, 0, nodes.size - 2)
+    frac = (t - nodes[below]) / (nodes[below + 1] - nodes[below])
+    return below, frac
+
+
+def tie_coherence(
+    delay: AxleDelay, nodes: NDArray[np.float64], omega: NDArray[np.float64], most: int = 64
+) -> NDArray[np.complex128]:
+    """``c`` of the tie (:func:`wiener_bins`) for each node, shape (nodes, bins).
+
+    Several nodes: each its own delay exactly, ``c = exp(-i omega tau_j)`` (the blending of
+    :func:`tied_band` follows the run's delay between them). One node: the mean of
+    ``exp(-i omega tau)`` over up to ``most`` of the run's delays, whose magnitude falls
+    where their small spread smears the phase.
+    """
+    if nodes.size > 1:
+        return np.exp(-1j * nodes[:, None] * omega[None, :])
+    tau = np.concatenate([delay.front_s, delay.rear_s])
+    tau = tau[np.linspace(0, tau.size - 1, min(most, tau.size)).astype(np.intp)]
+    return np.exp(-1j * omega[None, :] * tau[:, None]).mean(axis=0)[None, :]
+
+
 def wiener_bins(
     H: NDArray[np.complex128],
     A: NDArray[np.complex128],
@@ -417,7 +498,7 @@ def wiener_bins(
     noise_gyro: float,
     n_eff: float,
     omega: NDArray[np.float64],
-    axle_delay_s: NDArray[np.float64] | None = None,
+    coherence: NDArray[np.complex128] | None = None,
     independent: float = 1e-5,
 ) -> NDArray[np.complex128]:
     """Noise-weighted inverse with the levels' own power spectrum as prior, bin by bin.
@@ -430,11 +511,11 @@ def wiener_bins(
     (Wiener) estimate of a Gaussian level of that spectrum. ``n_eff`` is the number of noise
     samples in the transformed frame (the signal plus its tapered padding).
 
-    With ``axle_delay_s`` (the time the rear axle takes to reach where the front one was, s,
-    at some of the samples) the prior also knows that both axles ride the same track: the
-    rear level is the front one delayed, ``E[Y1 Y2*] = P conj(c)`` with
-    ``c = mean(exp(-i omega tau))`` (its magnitude falls where speed changes smear the delay),
-    plus an ``independent`` share of ``P`` per axle for what differs between them. The tie
+    With ``coherence`` (shape (bins,) or (k, bins): ``c = mean(exp(-i omega tau))`` over the
+    rear axle's delays ``tau`` behind the front one, :func:`tie_coherence`) the prior also
+    knows that both axles ride the same track: the rear level is the front one delayed,
+    ``E[Y1 Y2*] = P conj(c)``, plus an ``independent`` share of ``P`` per axle for what
+    differs between them; ``k`` coherences give ``k`` estimates, shape (k, bins, 2). The tie
     is strong (1e-5: measured best of 1e-5-0.3 on the sensor grades, and as good with the
     wheelbase 3 % off) and loosens by itself where ``|c|`` falls below 1.
     """
@@ -464,31 +545,63 @@ def wiener_bins(
     prior = np.maximum(p_tot - p_noise, 1e-2 * p_tot)
     # (P N + C^-1)^-1 P b, the same estimate as (N + C^-1 / P)^-1 b, stays finite where a
     # silent log has no power at all (P = 0: the estimate is 0)
-    if axle_delay_s is None:
-        Cinv = np.broadcast_to(np.eye(2, dtype=np.complex128), (omega.size, 2, 2))
-    else:
-        c = np.exp(-1j * omega[:, None] * axle_delay_s[None, :]).mean(axis=1)
-        d = 1.0 + independent
-        det = d * d - np.abs(c) ** 2
-        Cinv = np.empty((omega.size, 2, 2), dtype=np.complex128)
-        Cinv[:, 0, 0] = Cinv[:, 1, 1] = d / det
-        Cinv[:, 0, 1] = -np.conj(c) / det
-        Cinv[:, 1, 0] = -c / det
-    G = prior[:, None, None] * N + Cinv
-    out: NDArray[np.complex128] = np.einsum("mij,mj->mi", _inv2(G), prior[:, None] * b)
-    return out
+    Pb = prior[:, None] * b
+    PN = prior[:, None, None] * N
+    if coherence is None:
+        return np.einsum("mij,mj->mi", _inv2(PN + np.eye(2)[None]), Pb)
+    c = np.atleast_2d(coherence)
+    d = 1.0 + independent
+    det = d * d - np.abs(c) ** 2
+    Cinv = np.empty(c.shape + (2, 2), dtype=np.complex128)
+    Cinv[..., 0, 0] = Cinv[..., 1, 1] = d / det
+    Cinv[..., 0, 1] = -np.conj(c) / det
+    Cinv[..., 1, 0] = -c / det
+    out = np.einsum("kmij,mj->kmi", _inv2(PN[None] + Cinv), Pb)
+    return out if np.ndim(coherence) == 2 else out[0]
+
+
+def tied_band(
+    Y: NDArray[np.complex128], delay: AxleDelay, nodes: NDArray[np.float64], like: BandSpectrum
+) -> BandSpectrum:
+    """One band spectrum of the levels from the estimates tied at each delay node.
+
+    ``Y`` (nodes, bins, 2) holds, per node, the levels as if the delay were that node's
+    everywhere. Each is right where the run's delay is near its node, so the levels in time
+    are the nodes' estimates blended by :func:`node_weights` of the delay at each instant
+    (the front level by its delay ahead, the rear one by its delay behind), on the decimated
+    samples of ``like`` (its bins, frame and step), and transformed back to the band's bins.
+    """
+    tk, acc = like.with_values(np.zeros((2, Y.shape[1]), dtype=np.complex128)).decimated()
+    # per axle, the samples grouped by the node below their delay: each node then touches
+    # only the samples it is blended into (its own group, and the group of the node below)
+    groups = []
+    for tau in (delay.front_s, delay.rear_s):
+        below, frac = node_weights(np.interp(tk, delay.t_s, tau), nodes)
+        order = np.argsort(below, kind="stable")
+        edges = np.searchsorted(below[order], np.arange(nodes.size + 1))
+        groups.append((order, edges, frac))
+    for j in range(nodes.size):
+        yk = like.with_values(Y[j].T).decimated()[1]
+        for axle, (order, edges, frac) in enumerate(groups):
+            own = order[edges[j] : edges[j + 1]]
+            acc[axle, own] += (1.0 - frac[own]) * yk[axle, own]
+            if j > 0:
+                under = order[edges[j - 1] : edges[j]]
+                acc[axle, under] += frac[under] * yk[axle, under]
+    spec = sfft.rfft(acc * like.step, tk.size, axis=-1, workers=FFT_WORKERS)
+    return like.with_values(np.asarray(spec[:, like.bins], dtype=np.complex128))
 
 
 def _inv2(M: NDArray[np.complex128]) -> NDArray[np.complex128]:
-    """Inverses of a stack of 2x2 matrices (m, 2, 2) in closed form (a few times faster than
-    ``np.linalg.inv`` on small matrices)."""
-    a, b, c, d = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
+    """Inverses of a stack of 2x2 matrices (..., 2, 2) in closed form (a few times faster
+    than ``np.linalg.inv`` on small matrices)."""
+    a, b, c, d = M[..., 0, 0], M[..., 0, 1], M[..., 1, 0], M[..., 1, 1]
     det = a * d - b * c
     out = np.empty_like(M)
-    out[:, 0, 0] = d / det
-    out[:, 0, 1] = -b / det
-    out[:, 1, 0] = -c / det
-    out[:, 1, 1] = a / det
+    out[..., 0, 0] = d / det
+    out[..., 0, 1] = -b / det
+    out[..., 1, 0] = -c / det
+    out[..., 1, 1] = a / det
     return out
 
 
@@ -503,7 +616,7 @@ def spectral_inverse(
     taper: float = 0.3,
     regularisation: float = 1.0,
     wiener: bool = False,
-    axle_delay_s: NDArray[np.float64] | None = None,
+    axle_delay: AxleDelay | None = None,
 ) -> SpectralInverse:
     """Band-limited inverse of the vehicle's response, from (a, q) to (y1, y2).
 
@@ -526,9 +639,10 @@ def spectral_inverse(
     wiener : bool
         Use the levels' own power spectrum as the prior (:func:`wiener_bins`) instead of the
         flat Tikhonov term.
-    axle_delay_s : ndarray, optional
-        With ``wiener``: the rear axle's delay behind the front one at (some of) the
-        samples, s; the prior then ties the two levels (see :func:`wiener_bins`).
+    axle_delay : AxleDelay, optional
+        With ``wiener``: the rear axle's delay behind the front one along the run; the prior
+        then ties the two levels (:func:`wiener_bins`), at each of the run's delays
+        (:func:`delay_nodes`) where the speed changes (:func:`tied_band`).
 
     Returns
     -------
@@ -554,10 +668,21 @@ def spectral_inverse(
     bins = slice(int(inside[0]), int(inside[-1]) + 1) if inside.size else slice(0, 0)
     omega = 2 * np.pi * f[bins]
     H = vehicle_response(vehicle, omega)
+    nodes = None
     if wiener:
         # the mirrored padding carries the noise too, tapered (mean square of the ramp: 3/8)
-        Y = wiener_bins(H, A[bins], Q[bins], sa, sg, n + 0.75 * pad, omega, axle_delay_s)
+        n_eff = n + 0.75 * pad
+        coherence = None
+        if axle_delay is not None and omega.size:
+            nodes = delay_nodes(axle_delay, float(omega[-1]))
+            coherence = tie_coherence(axle_delay, nodes, omega)
+        Y = wiener_bins(H, A[bins], Q[bins], sa, sg, n_eff, omega, coherence)
     else:
         Y = solve_bins(H, A[bins], Q[bins], sa, sg, regularisation / nfft)
-    band = BandSpectrum((Y * wband[bins, None]).T, bins, omega, nfft, pad, n, dt, step)
+    Y = Y * wband[bins, None]
+    if nodes is None or nodes.size == 1:
+        band = BandSpectrum(np.reshape(Y, Y.shape[-2:]).T, bins, omega, nfft, pad, n, dt, step)
+    else:
+        like = BandSpectrum(Y[0].T, bins, omega, nfft, pad, n, dt, step)
+        band = tied_band(Y, axle_delay, nodes, like)  # type: ignore[arg-type]
     return SpectralInverse(f_lo=f_lo, f_hi=f_hi, noise_accel=sa, noise_gyro=sg, band=band)
