@@ -63,37 +63,41 @@ def _check(accel: ArrayLike, pitch_rate: ArrayLike) -> tuple[NDArray[np.float64]
     return a, q
 
 
+def _newmark_displacement(
+    v: NDArray[np.float64], a: NDArray[np.float64], nm: Newmark
+) -> NDArray[np.float64]:
+    """Displacement (zero start) from velocity and acceleration by the Newmark relation
+    ``u[n+1] = u[n] + dt v[n] + dt²((0.5-b) a[n] + b a[n+1])``."""
+    dt, b = nm.dt, nm.beta
+    inc = np.empty_like(a)
+    inc[0] = 0.0
+    inc[1:] = dt * v[:-1] + dt * dt * ((0.5 - b) * a[:-1] + b * a[1:])
+    return np.cumsum(inc)
+
+
 def _newmark_integrate(
     a: NDArray[np.float64], nm: Newmark
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Velocity and displacement from acceleration by the Newmark relations (zero start)."""
-    dt, g, b = nm.dt, nm.gamma, nm.beta
+    dt, g = nm.dt, nm.gamma
     # v[n+1] = v[n] + dt((1-g) a[n] + g a[n+1])
     v = lfilter([g * dt, (1 - g) * dt], [1.0, -1.0], a)
     v -= v[0]  # v[0] = 0 (lfilter's first output is g dt a[0])
     v[0] = 0.0
-    # u[n+1] = u[n] + dt v[n] + dt²((0.5-b) a[n] + b a[n+1])
-    inc = np.empty_like(a)
-    inc[0] = 0.0
-    inc[1:] = dt * v[:-1] + dt * dt * ((0.5 - b) * a[:-1] + b * a[1:])
-    u = np.cumsum(inc)
-    return v, u
+    return v, _newmark_displacement(v, a, nm)
 
 
 def _newmark_differentiate(
     v: NDArray[np.float64], nm: Newmark
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Acceleration and displacement from velocity by the Newmark relations (zero start)."""
-    dt, g, b = nm.dt, nm.gamma, nm.beta
+    dt, g = nm.dt, nm.gamma
     # a[n+1] = (v[n+1] - v[n] - dt (1-g) a[n]) / (g dt), a[0] = 0
     dv = np.empty_like(v)
     dv[0] = 0.0
     dv[1:] = np.diff(v) / (g * dt)
     acc = lfilter([1.0], [1.0, (1 - g) / g], dv)
-    inc = np.empty_like(v)
-    inc[0] = 0.0
-    inc[1:] = dt * v[:-1] + dt * dt * ((0.5 - b) * acc[:-1] + b * acc[1:])
-    return acc, np.cumsum(inc)
+    return acc, _newmark_displacement(v, acc, nm)
 
 
 def _axle_from_force(

@@ -49,6 +49,19 @@ def as_number(value: Any, name: str, what: str, unit: str) -> float:
         ) from None
 
 
+def check_settings(settings: object, checks: Mapping[str, bool], what: str) -> None:
+    """:class:`ParameterError` (``field=<name>``) for the first of ``checks`` (a field of the
+    ``settings`` dataclass -> whether its value is allowed) that fails; the message names
+    ``what`` the settings are of and points to their class for the allowed values."""
+    for name, ok in checks.items():
+        if not ok:
+            raise ParameterError(
+                f"{what} {name} out of range: {getattr(settings, name)!r} (see "
+                f"{type(settings).__name__} for the allowed values)",
+                field=name,
+            )
+
+
 def check_range(value: float, name: str, what: str, lo: float, hi: float, unit: str) -> None:
     """:class:`ParameterError` (``field=name``) unless ``value`` is finite and within
     ``lo..hi`` (inclusive, in ``unit``); the message names ``what``."""

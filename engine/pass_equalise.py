@@ -28,7 +28,7 @@ from scipy.fft import irfft, next_fast_len, rfft, rfftfreq
 from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
 from .detect import robust_baseline, robust_sigma
-from .errors import ParameterError
+from .errors import check_settings
 
 __all__ = ["EqualiseConfig", "Equalisation", "equalise_passes"]
 
@@ -100,13 +100,7 @@ class EqualiseConfig:
             "guard_m": self.guard_m >= 0,
             "candidate_sigma": self.candidate_sigma > 0,
         }
-        for name, ok in checks.items():
-            if not ok:
-                raise ParameterError(
-                    f"equalisation {name} out of range: {getattr(self, name)!r} (see "
-                    "EqualiseConfig for the allowed values)",
-                    field=name,
-                )
+        check_settings(self, checks, "equalisation")
 
 
 @dataclass(frozen=True)

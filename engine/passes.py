@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from .align import align_profiles
 from .errors import ParameterError
+from .pipeline import fuse_axles
 from .results import ProcessResult
 
 
@@ -60,10 +61,7 @@ def pass_from_result(
     """
     if result.front_force_n is None or result.rear_force_n is None:
         raise ParameterError("the processed run has no wheel force (front_force_n) to separate")
-    f1, f2 = result.front_force_n, result.rear_force_n
-    both = np.isfinite(f1) & np.isfinite(f2)
-    with np.errstate(invalid="ignore"):
-        force = np.where(both, 0.5 * (f1 + f2), np.where(np.isfinite(f1), f1, f2))
+    force = fuse_axles(result.front_force_n, result.rear_force_n)
     return Pass(
         result.chainage_m + offset_m, result.level_mm, force, kind, label, tuple(wheel_offsets_m)
     )

@@ -45,7 +45,7 @@ from scipy.interpolate import make_interp_spline
 
 from .chainage import bandpass_distance
 from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
-from .errors import ParameterError
+from .errors import ParameterError, check_settings
 from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
 from .pass_equalise import EqualiseConfig, equalise_passes
 from .passes import Pass, align_passes, column_mean_sd, on_grid, pass_from_result
@@ -140,12 +140,7 @@ class SeparationConfig:
             "lambda_max_m": 0 < self.lambda_min_m < self.lambda_max_m,
             "grid_step_m": self.grid_step_m is None or 0 < self.grid_step_m <= 1.0,
         }
-        for name, ok in checks.items():
-            if not ok:
-                raise ParameterError(
-                    f"separation {name} out of range: {getattr(self, name)!r} (see "
-                    "SeparationConfig for the allowed values)"
-                )
+        check_settings(self, checks, "separation")
 
 
 @dataclass(frozen=True)

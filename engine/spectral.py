@@ -379,6 +379,17 @@ def noise_weights_sigma(noise_accel: float, noise_gyro: float) -> tuple[float, f
     return float(sa), float(sg)
 
 
+def weighted_adjoint(
+    H: NDArray[np.complex128], noise_accel: float, noise_gyro: float
+) -> NDArray[np.complex128]:
+    """``Hᴴ W`` per bin, shape (m, 2, 2): the response's conjugate transpose weighted by
+    ``W = diag(1/σ_a², 1/σ_g²)``, the channels' noise levels of :func:`noise_weights_sigma`
+    (m/s² and rad/s; unknown: the typical MEMS ratio)."""
+    sa, sg = noise_weights_sigma(noise_accel, noise_gyro)
+    Wd = np.array([1.0 / sa**2, 1.0 / sg**2])
+    return np.conj(np.transpose(H, (0, 2, 1))) * Wd[None, None, :]
+
+
 def solve_bins(
     H: NDArray[np.complex128],
     A: NDArray[np.complex128],
@@ -389,15 +400,12 @@ def solve_bins(
 ) -> NDArray[np.complex128]:
     """Noise-weighted Tikhonov inverse, bin by bin: ``(Hᴴ W H + μ I)⁻¹ Hᴴ W [A; Q]``.
 
-    ``W = diag(1/σ_a², 1/σ_g²)`` from the noise estimates (unknown: the typical MEMS ratio);
-    ``μ = mu_scale / (1 mm)²``, the prior of a ~1 mm² track level scale per bin (``mu_scale``
-    is ``regularisation / nfft`` for an unnormalised FFT). ``A``, ``Q`` may carry leading
-    batch axes before the bin axis; returns ``Y[..., bin, axle]``.
+    ``W`` as :func:`weighted_adjoint`; ``μ = mu_scale / (1 mm)²``, the prior of a ~1 mm² track
+    level scale per bin (``mu_scale`` is ``regularisation / nfft`` for an unnormalised FFT).
+    ``A``, ``Q`` may carry leading batch axes before the bin axis; returns
+    ``Y[..., bin, axle]``.
     """
-    sa, sg = noise_weights_sigma(noise_accel, noise_gyro)
-    wa, wg = 1.0 / sa**2, 1.0 / sg**2
-    Wd = np.array([wa, wg])
-    HW = np.conj(np.transpose(H, (0, 2, 1))) * Wd[None, None, :]
+    HW = weighted_adjoint(H, noise_accel, noise_gyro)
     N = HW @ H + mu_scale / (1e-3) ** 2 * np.eye(2)[None]
     G = np.linalg.solve(N, HW)  # (m, 2, 2): the inverse operator per bin
     return np.einsum("mij,...mj->...mi", G, np.stack([A, Q], axis=-1))
@@ -503,7 +511,7 @@ def wiener_bins(
 ) -> NDArray[np.complex128]:
     """Noise-weighted inverse with the levels' own power spectrum as prior, bin by bin.
 
-    ``(Hᴴ W H + I / P)⁻¹ Hᴴ W [A; Q]``: ``W`` as :func:`solve_bins`; ``P`` per bin is the
+    ``(Hᴴ W H + I / P)⁻¹ Hᴴ W [A; Q]``: ``W`` as :func:`weighted_adjoint`; ``P`` per bin is the
     power of the levels the log itself shows there (the least-squares levels' power, smoothed
     over neighbouring bins, less the noise power ``n_eff diag((Hᴴ W H)⁻¹)`` the measured
     sensor noise puts into them). Where the noise outweighs the track the bin is shrunk towards
@@ -519,9 +527,7 @@ def wiener_bins(
     is strong (1e-5: measured best of 1e-5-0.3 on the sensor grades, and as good with the
     wheelbase 3 % off) and loosens by itself where ``|c|`` falls below 1.
     """
-    sa, sg = noise_weights_sigma(noise_accel, noise_gyro)
-    Wd = np.array([1.0 / sa**2, 1.0 / sg**2])
-    HW = np.conj(np.transpose(H, (0, 2, 1))) * Wd[None, None, :]
+    HW = weighted_adjoint(H, noise_accel, noise_gyro)
     N = HW @ H
     b = np.einsum("mij,mj->mi", HW, np.stack([A, Q], axis=-1))
     # least-squares levels (a whisker of ridge keeps the few ill-posed bins finite)

@@ -7,8 +7,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .chainage import to_grid
 from .detect import robust_baseline
 from .irregularity import Profile, Spectrum, profile_from_samples, random_profile
+from .pipeline import fuse_axles
 from .results import ProcessResult
 from .runlog import RunLog
 from .sensor import SensorModel, apply_sensor
@@ -65,18 +67,10 @@ class SyntheticRun:
 
     def true_profile(self, grid: NDArray[np.float64]) -> NDArray[np.float64]:
         """True loaded level fused like the engine's (mean of both axles), mm, on ``grid`` (m)."""
-        t1 = _interp(self.sim.x_front, self.sim.y_front * 1e3, grid)
-        t2 = _interp(self.sim.x_rear, self.sim.y_rear * 1e3, grid)
-        both = np.isfinite(t1) & np.isfinite(t2)
-        return np.where(both, 0.5 * (t1 + t2), np.where(np.isfinite(t1), t1, t2))
-
-
-def _interp(
-    x: NDArray[np.float64], y: NDArray[np.float64], g: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    if x[0] > x[-1]:
-        x, y = x[::-1], y[::-1]
-    return np.interp(g, x, y, left=np.nan, right=np.nan)
+        return fuse_axles(
+            to_grid(self.sim.x_front, self.sim.y_front * 1e3, grid),
+            to_grid(self.sim.x_rear, self.sim.y_rear * 1e3, grid),
+        )
 
 
 IrregularityInput = str | Spectrum | Profile | tuple[NDArray[np.float64], NDArray[np.float64]]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from ..errors import LogFormatError
@@ -30,6 +31,16 @@ def _split_name(name: str) -> tuple[str, str | None]:
     return re.sub(r"[^a-z0-9]+", "_", s).strip("_"), unit
 
 
+def _unit_suffixes(base: str) -> Iterator[tuple[str, str, str]]:
+    """The splits of a snake-case name into a stem and a unit suffix of its last one to three
+    tokens, shortest suffix first, always leaving a stem: (stem, unit key, suffix as written)."""
+    tokens = base.split("_")
+    for k in (1, 2, 3):
+        if len(tokens) <= k:
+            break
+        yield "_".join(tokens[:-k]), "".join(tokens[-k:]), "_".join(tokens[-k:])
+
+
 @dataclass(frozen=True)
 class _Match:
     unit: str | None  # canonical unit the name implies, None when it says nothing
@@ -50,16 +61,12 @@ def _match(name: str, role: _Role) -> _Match | None:
         return _Match(None, unsupported=bracket.strip())
     if base in role.aliases:
         return _Match(role.alias_units.get(base))
-    tokens = base.split("_")
-    for k in (1, 2, 3):
-        if len(tokens) <= k:
-            break
-        stem, key = "_".join(tokens[:-k]), "".join(tokens[-k:])
+    for stem, key, written in _unit_suffixes(base):
         if stem in role.aliases:
             if key in role.units:
                 return _Match(role.units[key])
             if key in role.unsupported:
-                return _Match(None, unsupported="_".join(tokens[-k:]))
+                return _Match(None, unsupported=written)
     return None
 
 
@@ -70,11 +77,7 @@ def _unit_from_name(name: str, role: _Role) -> str | None:
         return role.units.get(_unit_key(bracket))
     if base in role.alias_units:
         return role.alias_units[base]
-    tokens = base.split("_")
-    for k in (1, 2, 3):
-        if len(tokens) <= k:
-            break
-        key = "".join(tokens[-k:])
+    for _stem, key, _written in _unit_suffixes(base):
         if key in role.units:
             return role.units[key]
     return None
