@@ -34,7 +34,7 @@ from app.core.scopes import format_scopes, parse_scopes
 from app.core.security import generate_key, hash_key, key_prefix
 from app.db.base import utcnow
 from app.db.migrate import upgrade
-from app.db.models import ApiKey, Track
+from app.db.models import ALIGNMENT_STATUSES, ApiKey, Track
 from app.db.session import Database
 from app.schemas.simulate import SimulateRequest
 from app.services.context import AppContext
@@ -126,8 +126,7 @@ def cmd_realign(ns: argparse.Namespace) -> int:
             done = realign_track(s, track.id)
             surveys = realign_surveys(s, track.id)
             s.commit()
-            counts = {st: sum(1 for _, a in done if a.status == st)
-                      for st in ("reference", "aligned", "placed", "unaligned")}  # fmt: skip
+            counts = {st: sum(1 for _, a in done if a.status == st) for st in ALIGNMENT_STATUSES}
             print(
                 f"track {track.id} ({track.name}): {len(done)} runs: {counts['reference']} "
                 f"reference, {counts['aligned']} aligned, {counts['placed']} placed, "

@@ -6,7 +6,7 @@ import re
 import unicodedata
 from collections.abc import Callable, Iterable
 from datetime import UTC, datetime
-from typing import Annotated, Any, get_args
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import (
     AfterValidator,
@@ -69,6 +69,9 @@ be shown as text)."""
 CHAINAGE_LIMIT_M = 1e7
 """Largest chainage magnitude the service takes, m (10 000 km, longer than any line): far
 beyond it a chainage is a typing or unit error, and grid indices would leave 64 bits."""
+
+AlignmentStatus = Literal["reference", "aligned", "placed", "unaligned"]
+"""How a run or survey sits on its track's chainage (``app.db.models.ALIGNMENT_STATUSES``)."""
 
 MAX_ID_DIGITS = 18
 """Longest id written in a URL or filter: every id of 18 digits is below 2^63."""

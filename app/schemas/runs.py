@@ -21,7 +21,7 @@ from engine.logio import (
 from engine.plausibility import WHEEL_LOAD_MAX_N, WHEEL_LOAD_MIN_N
 from engine.track import TRACK_RANGES
 
-from .common import CHAINAGE_LIMIT_M, Name, StrictModel, Timestamp
+from .common import CHAINAGE_LIMIT_M, AlignmentStatus, Name, StrictModel, Timestamp
 
 Direction = Literal["increasing", "decreasing"]
 
@@ -267,9 +267,6 @@ class RunError(BaseModel):
     column: str | None = None
     row: int | None = None
     kind: str | None = None
-
-
-AlignmentStatus = Literal["reference", "aligned", "placed", "unaligned"]
 
 
 class RunAlignmentPublic(BaseModel):

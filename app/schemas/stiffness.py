@@ -11,7 +11,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
-from .common import Name, StrictModel
+from .common import AlignmentStatus, Name, StrictModel
 
 
 class SeparatedSpotPublic(BaseModel):
@@ -165,7 +165,7 @@ class SurveyPublic(BaseModel):
     chainage_min_m: float = Field(description="Start, m (aligned)")
     chainage_max_m: float = Field(description="End, m (aligned)")
     chainage_offset_m: float
-    alignment_status: Literal["reference", "aligned", "placed", "unaligned"]
+    alignment_status: AlignmentStatus
     alignment_correlation: float | None
     alignment_reason: str | None
     duplicate: bool = Field(default=False, description="True when the same file was stored")

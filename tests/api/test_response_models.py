@@ -27,7 +27,10 @@ from fastapi.routing import APIRoute
 from pydantic import BaseModel, TypeAdapter, ValidationError
 from starlette.testclient import TestClient
 
+from app.db.models import ALIGNMENT_STATUSES, RUN_STAGES, RUN_STATUSES
 from app.main import create_app
+from app.schemas.common import AlignmentStatus
+from app.schemas.runs import RunStage, RunStatus
 from support.app_fixtures import make_settings
 
 from .api_support import upload
@@ -164,6 +167,14 @@ def test_strict_validation_refuses_what_lax_validation_coerces() -> None:
         TypeAdapter(Counted).validate_json(orjson.dumps(wrong))  # lax: accepted
         with pytest.raises(ValidationError):
             TypeAdapter(Counted).validate_json(orjson.dumps(wrong), strict=True)
+
+
+def test_declared_states_are_the_stored_ones() -> None:
+    """The states an answer declares (its ``Literal`` types) are those the database keeps: a
+    state added to one side only would be refused on the way out, or never reached."""
+    assert typing.get_args(AlignmentStatus) == ALIGNMENT_STATUSES
+    assert typing.get_args(RunStatus) == RUN_STATUSES
+    assert typing.get_args(RunStage) == RUN_STAGES
 
 
 @pytest.mark.slow  # the module's app, run and survey: ~8 s, paid by the first test
