@@ -104,7 +104,18 @@ def robust_sigma(x: NDArray[np.float64]) -> float:
     v = x[np.isfinite(x)]
     if v.size == 0:
         return 0.0
-    return float(1.4826 * np.median(np.abs(v - np.median(v))))
+    return float(1.4826 * _median(np.abs(v - _median(v))))
+
+
+def _median(v: NDArray[np.float64]) -> np.float64:
+    """``np.median(v)`` of NaN-free values (at least one), the same number at a third of its
+    time on a few thousand (one partition; of an even count the mean of the two middle
+    values, the lower one the largest below the partition point, as numpy takes them)."""
+    k = v.size // 2
+    p = np.partition(v, k)
+    if v.size % 2:
+        return p[k]
+    return (p[:k].max() + p[k]) / 2
 
 
 def running_mean(x: NDArray[np.float64], step_m: float, width_m: float) -> NDArray[np.float64]:
