@@ -48,11 +48,17 @@ def aggregate_levels(
     spread = np.full(lv.shape[1], np.nan)
     has = n > 0
     if has.any():
-        sub = lv[:, has]
-        m = column_nanmedian(sub, n[has])
-        med[has] = m
-        spread[has] = 1.4826 * column_nanmedian(np.abs(sub - m), n[has])
+        med[has], spread[has] = column_median_spread(lv[:, has], n[has])
     return AggregateProfile(chainage_m, med, spread, n.astype(np.int64))
+
+
+def column_median_spread(
+    values: NDArray[np.float64], n_finite: NDArray[np.integer]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per column of ``values``, each holding ``n_finite`` > 0 finite values: their median
+    and robust spread (1.4826 x median absolute deviation), in the units of ``values``."""
+    m = column_nanmedian(values, n_finite)
+    return m, 1.4826 * column_nanmedian(np.abs(values - m), n_finite)
 
 
 def column_nanmedian(

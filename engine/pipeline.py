@@ -168,7 +168,8 @@ def process_run(run: PreparedRun, *, budget: TimeBudget | None = None) -> Proces
     spent("the wheel forces")
     baseline = robust_baseline(fused, step, cfg.detection.baseline_window_m)
     residual = fused - baseline
-    dips, thr = find_dips(grid, residual, cfg.detection)
+    thresholds = dip_thresholds(step, residual, cfg.detection)
+    dips, thr = find_dips(grid, residual, cfg.detection, thresholds=thresholds)
     # the fused profile is the mean of the two measured points: each wheel carries the mean
     # wheel load, at its offset from its point (front and rear alike for every kind)
     load = float(np.mean(vehicle.static_wheel_loads()))
@@ -178,7 +179,7 @@ def process_run(run: PreparedRun, *, budget: TimeBudget | None = None) -> Proces
         thr, params=trk, load=load, lambda_min_m=cfg.lambda_min_m,
         lambda_max_m=cfg.lambda_max_m, taper=cfg.taper, step_m=step,
         baseline_window_m=cfg.detection.baseline_window_m, wheel_offsets_m=wheels,
-        matched=dip_thresholds(step, residual, cfg.detection)[1:],
+        matched=thresholds[1:],
     )  # fmt: skip
     spent("the soft-spot detection")
     # a wrong vehicle turns into dips no track can have: fail rather than report them

@@ -110,3 +110,30 @@ def test_a_block_decodes_any_subset_of_its_columns_exactly() -> None:
         assert len(part) == len(which)
         for got, j in zip(part, which, strict=True):
             np.testing.assert_array_equal(got, full[j])
+
+
+def test_kept_unpacks_answer_as_unpacking_and_stay_within_their_memory() -> None:
+    """A blob met again gives the array unpacked the first time (the same numbers as
+    unpacking it, NaN kept; read-only, as it is shared); a blob of other content is unpacked
+    anew; the oldest go once the kept bytes exceed the bound."""
+    from app.services.storage.packing import KeptUnpacks, pack_f4, unpack_f4
+
+    rng = np.random.default_rng(4)
+    rows = [rng.normal(0, 1, 1000).astype(np.float32) for _ in range(6)]
+    rows[0][10:20] = np.nan
+    blobs = [pack_f4(r) for r in rows]
+    one = len(blobs[0]) + 8 * 1000
+    kept = KeptUnpacks(max_bytes=3 * one + 100)
+    first = kept(blobs[0])
+    np.testing.assert_array_equal(first, unpack_f4(blobs[0]))
+    assert not first.flags.writeable
+    with pytest.raises(ValueError):
+        first[0] = 1.0
+    assert kept(bytes(bytearray(blobs[0]))) is first  # the same content, another object
+    other = kept(blobs[1])
+    np.testing.assert_array_equal(other, unpack_f4(blobs[1]))
+    for b in blobs[2:]:
+        kept(b)
+    assert kept.nbytes <= kept.max_bytes
+    assert kept(blobs[0]) is not first  # dropped as the oldest, unpacked again
+    np.testing.assert_array_equal(kept(blobs[0]), first)

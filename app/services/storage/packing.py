@@ -15,6 +15,8 @@ float32 mantissas are noise to a compressor.
 from __future__ import annotations
 
 import struct
+import threading
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -145,6 +147,64 @@ def pack_f4(values: NDArray[np.floating]) -> bytes:
 
 
 unpack_f4 = unpack_floats
+
+
+class KeptUnpacks:
+    """:func:`unpack_floats` of the blobs unpacked last, kept by the blobs' bytes.
+
+    A track's chunks of aligned levels and wheel forces are read again by every pass that
+    arrives over them (the aggregate's rebuild, each detection unit, the separation), and
+    an earlier run's blobs do not change: their arrays are taken from here (a dictionary
+    look-up of the blob, ~1 µs, against ~25 µs to unpack a chunk). The key is the blob's
+    content, so a changed blob is unpacked again and the numbers are the same either way.
+    Thread-safe; the least recently used go first once the blobs and arrays kept exceed
+    ``max_bytes``.
+
+    Parameters
+    ----------
+    max_bytes : int
+        Memory the kept blobs and their arrays may take, bytes. The default, 32 MiB, holds
+        some 2900 chunks of 1000 points (a 4 kB blob and an 8 kB array each).
+    """
+
+    def __init__(self, max_bytes: int = 32 * 2**20) -> None:
+        if max_bytes < 1:
+            raise ValueError("max_bytes must be at least 1 byte")
+        self.max_bytes = max_bytes
+        self._kept: OrderedDict[bytes, NDArray[np.float64]] = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    @property
+    def nbytes(self) -> int:
+        """Memory the kept blobs and arrays take, bytes."""
+        return self._bytes
+
+    def __call__(self, blob: bytes | memoryview) -> NDArray[np.float64]:
+        """``unpack_floats(blob)``, read-only (the kept array is shared by every caller)."""
+        key = bytes(blob)
+        with self._lock:
+            got = self._kept.get(key)
+            if got is not None:
+                self._kept.move_to_end(key)
+                return got
+        out = unpack_floats(key)
+        out.flags.writeable = False
+        size = len(key) + out.nbytes
+        if size > self.max_bytes:
+            return out
+        with self._lock:
+            if key not in self._kept:
+                self._kept[key] = out
+                self._bytes += size
+            while self._bytes > self.max_bytes:
+                old, arr = self._kept.popitem(last=False)
+                self._bytes -= len(old) + arr.nbytes
+        return out
+
+
+unpack_f4_kept = KeptUnpacks()
+"""The process's kept unpacks of stored level and force chunks (:class:`KeptUnpacks`)."""
 
 
 _NAMED_MAGIC = b"TPN1"

@@ -28,7 +28,13 @@ from sqlalchemy import Select, Subquery, delete, func, insert, select, update
 from sqlalchemy.orm import Session
 
 from app.db.models import Run, Track, TrackProfileChunk, TrackRunLevels
-from app.services.storage.packing import pack_f4, pack_named, unpack_f4, unpack_named
+from app.services.storage.packing import (
+    pack_f4,
+    pack_named,
+    unpack_f4,
+    unpack_f4_kept,
+    unpack_named,
+)
 from app.services.storage.profiles import pack_long_level
 from app.services.views.window import Window
 from engine.accumulate import ResidualCache, detect_on_aggregate
@@ -229,9 +235,9 @@ def newest_levels(
     for row in rows:
         rid, chunk, blob = row[0], row[1], row[2]
         at = (chunk - a) * CHUNK_POINTS
-        levels[run_row[rid], at : at + CHUNK_POINTS] = unpack_f4(blob)
+        levels[run_row[rid], at : at + CHUNK_POINTS] = unpack_f4_kept(blob)
         if forces is not None and row[3] is not None:
-            forces[run_row[rid], at : at + CHUNK_POINTS] = unpack_f4(row[3])
+            forces[run_row[rid], at : at + CHUNK_POINTS] = unpack_f4_kept(row[3])
     grid = (i0 + np.arange(n, dtype=np.float64)) * GRID_STEP_M
     return grid, run_ids, levels, forces
 

@@ -45,7 +45,7 @@ from app.db.models import (
     Vehicle,
     VehicleVersion,
 )
-from app.services.storage.packing import unpack_f4
+from app.services.storage.packing import unpack_f4_kept
 from app.services.storage.profiles import finite_or_none
 from app.services.track.aggregate import CHUNK_POINTS, newest_runs
 from app.services.track.alignment import GRID_STEP_M
@@ -130,7 +130,7 @@ class PassLevels:
 
 
 def _unblob(blob: bytes) -> NDArray[np.float64]:
-    return unpack_f4(blob)
+    return unpack_f4_kept(blob)
 
 
 def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[PassLevels]:
