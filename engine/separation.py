@@ -27,7 +27,7 @@ compliance (as the level dip they cause under a reference load) fitted with the
 beam-on-discrete-supports model (:func:`engine.stiffness.fit_zone`, same band-pass as the
 profile). Details and assumptions: docs/method.md.
 
-One module, about 750 lines: the pass model, the per-point fit, the windowing of the
+One module, about 800 lines: the pass model, the per-point fit, the windowing of the
 result and the soft-spot extraction share the result object and its grid conventions; split,
 each part would import the others' private helpers.
 """
