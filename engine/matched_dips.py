@@ -6,7 +6,7 @@ passes' long-wave inversion errors, strong at 10-40 m and weak at 3-6 m, while a
 dip holds most of its energy at its own length. The filter that best tells a known shape
 ``t`` from noise of spectrum ``P`` is ``T*(f) / P(f)`` (whiten, then correlate with the
 whitened shape): it weighs each wavelength by how much the noise leaves of it. Details and
-measurements: docs/method.md §10, "A detector for coloured noise".
+measurements: docs/method.md §10, "A detector for the compliance's coloured noise".
 """
 
 from __future__ import annotations
