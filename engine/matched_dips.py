@@ -61,7 +61,7 @@ def matched_dips(
     shapes: Sequence[tuple[float, NDArray[np.float64]]],
     noise_factor: float,
     segment_m: float,
-) -> list[Dip]:
+) -> list[Dip] | None:
     """Dips of ``profile`` that a filter matched to a dip shape and to the profile's own
     noise finds more than ``noise_factor`` standard deviations deep.
 
@@ -81,15 +81,15 @@ def matched_dips(
 
     Returns
     -------
-    list of Dip
+    list of Dip or None
         By chainage; each spans its best shape's length about the filter's peak, its depth
-        the profile's value there (positive down). Empty when the profile is too short to
-        measure its noise on.
+        the profile's value there (positive down). None when the profile is too short to
+        measure its noise on (:func:`noise_spectrum`) or no shape is given.
     """
     step = float(chainage_m[1] - chainage_m[0])
     spec = noise_spectrum(profile, step, segment_m)
     if spec is None or not shapes:
-        return []
+        return None
     freq, dens = spec
     y = np.array(profile, dtype=float)
     runs = [(a, b) for a, b in _runs(np.isfinite(y)) if b - a >= 8]

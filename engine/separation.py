@@ -722,6 +722,20 @@ def _zone_shapes(
     return out
 
 
+def _near_end(
+    grid: NDArray[np.float64], profile: NDArray[np.float64], distance_m: float
+) -> NDArray[np.bool_]:
+    """Where ``profile`` is defined within ``distance_m`` (m) of an end of its run of
+    defined points (on the regular ``grid``, m)."""
+    ok = np.isfinite(profile)
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+    out = np.zeros(grid.size, dtype=bool)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        x = grid[a:b]
+        out[a:b] = np.minimum(x - x[0], x[-1] - x) <= distance_m
+    return out
+
+
 def _soft_spots(
     grid: NDArray[np.float64],
     dip_mm: NDArray[np.float64],
@@ -748,7 +762,13 @@ def _soft_spots(
         # filter matched to it and to a zone's dip sees zones the white threshold misses
         shapes = _zone_shapes(step, trk, wheels, cfg)
         found = matched_dips(grid, scaled, shapes, cfg.noise_factor, cfg.lambda_max_m)
-        cand = add_dips(grid, scaled, cand, found)
+        if found is not None:
+            # the residual's own dips only where the filter's view is cut: within half the
+            # baseline window of an end of the separable profile (elsewhere its long-wave
+            # excursions are what the filter tells from zones)
+            near = _near_end(grid, scaled, 0.5 * cfg.lambda_max_m)
+            cand = [d for d in cand if near[int(np.argmin(np.abs(grid - d.peak_m)))]]
+            cand = add_dips(grid, scaled, cand, found)
     sets = tuple(
         (
             tuple(w + t for w in o),

@@ -64,7 +64,7 @@ def test_needs_two_segments_of_profile_to_measure_the_noise():
     y = _red_noise(np.random.default_rng(1), x.size)
     y[100:110] -= 20.0
     assert noise_spectrum(y, STEP_M, 40.0) is None
-    assert matched_dips(x, y, SHAPES, 4.5, 40.0) == []
+    assert matched_dips(x, y, SHAPES, 4.5, 40.0) is None
 
 
 def test_gaps_are_left_out_of_the_noise_and_the_filter():
