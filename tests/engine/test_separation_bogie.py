@@ -12,6 +12,7 @@ import pytest
 from scipy.linalg import solveh_banded
 
 from benchmarks.accuracy_bogie_separation import CASES, passes_of, score
+from benchmarks.separation_false_alarms import drawn_case
 from engine.chainage import bandpass_distance
 from engine.errors import ParameterError
 from engine.irregularity import random_profile
@@ -156,3 +157,16 @@ def test_matched_detector_finds_zones_the_white_threshold_misses_on_rough_rail()
     assert white["found"] <= 1
     assert matched["found"] == len(case.zones)
     assert matched["false"] == [] and white["false"] == []
+
+
+@pytest.mark.slow
+def test_no_false_spot_from_the_long_waves_on_a_zone_free_rough_track():
+    """Zone-free rough rail (seed 1010 of benchmarks/separation_false_alarms.py, presets 10 %
+    off): the residual's white threshold reports an 11 m spot in the middle of the separable
+    stretch; with the matched filter running there, the default reports none."""
+    case = drawn_case(1010)
+    assert case.zones == ()
+    passes = passes_of(case)["registered presets"]
+    white = separate(passes, config=SeparationConfig(matched_lengths_m=()))
+    assert len(white.soft_spots) == 1
+    assert separate(passes).soft_spots == []
