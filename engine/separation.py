@@ -110,8 +110,10 @@ class SeparationConfig:
         fit (:func:`engine.pass_equalise.equalise_passes`); None: the levels as they are.
     matched_lengths_m : tuple of float
         Zone lengths (m) of the filter matched to a zone's dip and to the compliance's own
-        coloured noise, whose dips are looked for besides the residual's
-        (:func:`engine.matched_dips.matched_dips`, same ``noise_factor``); empty: off.
+        coloured noise (:func:`engine.matched_dips.matched_dips`, same ``noise_factor``):
+        its dips, and the residual's within ``lambda_max_m / 2`` of an end of the separable
+        profile, are the candidates; empty, or too little profile to measure the noise on:
+        the residual's dips alone.
     """
 
     min_passes: int = 2
