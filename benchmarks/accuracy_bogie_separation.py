@@ -8,7 +8,8 @@ logged starts off by up to 1.8 m. The true coach and wagon are 10 % off their pr
 mass or a spring, per case). Each pass is processed once with the registered preset and once
 with the true vehicle; the four are aligned and separated with their wheels, with the
 soft-spot detector matched to the compliance's coloured noise (``engine.matched_dips``,
-"matched") and with the residual's white threshold alone ("white",
+with the residual's dips near the ends of the separable stretch: the default, "matched")
+and with the residual's white threshold alone ("white",
 ``SeparationConfig(matched_lengths_m=())``).
 Reported per zone: both ends' errors (m) and the loss error (pp) of the spot that overlaps
 it, found = both ends within 1.5 m and the loss within 10 pp; spots overlapping no zone
