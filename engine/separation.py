@@ -27,7 +27,7 @@ compliance (as the level dip they cause under a reference load) fitted with the
 beam-on-discrete-supports model (:func:`engine.stiffness.fit_zone`, same band-pass as the
 profile). Details and assumptions: docs/method.md.
 
-One module, about 750 lines: the pass model, the per-point fit, the windowing of the
+One module, about 800 lines: the pass model, the per-point fit, the windowing of the
 result and the soft-spot extraction share the result object and its grid conventions; split,
 each part would import the others' private helpers.
 """
@@ -44,9 +44,10 @@ from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
 from .chainage import bandpass_distance
-from .detect import DetectionConfig, Dip, find_dips, robust_baseline, robust_sigma
+from .detect import DetectionConfig, Dip, add_dips, find_dips, robust_baseline, robust_sigma
 from .errors import ParameterError, check_settings
 from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
+from .matched_dips import matched_dips
 from .pass_equalise import EqualiseConfig, equalise_passes
 from .passes import Pass, align_passes, column_mean_sd, on_grid, pass_from_result
 from .stiffness import InfluenceLine, fit_zone, modal_dips, softening_modes
@@ -107,6 +108,12 @@ class SeparationConfig:
     equalise : EqualiseConfig or None
         Each pass's transfer error relative to the others fitted and taken out before the
         fit (:func:`engine.pass_equalise.equalise_passes`); None: the levels as they are.
+    matched_lengths_m : tuple of float
+        Zone lengths (m) of the filter matched to a zone's dip and to the compliance's own
+        coloured noise (:func:`engine.matched_dips.matched_dips`, same ``noise_factor``):
+        its dips, and the residual's within ``lambda_max_m / 2`` of an end of the separable
+        profile, are the candidates; empty, or too little profile to measure the noise on:
+        the residual's dips alone.
     """
 
     min_passes: int = 2
@@ -124,6 +131,7 @@ class SeparationConfig:
     taper: float = 0.3
     grid_step_m: float | None = None
     equalise: EqualiseConfig | None = field(default_factory=EqualiseConfig)
+    matched_lengths_m: tuple[float, ...] = (3.0, 4.5, 6.0, 8.0, 10.0)
 
     def __post_init__(self) -> None:
         checks = {
@@ -139,6 +147,9 @@ class SeparationConfig:
             "edge_decay_m": self.edge_decay_m is None or self.edge_decay_m > 0,
             "lambda_max_m": 0 < self.lambda_min_m < self.lambda_max_m,
             "grid_step_m": self.grid_step_m is None or 0 < self.grid_step_m <= 1.0,
+            "matched_lengths_m": all(
+                math.isfinite(v) and 0 < v < self.lambda_max_m for v in self.matched_lengths_m
+            ),
         }
         check_settings(self, checks, "separation")
 
@@ -682,6 +693,46 @@ def _slope_wheel_sets(
     return sets or ((((0.0,), (0.0,)), 1.0),)
 
 
+def _zone_shapes(
+    step: float, trk: TrackParams, wheels: tuple[tuple[_View, float], ...], cfg: SeparationConfig
+) -> list[tuple[float, NDArray[np.float64]]]:
+    """Per zone length of ``cfg.matched_lengths_m``, the shape of its compliance dip under
+    the blend of wheels the slope is made of (:func:`_slope_wheel_sets`), band-passed as the
+    profile, on a grid of ``step`` (m), peak 1.
+
+    Small losses: a support at ``s`` gives way under wheels at ``x + o_k`` by ``sum_k f(x + o_k
+    - s)`` (``f`` the nominal influence line) and lowers their mean level by the same sum
+    again, so a zone dips ``sum_s (sum_k f)^2``, a box of the zone's length smoothed by the
+    squared basin; a matched filter needs the shape, not the depth.
+    """
+    infl = InfluenceLine(trk)
+    x = np.arange(-30.0, 30.0 + step / 2, step)
+    basin = np.zeros_like(x)
+    for (offsets, shifts), alpha in wheels:
+        for t in shifts:
+            basin += alpha * sum(infl(x + o + t) for o in offsets) ** 2 / len(shifts)
+    out = []
+    for length in cfg.matched_lengths_m:
+        dip = np.convolve((np.abs(x) <= length / 2).astype(float), basin, mode="same")
+        dip = bandpass_distance(dip, step, cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper)
+        out.append((float(length), dip / float(np.max(np.abs(dip)))))
+    return out
+
+
+def _near_end(
+    grid: NDArray[np.float64], profile: NDArray[np.float64], distance_m: float
+) -> NDArray[np.bool_]:
+    """Where ``profile`` is defined within ``distance_m`` (m) of an end of its run of
+    defined points (on the regular ``grid``, m)."""
+    ok = np.isfinite(profile)
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+    out = np.zeros(grid.size, dtype=bool)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        x = grid[a:b]
+        out[a:b] = np.minimum(x - x[0], x[-1] - x) <= distance_m
+    return out
+
+
 def _soft_spots(
     grid: NDArray[np.float64],
     dip_mm: NDArray[np.float64],
@@ -703,6 +754,18 @@ def _soft_spots(
     scaled = resid / sd_eff
     cand, _ = find_dips(grid, scaled, replace(det, noise_factor=1.0, min_depth_mm=cfg.noise_factor))
     band = (cfg.lambda_min_m, cfg.lambda_max_m, cfg.taper)
+    if cfg.matched_lengths_m:
+        # the compliance's noise is coloured (the passes' long-wave errors differenced): a
+        # filter matched to it and to a zone's dip sees zones the white threshold misses
+        shapes = _zone_shapes(step, trk, wheels, cfg)
+        found = matched_dips(grid, scaled, shapes, cfg.noise_factor, cfg.lambda_max_m)
+        if found is not None:
+            # the residual's own dips only where the filter's view is cut: within half the
+            # baseline window of an end of the separable profile (elsewhere its long-wave
+            # excursions are what the filter tells from zones)
+            near = _near_end(grid, scaled, 0.5 * cfg.lambda_max_m)
+            cand = [d for d in cand if near[int(np.argmin(np.abs(grid - d.peak_m)))]]
+            cand = add_dips(grid, scaled, cand, found)
     sets = tuple(
         (
             tuple(w + t for w in o),
