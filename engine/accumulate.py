@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from .aggregate import column_median_spread, column_nanmedian
 from .align import Alignment, align_profiles
+from .chainage import PRODUCT_BAND_M
 from .detect import (
     DetectionConfig,
     Dip,
@@ -372,8 +373,8 @@ def detect_on_aggregate(
     load_n: float | None = None,
     track: TrackParams | None = None,
     config: DetectionConfig | None = None,
-    lambda_min_m: float = 3.0,
-    lambda_max_m: float = 40.0,
+    lambda_min_m: float = PRODUCT_BAND_M[0],
+    lambda_max_m: float = PRODUCT_BAND_M[1],
     peaks_in_m: tuple[float, float] | None = None,
     cache: ResidualCache | None = None,
 ) -> AggregateDetection:

@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
-from .chainage import bandpass_distance
+from .chainage import PRODUCT_BAND_M, bandpass_distance
 from .detect import DetectionConfig, Dip, add_dips, find_dips, robust_baseline, robust_sigma
 from .errors import ParameterError, check_settings
 from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
@@ -126,8 +126,8 @@ class SeparationConfig:
     reference_load_n: float = 100e3
     edge_factor: float = 0.3
     edge_decay_m: float | None = None
-    lambda_min_m: float = 3.0
-    lambda_max_m: float = 40.0
+    lambda_min_m: float = PRODUCT_BAND_M[0]
+    lambda_max_m: float = PRODUCT_BAND_M[1]
     taper: float = 0.3
     grid_step_m: float | None = None
     equalise: EqualiseConfig | None = field(default_factory=EqualiseConfig)
@@ -341,8 +341,8 @@ def zone_depths(
 def point_load_factor(
     params: TrackParams,
     wheel_offsets_m: tuple[float, ...],
-    lambda_min: float = 3.0,
-    lambda_max: float = 40.0,
+    lambda_min: float = PRODUCT_BAND_M[0],
+    lambda_max: float = PRODUCT_BAND_M[1],
     taper: float = 0.3,
     shifts_m: tuple[float, ...] = (0.0,),
 ) -> float:
