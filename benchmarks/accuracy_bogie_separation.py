@@ -9,11 +9,16 @@ mass or a spring, per case). Each pass is processed once with the registered pre
 with the true vehicle, and once with the preset calibrated (``engine.calibration.calibrate``,
 default configuration) on that vehicle's own passes of the case — what the service has: the
 logs, their logged starts and the preset, never the truth; the calibrated parameters are
-printed against the true vehicle's factors. Each set of four is aligned and separated with
-their wheels, with the soft-spot detector matched to the compliance's coloured noise (``engine.matched_dips``,
-with the residual's dips near the ends of the separable stretch: the default, "matched")
-and with the residual's white threshold alone ("white",
-``SeparationConfig(matched_lengths_m=())``).
+printed against the true vehicle's factors. A fourth set, "calibrated, load declared": each
+run declares its vehicle's true body mass (a weighed load; the only quantity taken from the
+truth), the calibration compares it at that mass and its passes are processed at it (as the
+service does with a run's declared payload or static wheel load). A fifth, "calibrated, load
+declared, softer stage": as the fourth, fitting the pitch inertia and the softer suspension
+stage (the wagon's primary, the coach's secondary: ``softer_stage_fit``). Each set of four passes
+is aligned and separated with their wheels, with the soft-spot detector matched to the
+compliance's coloured noise (``engine.matched_dips``, with the residual's dips near the ends
+of the separable stretch: the default, "matched") and with the residual's white threshold
+alone ("white", ``SeparationConfig(matched_lengths_m=())``).
 Reported per zone: both ends' errors (m) and the loss error (pp) of the spot that overlaps
 it, found = both ends within 1.5 m and the loss within 10 pp; spots overlapping no zone
 (widened 1.5 m) are false; the separable share of the covered points; and the robust spread
@@ -26,7 +31,8 @@ start error, so the zones are compared as simulated.
 developed on those five; ``n101``, ``n202`` and ``n303`` were made after it to judge it.
 ``d<seed>`` is a case drawn from the seed with zones by
 ``separation_false_alarms.drawn_case``; d5000-d5002 were run once to judge the calibrated
-vehicles, after the eight named cases.
+vehicles, after the eight named cases, d5003 and d5004 to judge the declared load, d5005
+and d5006 the softer stage (chosen on ``accuracy_bogie_calibration.py``'s own runs).
 """
 
 from __future__ import annotations
@@ -42,7 +48,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams  # noqa: E402
-from engine.calibration import CalibrationResult, CalibrationRun, calibrate  # noqa: E402
+from engine.calibration import (  # noqa: E402
+    CalibrationConfig,
+    CalibrationResult,
+    CalibrationRun,
+    calibrate,
+)
 from engine.detect import robust_sigma  # noqa: E402
 from engine.passes import Pass, align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
@@ -138,21 +149,43 @@ def runs_of(case: Case) -> tuple[Fleet, list[SyntheticRun]]:
     return fleet, runs
 
 
+def softer_stage_fit(vehicle: BogieParams) -> CalibrationConfig:
+    """Pitch inertia and the softer of the two suspension stages in series, per bogie side
+    (the secondary's spring against its two axle boxes' primaries): the stage that sets the
+    body's bounce, the only one the front/rear disagreement can fix
+    (``benchmarks/accuracy_bogie_calibration.py``)."""
+    primary_softer = 2.0 * vehicle.primary_k_n_per_m < vehicle.secondary_k_n_per_m
+    return CalibrationConfig(fit=("Is", "kp" if primary_softer else "ks"))
+
+
 def calibrations(
-    case: Case, fleet: Fleet, runs: list[SyntheticRun]
+    case: Case,
+    fleet: Fleet,
+    runs: list[SyntheticRun],
+    declared: bool = False,
+    softer_stage: bool = False,
 ) -> dict[str, CalibrationResult]:
     """Each preset calibrated on its own vehicle's passes, by kind, as the service does it:
-    from the logs, their logged starts and the preset alone (default configuration)."""
+    from the logs, their logged starts and the preset (default configuration); with
+    ``declared`` each run also declares its vehicle's true body mass (a weighed load), which
+    the service compares it at; with ``softer_stage`` the fit is :func:`softer_stage_fit`
+    (what a request's ``fit`` can ask for)."""
     return {
         kind: calibrate(
             [
-                CalibrationRun(run.log, run.logged_start_chainage_m, label=f"run {i}")
+                CalibrationRun(
+                    run.log,
+                    run.logged_start_chainage_m,
+                    label=f"run {i}",
+                    body_mass_kg=true.ms if declared else None,
+                )
                 for i, ((k, _, _), run) in enumerate(zip(case.runs, runs, strict=True))
                 if k == kind
             ],
             preset,
-        )
-        for kind, (_, preset) in fleet.items()
+            softer_stage_fit(preset) if softer_stage else None,
+        )  # fmt: skip
+        for kind, (true, preset) in fleet.items()
     }
 
 
@@ -174,15 +207,20 @@ def processed(
 
 
 def vehicle_sets(
-    fleet: Fleet, cals: dict[str, CalibrationResult] | None = None
+    fleet: Fleet, calibrated: dict[str, tuple[dict[str, CalibrationResult], bool]] | None = None
 ) -> dict[str, dict[str, Vehicle]]:
-    """The vehicle sets compared: presets, true vehicles and (given ``cals``) calibrated."""
+    """The vehicle sets compared: presets, true vehicles and the calibrated ones (label ->
+    (the calibrations by kind, whether at the declared true body mass: the service
+    processes a run with a declared load at it))."""
     sets: dict[str, dict[str, Vehicle]] = {
         "registered presets": {kind: preset for kind, (_, preset) in fleet.items()},
         "true vehicles": {kind: true for kind, (true, _) in fleet.items()},
     }
-    if cals is not None:
-        sets["calibrated"] = {kind: cal.params for kind, cal in cals.items()}
+    for label, (cals, declared) in (calibrated or {}).items():
+        sets[label] = {
+            kind: cal.params.with_body_mass(fleet[kind][0].ms) if declared else cal.params
+            for kind, cal in cals.items()
+        }
     return sets
 
 
@@ -192,16 +230,20 @@ def passes_of(case: Case) -> dict[str, list[Pass]]:
     return processed(case, runs, vehicle_sets(fleet))
 
 
-def calibration_row(name: str, kind: str, off: dict[str, float], cal: CalibrationResult) -> str:
-    """One table row: the true vehicle's factors on the preset against the calibrated ones."""
+def calibration_row(
+    name: str, kind: str, off: dict[str, float], cal: CalibrationResult, label: str
+) -> str:
+    """One table row: the true vehicle's factors on the preset against the calibrated ones
+    (on the vehicle calibration started from: the preset, at the declared mass if any)."""
     true = ", ".join(f"{k} ×{v:.2f}" for k, v in off.items())
     fitted = "; ".join(
         f"{', '.join(f.after)} ×{1 + f.change:.3f} ± {f.sd:.3f}"
         + ("" if f.significant else " (n.s.)")
         for f in cal.fitted
     )
+    applied = "applied" if cal.significant else "not"
     return (
-        f"| {name} | {kind} | {true} | {fitted} | {'applied' if cal.significant else 'not'} | "
+        f"| {name} | {kind} | {true} | {label} | {fitted} | {applied} | "
         f"{cal.objective_before:.1%} → {cal.objective_after:.1%} |"
     )
 
@@ -248,11 +290,19 @@ def main() -> None:
     for name in args.cases.split(","):
         case = CASES[name] if name in CASES else drawn(name)
         fleet, runs = runs_of(case)
-        cals = calibrations(case, fleet, runs)
-        by_label = processed(case, runs, vehicle_sets(fleet, cals))
+        calibrated = {
+            "calibrated": (calibrations(case, fleet, runs), False),
+            "calibrated, load declared": (calibrations(case, fleet, runs, declared=True), True),
+            "calibrated, load declared, softer stage": (
+                calibrations(case, fleet, runs, declared=True, softer_stage=True),
+                True,
+            ),
+        }
+        by_label = processed(case, runs, vehicle_sets(fleet, calibrated))
         cal_rows += [
-            calibration_row(name, kind, off, cals[kind])
+            calibration_row(name, kind, off, cals[kind], label)
             for kind, off in (("coach", case.coach_off), ("wagon", case.wagon_off))
+            for label, (cals, _) in calibrated.items()
         ]
         for label, passes in by_label.items():
             for eq_label, cfg in (("white", SeparationConfig(matched_lengths_m=())),
@@ -271,9 +321,11 @@ def main() -> None:
                       f"{sc['found']}/{len(case.zones)} | {', '.join(sc['false']) or 'none'} | "
                       f"{robust_sigma(dip[np.isfinite(dip)]):.3f} mm |", flush=True)  # fmt: skip
     print()
-    print("| case | vehicle | true vehicle (× preset) | calibrated (× preset ± sd) | result "
-          "| front/rear disagreement |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
+    print(
+        "| case | vehicle | true vehicle (× preset) | set | calibrated (× its start: the "
+        "preset, at the declared mass if any; ± sd) | result | front/rear disagreement |"
+    )
+    print("|---|---|---|---|---|---|---|")
     print("\n".join(cal_rows))
     print()
     for (label, eq_label), (f, n, fa) in totals.items():
