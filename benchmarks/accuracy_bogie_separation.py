@@ -1,16 +1,24 @@
 """The separation with bogie vehicles on the engine's own rough-rail runs (issue 32).
 
-Run: ``python benchmarks/accuracy_bogie_separation.py [--cases b43,s7,s11,s19,s23,...]``
+Run: ``python benchmarks/accuracy_bogie_separation.py [--cases b43,s7,s11,s19,s23,...,d5000]``
 
 Per case a track of German low-disturbance rail with 5 % support scatter and two or three
 zones; two coach and two wagon passes at their own speeds through the MEMS sensor at 500 Hz,
 logged starts off by up to 1.8 m. The true coach and wagon are 10 % off their presets (a
 mass or a spring, per case). Each pass is processed once with the registered preset and once
-with the true vehicle; the four are aligned and separated with their wheels, with the
-soft-spot detector matched to the compliance's coloured noise (``engine.matched_dips``,
-with the residual's dips near the ends of the separable stretch: the default, "matched")
-and with the residual's white threshold alone ("white",
-``SeparationConfig(matched_lengths_m=())``).
+with the true vehicle, and once with the preset calibrated (``engine.calibration.calibrate``,
+default configuration) on that vehicle's own passes of the case — what the service has: the
+logs, their logged starts and the preset, never the truth; the calibrated parameters are
+printed against the true vehicle's factors. A fourth set, "calibrated, load declared": each
+run declares its vehicle's true body mass (a weighed load; the only quantity taken from the
+truth), the calibration compares it at that mass and its passes are processed at it (as the
+service does with a run's declared payload or static wheel load). A fifth, "calibrated, load
+declared, softer stage": as the fourth, fitting the pitch inertia and the softer suspension
+stage (the wagon's primary, the coach's secondary: ``softer_stage_fit``). Each set of four passes
+is aligned and separated with their wheels, with the soft-spot detector matched to the
+compliance's coloured noise (``engine.matched_dips``, with the residual's dips near the ends
+of the separable stretch: the default, "matched") and with the residual's white threshold
+alone ("white", ``SeparationConfig(matched_lengths_m=())``).
 Reported per zone: both ends' errors (m) and the loss error (pp) of the spot that overlaps
 it, found = both ends within 1.5 m and the loss within 10 pp; spots overlapping no zone
 (widened 1.5 m) are false; the separable share of the covered points; and the robust spread
@@ -21,6 +29,10 @@ start error, so the zones are compared as simulated.
 ``b43`` is the case the equalisation was developed on (with one other draw); ``s7``, ``s11``,
 ``s19`` and ``s23`` were added afterwards and run once to judge it. The matched detector was
 developed on those five; ``n101``, ``n202`` and ``n303`` were made after it to judge it.
+``d<seed>`` is a case drawn from the seed with zones by
+``separation_false_alarms.drawn_case``; d5000-d5002 were run once to judge the calibrated
+vehicles, after the eight named cases, d5003 and d5004 to judge the declared load, d5005
+and d5006 the softer stage (chosen on ``accuracy_bogie_calibration.py``'s own runs).
 """
 
 from __future__ import annotations
@@ -36,13 +48,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams  # noqa: E402
+from engine.calibration import (  # noqa: E402
+    CalibrationConfig,
+    CalibrationResult,
+    CalibrationRun,
+    calibrate,
+)
 from engine.detect import robust_sigma  # noqa: E402
 from engine.passes import Pass, align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.separation import SeparationConfig, SeparationResult, separate  # noqa: E402
 from engine.setup import RunSetup, prepare_run  # noqa: E402
-from engine.synthetic import REALISTIC_SENSOR, make_run, make_track  # noqa: E402
+from engine.synthetic import REALISTIC_SENSOR, SyntheticRun, make_run, make_track  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
+from engine.vehicle_kinds import Vehicle  # noqa: E402
 
 TOL_M = 1.5
 TOL_PP = 10.0
@@ -108,8 +127,12 @@ def _off(preset: BogieParams, factors: dict[str, float]) -> BogieParams:
     return preset.replace(**{k: getattr(preset, k) * v for k, v in factors.items()})
 
 
-def passes_of(case: Case) -> dict[str, list[Pass]]:
-    """The case's passes, aligned, processed with the presets and with the true vehicles."""
+Fleet = dict[str, tuple[BogieParams, BogieParams]]
+"""Per vehicle kind: (true vehicle, registered preset)."""
+
+
+def runs_of(case: Case) -> tuple[Fleet, list[SyntheticRun]]:
+    """The case's vehicles and its passes' simulated runs (made by the true vehicles)."""
     sensor = dataclasses.replace(REALISTIC_SENSOR, sample_rate_hz=500.0)
     track = make_track(case.length_m, zones=case.zones, jitter=0.05, irregularity="german-low",
                        seed=case.rail_seed)  # fmt: skip
@@ -123,17 +146,106 @@ def passes_of(case: Case) -> dict[str, list[Pass]]:
                  start_error_m=err)
         for i, (kind, v, err) in enumerate(case.runs)
     ]  # fmt: skip
+    return fleet, runs
+
+
+def softer_stage_fit(vehicle: BogieParams) -> CalibrationConfig:
+    """Pitch inertia and the softer of the two suspension stages in series, per bogie side
+    (the secondary's spring against its two axle boxes' primaries): the stage that sets the
+    body's bounce, the only one the front/rear disagreement can fix
+    (``benchmarks/accuracy_bogie_calibration.py``)."""
+    primary_softer = 2.0 * vehicle.primary_k_n_per_m < vehicle.secondary_k_n_per_m
+    return CalibrationConfig(fit=("Is", "kp" if primary_softer else "ks"))
+
+
+def calibrations(
+    case: Case,
+    fleet: Fleet,
+    runs: list[SyntheticRun],
+    declared: bool = False,
+    softer_stage: bool = False,
+) -> dict[str, CalibrationResult]:
+    """Each preset calibrated on its own vehicle's passes, by kind, as the service does it:
+    from the logs, their logged starts and the preset (default configuration); with
+    ``declared`` each run also declares its vehicle's true body mass (a weighed load), which
+    the service compares it at; with ``softer_stage`` the fit is :func:`softer_stage_fit`
+    (what a request's ``fit`` can ask for)."""
+    return {
+        kind: calibrate(
+            [
+                CalibrationRun(
+                    run.log,
+                    run.logged_start_chainage_m,
+                    label=f"run {i}",
+                    body_mass_kg=true.ms if declared else None,
+                )
+                for i, ((k, _, _), run) in enumerate(zip(case.runs, runs, strict=True))
+                if k == kind
+            ],
+            preset,
+            softer_stage_fit(preset) if softer_stage else None,
+        )  # fmt: skip
+        for kind, (true, preset) in fleet.items()
+    }
+
+
+def processed(
+    case: Case, runs: list[SyntheticRun], vehicles: dict[str, dict[str, Vehicle]]
+) -> dict[str, list[Pass]]:
+    """The passes processed with each set of vehicles (label -> kind -> vehicle), aligned."""
     out = {}
-    for label, pick in (("registered presets", 1), ("true vehicles", 0)):
+    for label, by_kind in vehicles.items():
         passes = []
         for i, ((kind, _, _), run) in enumerate(zip(case.runs, runs, strict=True)):
-            veh = fleet[kind][pick]
+            veh = by_kind[kind]
             res = process_run(prepare_run(run.log, RunSetup(run.logged_start_chainage_m,
                                                             vehicle=veh)))  # fmt: skip
             wheels = veh.axle_wheel_offsets_m[0]
             passes.append(pass_from_result(res, label=f"run {i} {kind}", wheel_offsets_m=wheels))
         out[label] = align_passes(passes)[0]
     return out
+
+
+def vehicle_sets(
+    fleet: Fleet, calibrated: dict[str, tuple[dict[str, CalibrationResult], bool]] | None = None
+) -> dict[str, dict[str, Vehicle]]:
+    """The vehicle sets compared: presets, true vehicles and the calibrated ones (label ->
+    (the calibrations by kind, whether at the declared true body mass: the service
+    processes a run with a declared load at it))."""
+    sets: dict[str, dict[str, Vehicle]] = {
+        "registered presets": {kind: preset for kind, (_, preset) in fleet.items()},
+        "true vehicles": {kind: true for kind, (true, _) in fleet.items()},
+    }
+    for label, (cals, declared) in (calibrated or {}).items():
+        sets[label] = {
+            kind: cal.params.with_body_mass(fleet[kind][0].ms) if declared else cal.params
+            for kind, cal in cals.items()
+        }
+    return sets
+
+
+def passes_of(case: Case) -> dict[str, list[Pass]]:
+    """The case's passes, aligned, processed with the presets and with the true vehicles."""
+    fleet, runs = runs_of(case)
+    return processed(case, runs, vehicle_sets(fleet))
+
+
+def calibration_row(
+    name: str, kind: str, off: dict[str, float], cal: CalibrationResult, label: str
+) -> str:
+    """One table row: the true vehicle's factors on the preset against the calibrated ones
+    (on the vehicle calibration started from: the preset, at the declared mass if any)."""
+    true = ", ".join(f"{k} ×{v:.2f}" for k, v in off.items())
+    fitted = "; ".join(
+        f"{', '.join(f.after)} ×{1 + f.change:.3f} ± {f.sd:.3f}"
+        + ("" if f.significant else " (n.s.)")
+        for f in cal.fitted
+    )
+    applied = "applied" if cal.significant else "not"
+    return (
+        f"| {name} | {kind} | {true} | {label} | {fitted} | {applied} | "
+        f"{cal.objective_before:.1%} → {cal.objective_after:.1%} |"
+    )
 
 
 def score(sep: SeparationResult, zones: tuple[SoftZone, ...]) -> dict[str, Any]:
@@ -157,6 +269,15 @@ def score(sep: SeparationResult, zones: tuple[SoftZone, ...]) -> dict[str, Any]:
     return {"cells": "; ".join(cells), "found": found, "false": false}
 
 
+def drawn(name: str) -> Case:
+    """A case ``d<seed>`` drawn with zones by ``separation_false_alarms.drawn_case``."""
+    from benchmarks.separation_false_alarms import drawn_case
+
+    if not (name.startswith("d") and name[1:].isdigit()):
+        raise SystemExit(f"unknown case {name!r}: one of {sorted(CASES)} or d<seed>")
+    return drawn_case(int(name[1:]), zones=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default=",".join(CASES))
@@ -165,9 +286,25 @@ def main() -> None:
           "| false | dip spread at 100 kN |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|")
     totals: dict[tuple[str, str], list[int]] = {}
+    cal_rows = []
     for name in args.cases.split(","):
-        case = CASES[name]
-        for label, passes in passes_of(case).items():
+        case = CASES[name] if name in CASES else drawn(name)
+        fleet, runs = runs_of(case)
+        calibrated = {
+            "calibrated": (calibrations(case, fleet, runs), False),
+            "calibrated, load declared": (calibrations(case, fleet, runs, declared=True), True),
+            "calibrated, load declared, softer stage": (
+                calibrations(case, fleet, runs, declared=True, softer_stage=True),
+                True,
+            ),
+        }
+        by_label = processed(case, runs, vehicle_sets(fleet, calibrated))
+        cal_rows += [
+            calibration_row(name, kind, off, cals[kind], label)
+            for kind, off in (("coach", case.coach_off), ("wagon", case.wagon_off))
+            for label, (cals, _) in calibrated.items()
+        ]
+        for label, passes in by_label.items():
             for eq_label, cfg in (("white", SeparationConfig(matched_lengths_m=())),
                                   ("matched", SeparationConfig())):  # fmt: skip
                 sep = separate(passes, config=cfg)
@@ -183,6 +320,13 @@ def main() -> None:
                       f"{100 * sep.separable[sep.n_passes > 0].mean():.0f} % | {sc['cells']} | "
                       f"{sc['found']}/{len(case.zones)} | {', '.join(sc['false']) or 'none'} | "
                       f"{robust_sigma(dip[np.isfinite(dip)]):.3f} mm |", flush=True)  # fmt: skip
+    print()
+    print(
+        "| case | vehicle | true vehicle (× preset) | set | calibrated (× its start: the "
+        "preset, at the declared mass if any; ± sd) | result | front/rear disagreement |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    print("\n".join(cal_rows))
     print()
     for (label, eq_label), (f, n, fa) in totals.items():
         print(f"{label}, {eq_label}: {f}/{n} zones found, {fa} false")

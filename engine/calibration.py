@@ -111,7 +111,8 @@ DEFAULT_FIT_BY_KIND: dict[str, tuple[str, ...]] = {
 }
 """What is fitted unless told otherwise, per vehicle kind. A bogie vehicle has one secondary
 for both bogies (its datasheet's): the body's pitch inertia and that stiffness; its primary
-(``kp``) is in series with it and barely moves the body in the band (docs/method.md)."""
+(``kp``) is in series with it, identifiable only where it is the softer stage (a freight
+wagon: then ask for ``kp``, else its error is fitted into the secondary; docs/method.md)."""
 
 
 def held_vehicle(vehicle: Vehicle, load_kg: float | None) -> Vehicle:
