@@ -295,6 +295,11 @@ def load_limited(
         return np.asarray((n_passes < c.min_passes) | ~(load_ratio >= c.min_load_ratio))
 
 
+EXTENT_TREND_ORDER = 1
+"""Order of the trend fitted with a zone's extent and loss (:func:`engine.stiffness.fit_zone`
+``trend_order``): a level and a slope across the window, the compliance's long-wave noise
+there. The loss's confidence bounds are fitted on the extent found without it, as before."""
+
 REFERENCE_ZONE_LOSS = 0.45
 """Loss of the 6 m reference zone on which passes with different wheels are made comparable."""
 
@@ -781,8 +786,12 @@ def _soft_spots(
     out: list[SeparatedSpot] = []
     for d in cand:
         with np.errstate(divide="ignore", invalid="ignore"):
+            # the compliance's noise is mostly 10-40 m long: across the fitted window it is
+            # a level and a slope, which a plain misfit reads as a longer zone on its low
+            # side; fitted as a nuisance, the ends follow the dip (method.md §10)
             f = fit_zone(grid, resid, d.start_m, d.end_m, trk, load, cfg.lambda_min_m,
-                         cfg.lambda_max_m, taper=cfg.taper, wheel_sets=sets)  # fmt: skip
+                         cfg.lambda_max_m, taper=cfg.taper, wheel_sets=sets,
+                         trend_order=EXTENT_TREND_ORDER)  # fmt: skip
         if not math.isfinite(f.loss) or f.loss < cfg.min_loss:
             continue
         zone = (grid >= f.start_m - 3.0) & (grid <= f.end_m + 3.0)

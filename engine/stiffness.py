@@ -314,6 +314,7 @@ def fit_zone(
     refine_extent: bool = True,
     wheel_offsets_m: tuple[float, ...] = (0.0,),
     wheel_sets: tuple[tuple[tuple[float, ...], float], ...] | None = None,
+    trend_order: int | None = None,
 ) -> ZoneFit:
     """Fit start, end and stiffness loss of one soft zone to the measured profile.
 
@@ -345,6 +346,11 @@ def fit_zone(
         load of each of its wheels (N; negative subtracts); the modelled dip is the sum of
         the sets' dips. The separation's compliance dip is such a blend of its passes'
         wheels.
+    trend_order : int, optional
+        Also fit a polynomial of this order over the fitted window (a nuisance term: the
+        misfit is taken after projecting it out of the measured-minus-modelled residual).
+        For profiles whose noise is mostly long-wave, where a slope across the zone would
+        otherwise be read as a longer or shorter zone. None: no trend (the default).
 
     Notes
     -----
@@ -403,6 +409,10 @@ def fit_zone(
         g.size, step, lambda_min, lambda_max, taper, np.flatnonzero(near), np.flatnonzero(fit_w)
     )
     meas_fit = meas[fit_w]
+    trend = None  # orthonormal columns spanning the trend over the fitted window
+    if trend_order is not None:
+        u = g[fit_w] - g[fit_w].mean()
+        trend = np.linalg.qr(np.vander(u / max(float(np.ptp(u)), step), trend_order + 1))[0]
 
     def modes(a: float, b: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         pick = np.flatnonzero((sup_x >= a - 1e-6) & (sup_x <= b + 1e-6))
@@ -433,6 +443,8 @@ def fit_zone(
         """RMS misfit of the band-passed modelled dips (one per loss) at the fitted columns."""
         d = modal_dips(lam, E, losses, kn, 1.0)
         d -= meas_fit
+        if trend is not None:
+            d -= (d @ trend) @ trend.T
         d *= d
         return np.sqrt(d.sum(axis=1) / n_fit)
 

@@ -145,3 +145,24 @@ def test_fine_losses_are_the_clipped_linspace():
     for lo, hi in [(0.1, 0.2), (-0.03, 0.05), (0.9, 0.98), (0.3172, 0.3735)]:
         want = np.clip(np.linspace(lo, hi, 9), 0.0, MAX_LOSS)
         assert np.array_equal(_fine_losses(lo, hi), want)
+
+
+def test_fit_with_a_trend_ignores_a_level_and_slope_under_the_dip():
+    """The modelled dip on a level and a slope (long-wave noise across the fitted window,
+    as in the separation's compliance): fitted with a first-order trend, extent and loss are
+    those of the dip alone; with the plain misfit the slope moves the ends or the loss."""
+    p = TrackParams()
+    load = float(np.mean(TABLE1.static_axle_loads()))
+    grid = np.arange(0.0, 200.0, 0.25)
+    start, end, loss = 100.2, 105.6, 0.45
+    model = QuasiStaticModel(p, 0.0, 200.0, grid, load)
+    ref = model.level(np.ones(model.node_x.size))
+    dip = bandpass_distance((model.level(model.factors(start, end, loss)) - ref) * 1e3,
+                            0.25, 3.0, 40.0)  # fmt: skip
+    meas = dip - 0.1 - 0.02 * (grid - 103.0)  # mm: 0.1 mm low, falling 0.02 mm/m
+    fit = fit_zone(grid, meas, start + 0.9, end - 0.9, p, load, 3.0, 40.0, trend_order=1)
+    assert fit.start_m == pytest.approx(start, abs=0.01)
+    assert fit.end_m == pytest.approx(end, abs=0.01)
+    assert fit.loss == pytest.approx(loss, abs=0.005)
+    plain = fit_zone(grid, meas, start + 0.9, end - 0.9, p, load, 3.0, 40.0)
+    assert plain.end_m > end + 0.5 and plain.loss > loss + 0.02  # late and deep
