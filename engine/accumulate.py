@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from .aggregate import column_median_spread, column_nanmedian
 from .align import Alignment, align_profiles
-from .chainage import PRODUCT_BAND_M
+from .chainage import PRODUCT_BAND_M, to_grid
 from .detect import (
     DetectionConfig,
     Dip,
@@ -584,7 +584,8 @@ def accumulate(
     Parameters
     ----------
     chainages_m, levels_mm : sequences of ndarray
-        Each pass's regular chainage grid (m, step ``step_m``) and level (mm).
+        Each pass's regular chainage grid (m, step ``step_m``; increasing or decreasing, as
+        the run was driven) and level (mm).
     step_m : float
         Grid step, m.
     max_shift_m : float
@@ -616,8 +617,7 @@ def accumulate(
         out = np.full((n, grid.size), np.nan)
         for j in range(n):
             c = np.asarray(chainages_m[j], dtype=np.float64) + offsets[j]
-            out[j] = np.interp(grid, c, np.asarray(levels_mm[j], dtype=np.float64),
-                               left=np.nan, right=np.nan)  # fmt: skip
+            out[j] = to_grid(c, np.asarray(levels_mm[j], dtype=np.float64), grid)
         return out
 
     levels = place()

@@ -96,6 +96,22 @@ def test_accumulate_keeps_every_pass_and_aligns_noisy_ones_against_the_others() 
     assert not alone[0].aligned and alone[0].offset_m == 0.0
 
 
+def test_a_pass_given_in_decreasing_chainage_joins_as_the_same_pass_increasing() -> None:
+    """A run driven towards decreasing chainage, handed over in its own sample order, is
+    placed exactly as the same samples in increasing order (it used to come out all NaN:
+    interpolation needs increasing abscissae)."""
+    rng = np.random.default_rng(5)
+    n = 2000
+    grid = np.arange(n) * STEP
+    signal = band(rng, n, 0.03) + dips(grid, (200.0,), 0.3, 5.0)
+    other = signal + band(rng, n, 0.01)
+    _, up, _ = accumulate([grid, grid + 0.4], [signal, other])
+    _, down, placed = accumulate([grid, (grid + 0.4)[::-1]], [signal, other[::-1]])
+    assert np.isfinite(down[1]).sum() == np.isfinite(up[1]).sum() > n // 2
+    np.testing.assert_array_equal(down, up)
+    assert placed[1].aligned
+
+
 def test_detection_on_the_combination_finds_what_no_single_pass_sees() -> None:
     """Dips at 2.5 sigma of one pass's noise: one pass finds none; 16 passes combined find
     both at the right place and nothing else; pure noise combined gives no spot."""
