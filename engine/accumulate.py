@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import threading
-from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -43,6 +41,7 @@ from .detect import (
 )
 from .errors import ParameterError
 from .geometry_check import is_smooth_rail
+from .kept import KeptArrays
 from .track import TrackParams
 
 MIN_Z = 8.0
@@ -177,17 +176,17 @@ class ResidualCache:
     """
 
     def __init__(self, max_bytes: int = 64 * 2**20) -> None:
-        if max_bytes < 1:
-            raise ParameterError("max_bytes must be at least 1 byte", field="max_bytes")
-        self.max_bytes = max_bytes
-        self._rows: OrderedDict[bytes, NDArray[np.float64]] = OrderedDict()
-        self._bytes = 0
-        self._lock = threading.Lock()
+        self._rows = KeptArrays(max_bytes)
+
+    @property
+    def max_bytes(self) -> int:
+        """Memory the kept rows may take, bytes."""
+        return self._rows.max_bytes
 
     @property
     def nbytes(self) -> int:
         """Memory the kept rows take, bytes."""
-        return self._bytes
+        return self._rows.nbytes
 
     def residual(
         self, row: NDArray[np.float64], step_m: float, window_m: float
@@ -199,21 +198,12 @@ class ResidualCache:
         h = hashlib.sha256(row.data.cast("B"))
         h.update(np.array([step_m, window_m, row.size], dtype=np.float64).tobytes())
         key = h.digest()
-        with self._lock:
-            got = self._rows.get(key)
-            if got is not None:
-                self._rows.move_to_end(key)
-                return got.copy()
+        got = self._rows.get(key)
+        if got is not None:
+            return got.copy()
         out = row - robust_baseline(row, step_m, window_m)
-        if out.nbytes > self.max_bytes:
-            return out
-        with self._lock:
-            if key not in self._rows:
-                self._rows[key] = out.copy()
-                self._bytes += out.nbytes
-            while self._bytes > self.max_bytes:
-                _, dropped = self._rows.popitem(last=False)
-                self._bytes -= dropped.nbytes
+        if out.nbytes <= self.max_bytes:
+            self._rows.put(key, out.copy(), out.nbytes)
         return out
 
 

@@ -15,13 +15,13 @@ float32 mantissas are noise to a compressor.
 from __future__ import annotations
 
 import struct
-import threading
-from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pyarrow as pa
 from numpy.typing import NDArray
+
+from engine.kept import KeptArrays
 
 LEVEL_RESOLUTION_MM = 0.0001
 """Resolution of a stored level, mm (values are rounded to it)."""
@@ -168,38 +168,27 @@ class KeptUnpacks:
     """
 
     def __init__(self, max_bytes: int = 32 * 2**20) -> None:
-        if max_bytes < 1:
-            raise ValueError("max_bytes must be at least 1 byte")
-        self.max_bytes = max_bytes
-        self._kept: OrderedDict[bytes, NDArray[np.float64]] = OrderedDict()
-        self._bytes = 0
-        self._lock = threading.Lock()
+        self._kept = KeptArrays(max_bytes)
+
+    @property
+    def max_bytes(self) -> int:
+        """Memory the kept blobs and arrays may take, bytes."""
+        return self._kept.max_bytes
 
     @property
     def nbytes(self) -> int:
         """Memory the kept blobs and arrays take, bytes."""
-        return self._bytes
+        return self._kept.nbytes
 
     def __call__(self, blob: bytes | memoryview) -> NDArray[np.float64]:
         """``unpack_floats(blob)``, read-only (the kept array is shared by every caller)."""
         key = bytes(blob)
-        with self._lock:
-            got = self._kept.get(key)
-            if got is not None:
-                self._kept.move_to_end(key)
-                return got
+        got = self._kept.get(key)
+        if got is not None:
+            return got
         out = unpack_floats(key)
         out.flags.writeable = False
-        size = len(key) + out.nbytes
-        if size > self.max_bytes:
-            return out
-        with self._lock:
-            if key not in self._kept:
-                self._kept[key] = out
-                self._bytes += size
-            while self._bytes > self.max_bytes:
-                old, arr = self._kept.popitem(last=False)
-                self._bytes -= len(old) + arr.nbytes
+        self._kept.put(key, out, len(key) + out.nbytes)
         return out
 
 
