@@ -157,7 +157,7 @@ def residuals(
     return np.stack([row - robust_baseline(row, step_m, window_m) for row in lv])
 
 
-class ResidualCache:
+class ResidualCache(KeptArrays):
     """The residuals (:func:`residuals`) of the passes' level rows seen last, by content.
 
     A track's combined detection runs again on every pass that arrives, over the same
@@ -176,17 +176,7 @@ class ResidualCache:
     """
 
     def __init__(self, max_bytes: int = 64 * 2**20) -> None:
-        self._rows = KeptArrays(max_bytes)
-
-    @property
-    def max_bytes(self) -> int:
-        """Memory the kept rows may take, bytes."""
-        return self._rows.max_bytes
-
-    @property
-    def nbytes(self) -> int:
-        """Memory the kept rows take, bytes."""
-        return self._rows.nbytes
+        super().__init__(max_bytes)
 
     def residual(
         self, row: NDArray[np.float64], step_m: float, window_m: float
@@ -198,12 +188,12 @@ class ResidualCache:
         h = hashlib.sha256(row.data.cast("B"))
         h.update(np.array([step_m, window_m, row.size], dtype=np.float64).tobytes())
         key = h.digest()
-        got = self._rows.get(key)
+        got = self.get(key)
         if got is not None:
             return got.copy()
         out = row - robust_baseline(row, step_m, window_m)
         if out.nbytes <= self.max_bytes:
-            self._rows.put(key, out.copy(), out.nbytes)
+            self.put(key, out.copy(), out.nbytes)
         return out
 
 

@@ -109,7 +109,7 @@ def test_residual_cache_gives_the_same_residuals_and_refilters_a_changed_row() -
     np.testing.assert_array_equal(
         residuals(moved, STEP, 40.0, cache=cache), residuals(moved, STEP, 40.0)
     )
-    assert len(cache._rows) == 5
+    assert len(cache) == 5
     assert cache.nbytes == 5 * lv[0].nbytes
     with pytest.raises(ParameterError) as e:
         ResidualCache(max_bytes=0)

@@ -149,7 +149,7 @@ def pack_f4(values: NDArray[np.floating]) -> bytes:
 unpack_f4 = unpack_floats
 
 
-class KeptUnpacks:
+class KeptUnpacks(KeptArrays):
     """:func:`unpack_floats` of the blobs unpacked last, kept by the blobs' bytes.
 
     A track's chunks of aligned levels and wheel forces are read again by every pass that
@@ -168,27 +168,17 @@ class KeptUnpacks:
     """
 
     def __init__(self, max_bytes: int = 32 * 2**20) -> None:
-        self._kept = KeptArrays(max_bytes)
-
-    @property
-    def max_bytes(self) -> int:
-        """Memory the kept blobs and arrays may take, bytes."""
-        return self._kept.max_bytes
-
-    @property
-    def nbytes(self) -> int:
-        """Memory the kept blobs and arrays take, bytes."""
-        return self._kept.nbytes
+        super().__init__(max_bytes)
 
     def __call__(self, blob: bytes | memoryview) -> NDArray[np.float64]:
         """``unpack_floats(blob)``, read-only (the kept array is shared by every caller)."""
         key = bytes(blob)
-        got = self._kept.get(key)
+        got = self.get(key)
         if got is not None:
             return got
         out = unpack_floats(key)
         out.flags.writeable = False
-        self._kept.put(key, out, len(key) + out.nbytes)
+        self.put(key, out, len(key) + out.nbytes)
         return out
 
 
