@@ -166,3 +166,24 @@ def test_fit_with_a_trend_ignores_a_level_and_slope_under_the_dip():
     assert fit.loss == pytest.approx(loss, abs=0.005)
     plain = fit_zone(grid, meas, start + 0.9, end - 0.9, p, load, 3.0, 40.0)
     assert plain.end_m > end + 0.5 and plain.loss > loss + 0.02  # late and deep
+
+
+@pytest.mark.parametrize("start, end, loss", [(100.2, 103.8, 0.5), (100.2, 105.6, 0.45),
+                                              (100.2, 106.8, 0.35)])  # fmt: skip
+def test_fit_from_a_longer_seed_moves_the_ends_to_the_dip(start, end, loss):
+    """Seeded with a 10 m span about the dip's centre (the matched detector's longest shape,
+    engine.matched_dips), the extent search with the trend shrinks both ends to the zone's:
+    the seed does not hold the ends, the misfit does."""
+    p = TrackParams()
+    load = float(np.mean(TABLE1.static_axle_loads()))
+    grid = np.arange(0.0, 200.0, 0.25)
+    model = QuasiStaticModel(p, 0.0, 200.0, grid, load)
+    ref = model.level(np.ones(model.node_x.size))
+    dip = bandpass_distance((model.level(model.factors(start, end, loss)) - ref) * 1e3,
+                            0.25, 3.0, 40.0)  # fmt: skip
+    meas = dip - 0.1 - 0.02 * (grid - 103.0)  # mm: a level and a slope under the dip
+    centre = 0.5 * (start + end)
+    fit = fit_zone(grid, meas, centre - 5.0, centre + 5.0, p, load, 3.0, 40.0, trend_order=1)
+    assert fit.start_m == pytest.approx(start, abs=0.01)
+    assert fit.end_m == pytest.approx(end, abs=0.01)
+    assert fit.loss == pytest.approx(loss, abs=0.005)
