@@ -239,9 +239,12 @@ def calibration_row(
     fitted = "; ".join(
         f"{', '.join(f.after)} ×{1 + f.change:.3f} ± {f.sd:.3f}"
         + ("" if f.significant else " (n.s.)")
+        + (" (at bound)" if f.at_bound else "")
         for f in cal.fitted
     )
-    applied = "applied" if cal.significant else "not"
+    applied = (
+        "applied " + "+".join(f.name for f in cal.fitted if f.applied) if cal.significant else "not"
+    )
     return (
         f"| {name} | {kind} | {true} | {label} | {fitted} | {applied} | "
         f"{cal.objective_before:.1%} → {cal.objective_after:.1%} |"
