@@ -49,6 +49,7 @@ import numpy as np  # noqa: E402
 
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams  # noqa: E402
 from engine.calibration import (  # noqa: E402
+    DEFAULT_FIT_BY_KIND,
     CalibrationConfig,
     CalibrationResult,
     CalibrationRun,
@@ -158,18 +159,27 @@ def softer_stage_fit(vehicle: BogieParams) -> CalibrationConfig:
     return CalibrationConfig(fit=("Is", "kp" if primary_softer else "ks"))
 
 
+def plus_softer_fit(vehicle: BogieParams) -> CalibrationConfig | None:
+    """The default fit, with the primary (``kp``) added where it is the softer stage (the
+    candidate default judged by the "calibrated, + kp where softer" rows); else the default."""
+    if 2.0 * vehicle.primary_k_n_per_m < vehicle.secondary_k_n_per_m:
+        return CalibrationConfig(fit=(*DEFAULT_FIT_BY_KIND[vehicle.kind], "kp"))
+    return None
+
+
 def calibrations(
     case: Case,
     fleet: Fleet,
     runs: list[SyntheticRun],
     declared: bool = False,
     softer_stage: bool = False,
+    plus_softer: bool = False,
 ) -> dict[str, CalibrationResult]:
     """Each preset calibrated on its own vehicle's passes, by kind, as the service does it:
     from the logs, their logged starts and the preset (default configuration); with
     ``declared`` each run also declares its vehicle's true body mass (a weighed load), which
     the service compares it at; with ``softer_stage`` the fit is :func:`softer_stage_fit`
-    (what a request's ``fit`` can ask for)."""
+    (what a request's ``fit`` can ask for); with ``plus_softer`` it is :func:`plus_softer_fit`."""
     return {
         kind: calibrate(
             [
@@ -183,7 +193,11 @@ def calibrations(
                 if k == kind
             ],
             preset,
-            softer_stage_fit(preset) if softer_stage else None,
+            softer_stage_fit(preset)
+            if softer_stage
+            else plus_softer_fit(preset)
+            if plus_softer
+            else None,
         )  # fmt: skip
         for kind, (true, preset) in fleet.items()
     }
@@ -295,6 +309,10 @@ def main() -> None:
         fleet, runs = runs_of(case)
         calibrated = {
             "calibrated": (calibrations(case, fleet, runs), False),
+            "calibrated, + kp where softer": (
+                calibrations(case, fleet, runs, plus_softer=True),
+                False,
+            ),
             "calibrated, load declared": (calibrations(case, fleet, runs, declared=True), True),
             "calibrated, load declared, softer stage": (
                 calibrations(case, fleet, runs, declared=True, softer_stage=True),
