@@ -14,7 +14,9 @@ run declares its vehicle's true body mass (a weighed load; the only quantity tak
 truth), the calibration compares it at that mass and its passes are processed at it (as the
 service does with a run's declared payload or static wheel load). A fifth, "calibrated, load
 declared, softer stage": as the fourth, fitting the pitch inertia and the softer suspension
-stage (the wagon's primary, the coach's secondary: ``softer_stage_fit``). Each set of four passes
+stage (the wagon's primary, the coach's secondary: ``softer_stage_fit``). A sixth,
+"calibrated, + kp where softer": as "calibrated" with the primary fitted too where it is the
+softer stage (``plus_softer_fit``, a candidate default). Each set of four passes
 is aligned and separated with their wheels, with the soft-spot detector matched to the
 compliance's coloured noise (``engine.matched_dips``, with the residual's dips near the ends
 of the separable stretch: the default, "matched") and with the residual's white threshold
@@ -32,7 +34,8 @@ developed on those five; ``n101``, ``n202`` and ``n303`` were made after it to j
 ``d<seed>`` is a case drawn from the seed with zones by
 ``separation_false_alarms.drawn_case``; d5000-d5002 were run once to judge the calibrated
 vehicles, after the eight named cases, d5003 and d5004 to judge the declared load, d5005
-and d5006 the softer stage (chosen on ``accuracy_bogie_calibration.py``'s own runs).
+and d5006 the softer stage (chosen on ``accuracy_bogie_calibration.py``'s own runs),
+d5007-d5014 the primary in the default fit.
 """
 
 from __future__ import annotations

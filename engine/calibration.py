@@ -112,7 +112,9 @@ DEFAULT_FIT_BY_KIND: dict[str, tuple[str, ...]] = {
 """What is fitted unless told otherwise, per vehicle kind. A bogie vehicle has one secondary
 for both bogies (its datasheet's): the body's pitch inertia and that stiffness; its primary
 (``kp``) is in series with it, identifiable only where it is the softer stage (a freight
-wagon: then ask for ``kp``, else its error is fitted into the secondary; docs/method.md)."""
+wagon: then ask for ``kp``, else its error is fitted into the secondary). Fitting ``kp`` by
+default on such a vehicle did not improve the separation (docs/accuracy.md, "The wagon's
+primary in the default fit?"), so it is not the default."""
 
 
 def held_vehicle(vehicle: Vehicle, load_kg: float | None) -> Vehicle:
