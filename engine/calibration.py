@@ -410,9 +410,12 @@ class CalibrationResult:
 
     def estimates(self) -> dict[str, tuple[float, float]]:
         """Fitted vehicle parameters with absolute standard uncertainties, SI: name -> (value,
-        sd) (what the suspension-health history records)."""
+        sd) (what the suspension-health history records); a value at the fit's bound is no
+        estimate and is left out."""
         out: dict[str, tuple[float, float]] = {}
         for f in self.fitted:
+            if f.at_bound:
+                continue
             for name, value in f.after.items():
                 sd = f.sd * value if FITTABLE[f.name].kind == "scale" else f.sd
                 out[name] = (value, abs(sd))

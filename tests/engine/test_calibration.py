@@ -271,6 +271,7 @@ def test_only_significant_parameters_inside_the_range_are_applied(monkeypatch):
     assert by["Is"].applied and not by["Is"].at_bound
     assert by["ks1"].significant and by["ks1"].at_bound and not by["ks1"].applied
     assert by["ks1"].after["ks1"] > 3.3 * TABLE1.ks1  # the fit's value is still reported
+    assert set(res.estimates()) == {"Is", "ks2"}  # but is no estimate for the health history
     assert not by["ks2"].significant and not by["ks2"].at_bound and not by["ks2"].applied
     assert "ks1 kept as registered (at the fit's bound)" in res.message
     assert "ks2 kept as registered (not significant)" in res.message
