@@ -51,13 +51,15 @@ SHORT = {
 
 
 def cell(cal: CalibrationResult) -> str:
-    """Fitted factors (``*``: significant), applied or not, disagreement before -> after."""
+    """Fitted factors (``*``: significant), those applied, disagreement before -> after."""
     parts = [
         f"{SHORT.get(name, name)} ×{value / before:.2f}{'*' if f.significant else ''}"
         for f in cal.fitted
         for (name, value), before in zip(f.after.items(), f.before.values(), strict=True)
     ]
-    applied = "applied" if cal.significant else "not"
+    applied = (
+        "applied " + "+".join(f.name for f in cal.fitted if f.applied) if cal.significant else "not"
+    )
     return f"{', '.join(parts)} ({applied}; {cal.objective_before:.1%} → {cal.objective_after:.1%})"
 
 

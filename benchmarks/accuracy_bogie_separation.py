@@ -14,7 +14,9 @@ run declares its vehicle's true body mass (a weighed load; the only quantity tak
 truth), the calibration compares it at that mass and its passes are processed at it (as the
 service does with a run's declared payload or static wheel load). A fifth, "calibrated, load
 declared, softer stage": as the fourth, fitting the pitch inertia and the softer suspension
-stage (the wagon's primary, the coach's secondary: ``softer_stage_fit``). Each set of four passes
+stage (the wagon's primary, the coach's secondary: ``softer_stage_fit``). A sixth,
+"calibrated, + kp where softer": as "calibrated" with the primary fitted too where it is the
+softer stage (``plus_softer_fit``, a candidate default). Each set of four passes
 is aligned and separated with their wheels, with the soft-spot detector matched to the
 compliance's coloured noise (``engine.matched_dips``, with the residual's dips near the ends
 of the separable stretch: the default, "matched") and with the residual's white threshold
@@ -32,7 +34,8 @@ developed on those five; ``n101``, ``n202`` and ``n303`` were made after it to j
 ``d<seed>`` is a case drawn from the seed with zones by
 ``separation_false_alarms.drawn_case``; d5000-d5002 were run once to judge the calibrated
 vehicles, after the eight named cases, d5003 and d5004 to judge the declared load, d5005
-and d5006 the softer stage (chosen on ``accuracy_bogie_calibration.py``'s own runs).
+and d5006 the softer stage (chosen on ``accuracy_bogie_calibration.py``'s own runs),
+d5007-d5014 the primary in the default fit.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ import numpy as np  # noqa: E402
 
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams  # noqa: E402
 from engine.calibration import (  # noqa: E402
+    DEFAULT_FIT_BY_KIND,
     CalibrationConfig,
     CalibrationResult,
     CalibrationRun,
@@ -158,18 +162,27 @@ def softer_stage_fit(vehicle: BogieParams) -> CalibrationConfig:
     return CalibrationConfig(fit=("Is", "kp" if primary_softer else "ks"))
 
 
+def plus_softer_fit(vehicle: BogieParams) -> CalibrationConfig | None:
+    """The default fit, with the primary (``kp``) added where it is the softer stage (the
+    candidate default judged by the "calibrated, + kp where softer" rows); else the default."""
+    if 2.0 * vehicle.primary_k_n_per_m < vehicle.secondary_k_n_per_m:
+        return CalibrationConfig(fit=(*DEFAULT_FIT_BY_KIND[vehicle.kind], "kp"))
+    return None
+
+
 def calibrations(
     case: Case,
     fleet: Fleet,
     runs: list[SyntheticRun],
     declared: bool = False,
     softer_stage: bool = False,
+    plus_softer: bool = False,
 ) -> dict[str, CalibrationResult]:
     """Each preset calibrated on its own vehicle's passes, by kind, as the service does it:
     from the logs, their logged starts and the preset (default configuration); with
     ``declared`` each run also declares its vehicle's true body mass (a weighed load), which
     the service compares it at; with ``softer_stage`` the fit is :func:`softer_stage_fit`
-    (what a request's ``fit`` can ask for)."""
+    (what a request's ``fit`` can ask for); with ``plus_softer`` it is :func:`plus_softer_fit`."""
     return {
         kind: calibrate(
             [
@@ -183,7 +196,11 @@ def calibrations(
                 if k == kind
             ],
             preset,
-            softer_stage_fit(preset) if softer_stage else None,
+            softer_stage_fit(preset)
+            if softer_stage
+            else plus_softer_fit(preset)
+            if plus_softer
+            else None,
         )  # fmt: skip
         for kind, (true, preset) in fleet.items()
     }
@@ -239,9 +256,12 @@ def calibration_row(
     fitted = "; ".join(
         f"{', '.join(f.after)} ×{1 + f.change:.3f} ± {f.sd:.3f}"
         + ("" if f.significant else " (n.s.)")
+        + (" (at bound)" if f.at_bound else "")
         for f in cal.fitted
     )
-    applied = "applied" if cal.significant else "not"
+    applied = (
+        "applied " + "+".join(f.name for f in cal.fitted if f.applied) if cal.significant else "not"
+    )
     return (
         f"| {name} | {kind} | {true} | {label} | {fitted} | {applied} | "
         f"{cal.objective_before:.1%} → {cal.objective_after:.1%} |"
@@ -292,6 +312,10 @@ def main() -> None:
         fleet, runs = runs_of(case)
         calibrated = {
             "calibrated": (calibrations(case, fleet, runs), False),
+            "calibrated, + kp where softer": (
+                calibrations(case, fleet, runs, plus_softer=True),
+                False,
+            ),
             "calibrated, load declared": (calibrations(case, fleet, runs, declared=True), True),
             "calibrated, load declared, softer stage": (
                 calibrations(case, fleet, runs, declared=True, softer_stage=True),

@@ -49,7 +49,8 @@ def main() -> None:
         fitted = ", ".join(
             f"{f.name} {100 * f.change:+.1f} % (sd {100 * f.sd:.1f})" for f in res.fitted
         )
-        print(f"{name}: {fitted}; {'applied' if res.significant else 'not significant'}")
+        applied = "+".join(f.name for f in res.fitted if f.applied)
+        print(f"{name}: {fitted}; {'applied ' + applied if res.significant else 'not significant'}")
 
 
 if __name__ == "__main__":

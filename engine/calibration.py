@@ -112,7 +112,9 @@ DEFAULT_FIT_BY_KIND: dict[str, tuple[str, ...]] = {
 """What is fitted unless told otherwise, per vehicle kind. A bogie vehicle has one secondary
 for both bogies (its datasheet's): the body's pitch inertia and that stiffness; its primary
 (``kp``) is in series with it, identifiable only where it is the softer stage (a freight
-wagon: then ask for ``kp``, else its error is fitted into the secondary; docs/method.md)."""
+wagon: then ask for ``kp``, else its error is fitted into the secondary). Fitting ``kp`` by
+default on such a vehicle did not improve the separation (docs/accuracy.md, "The wagon's
+primary in the default fit?"), so it is not the default."""
 
 
 def held_vehicle(vehicle: Vehicle, load_kg: float | None) -> Vehicle:
@@ -134,6 +136,14 @@ SYSTEMATIC_SD: dict[str, float] = {"scale": 0.02, "offset": 0.05}
 statistical one: on runs of a vehicle that matches its registration the fit still moves the
 parameters by up to ~2-4 % (the front and rear loaded levels differ a little: different axle
 loads, dynamic wheel force), far more than the segment scatter says."""
+
+FIT_BOUND: dict[str, float] = {"scale": 1.2, "offset": 10.0}
+"""The fit's range per kind of quantity: ``|theta|`` at most this (a factor ×0.30-×3.32 for
+scale quantities, ±10 m for positions)."""
+
+AT_BOUND_TOL = 0.1
+"""A fitted value within this fraction of its quantity's step scale (0.1 in log factor,
+0.5 m: 1 % or 0.05 m) of :data:`FIT_BOUND` is "at the bound" and never applied."""
 
 
 @dataclass(frozen=True)
@@ -317,6 +327,11 @@ class FittedParameter:
         False when the uncertainty is too large for the data to fix it.
     significant : bool
         ``|change| > significance * sd`` (and identified).
+    at_bound : bool
+        The fitted value sits at the fit's range (:data:`FIT_BOUND`).
+    applied : bool
+        In the result's vehicle: significant, not at the bound, and the result significant.
+        Otherwise the registered value is kept (``after`` is the fit's value all the same).
     """
 
     name: str
@@ -328,6 +343,8 @@ class FittedParameter:
     sd: float
     identified: bool
     significant: bool
+    at_bound: bool = False
+    applied: bool = False
 
 
 @dataclass(frozen=True)
@@ -393,9 +410,12 @@ class CalibrationResult:
 
     def estimates(self) -> dict[str, tuple[float, float]]:
         """Fitted vehicle parameters with absolute standard uncertainties, SI: name -> (value,
-        sd) (what the suspension-health history records)."""
+        sd) (what the suspension-health history records); a value at the fit's bound is no
+        estimate and is left out."""
         out: dict[str, tuple[float, float]] = {}
         for f in self.fitted:
+            if f.at_bound:
+                continue
             for name, value in f.after.items():
                 sd = f.sd * value if FITTABLE[f.name].kind == "scale" else f.sd
                 out[name] = (value, abs(sd))
@@ -493,8 +513,8 @@ def calibrate(
     theta0 = np.zeros(k)
     r0 = residual(theta0)
     scale = np.array([0.1 if FITTABLE[f].kind == "scale" else 0.5 for f in fit])
-    lower = np.array([-1.2 if FITTABLE[f].kind == "scale" else -10.0 for f in fit])
-    upper = -lower
+    upper = np.array([FIT_BOUND[FITTABLE[f].kind] for f in fit])
+    lower = -upper
     sol = least_squares(
         residual, theta0, x_scale=scale, bounds=(lower, upper), diff_step=1e-3,
         xtol=1e-4, ftol=1e-6, max_nfev=60,
@@ -507,10 +527,8 @@ def calibrate(
     J1 = float(np.sum(r1**2))
     if J1 > J0:  # never worse than the registered vehicle
         theta, J1, ev1 = theta0, J0, ev0
-    params = _vehicle_at(base, fit, theta)
-    improvement = 1.0 - J1 / J0 if J0 > 0 else 0.0
-    fitted: list[FittedParameter] = []
     not_identified = not_identifiable(base.kind)
+    rows: list[dict[str, Any]] = []
     for i, name in enumerate(fit):
         fdef = FITTABLE[name]
         change = math.expm1(theta[i]) if fdef.kind == "scale" else float(theta[i])
@@ -526,15 +544,34 @@ def calibrate(
             )
         floor = cfg.min_change * (1.0 if scale_kind else 10.0)
         significant = identified and abs(change) > max(cfg.significance * s_i, floor)
-        fitted.append(
-            FittedParameter(
-                name=name, description=fdef.description, unit=fdef.unit,
-                before={t: float(getattr(base, t)) for t in fdef.targets_of(base.kind)},
-                after={t: float(getattr(params, t)) for t in fdef.targets_of(base.kind)},
-                change=float(change), sd=s_i, identified=identified, significant=significant,
+        at_bound = bool(abs(theta[i]) >= upper[i] - AT_BOUND_TOL * scale[i])
+        rows.append(
+            dict(
+                name=name, description=fdef.description, unit=fdef.unit, change=float(change),
+                sd=s_i, identified=identified, significant=significant, at_bound=at_bound,
             )
         )  # fmt: skip
-    significant = any(f.significant for f in fitted) and improvement >= cfg.min_improvement
+    # Only parameters that are significant and inside the fit's range are applied; the
+    # others keep their registered values (a value at the bound is the fit running away
+    # with an error it cannot place, not an estimate).
+    keep = np.array([r["significant"] and not r["at_bound"] for r in rows], dtype=bool)
+    theta_applied = np.where(keep, theta, 0.0)
+    ev_applied = evaluate(theta_applied)
+    J_applied = float(np.sum(residual(theta_applied) ** 2))
+    improvement = 1.0 - J_applied / J0 if J0 > 0 else 0.0
+    significant = bool(keep.any()) and improvement >= cfg.min_improvement
+    params = _vehicle_at(base, fit, theta)
+    fitted = [
+        FittedParameter(
+            **r,
+            before={t: float(getattr(base, t)) for t in FITTABLE[r["name"]].targets_of(base.kind)},
+            after={t: float(getattr(params, t)) for t in FITTABLE[r["name"]].targets_of(base.kind)},
+            applied=significant and bool(k),
+        )
+        for r, k in zip(rows, keep, strict=True)
+    ]
+    if significant:  # what the result's vehicle gives: the applied parameters alone
+        J1, ev1 = J_applied, ev_applied
     per_run = []
     for r_i, (label, secs) in enumerate(used):
         per_run.append(
@@ -553,10 +590,17 @@ def calibrate(
             if FITTABLE[f.name].kind == "scale"
             else f"{f.name} {f.change:+.2f} ± {f.sd:.2f} m"
             for f in fitted
-            if f.significant
+            if f.applied
+        )
+        kept = "".join(
+            f"; {f.name} kept as registered ("
+            + ("at the fit's bound" if f.at_bound else "not significant")
+            + ")"
+            for f in fitted
+            if not f.applied
         )
         message = (
-            f"calibrated: {changed}; front/rear disagreement {math.sqrt(J0):.1%} -> "
+            f"calibrated: {changed}{kept}; front/rear disagreement {math.sqrt(J0):.1%} -> "
             f"{math.sqrt(J1):.1%} of the level over {len(used)} run(s)"
         )
     else:
@@ -566,7 +610,7 @@ def calibrate(
             "within its uncertainty or too small to matter)"
         )
     # params reported only when significant: otherwise the registered vehicle stands
-    result_params = params if significant else base
+    result_params = _vehicle_at(base, fit, theta_applied) if significant else base
     scans = _scans(evaluate, theta, sd, fit)
     return CalibrationResult(
         params=result_params,

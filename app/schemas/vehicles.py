@@ -282,6 +282,12 @@ class FittedParameterPublic(BaseModel):
     sd: float = Field(description="Standard uncertainty of the change (same unit)")
     identified: bool
     significant: bool
+    at_bound: bool = Field(False, description="The fitted value sits at the fit's range")
+    applied: bool = Field(
+        False,
+        description="In the calibrated vehicle (significant, not at the bound); otherwise the "
+        "registered value is kept",
+    )
 
 
 class CalibrationPublic(BaseModel):

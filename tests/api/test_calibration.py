@@ -116,6 +116,11 @@ def test_calibration_with_apply_makes_a_version_and_reprocesses_in_place(
     fitted = {f["name"]: f for f in cal["fitted"]}
     assert fitted["Is"]["change"] > 3 * fitted["Is"]["sd"] > 0
     assert fitted["ks1"]["change"] < -3 * fitted["ks1"]["sd"] < 0
+    for f in cal["fitted"]:  # applied: significant and inside the fit's range, else registered
+        assert f["applied"] == (f["significant"] and not f["at_bound"]), f
+        for name, value in (f["after"] if f["applied"] else f["before"]).items():
+            assert cal["params"][name] == pytest.approx(value, rel=1e-9), (name, f)
+    assert fitted["Is"]["applied"]
     assert cal["objective_after"] < 0.8 * cal["objective_before"]
     assert "ms" in cal["not_identified"]
     assert abs((cal["params"]["Is"] / cal["params"]["ms"]) / (REAL.Is / REAL.ms) - 1) <= 0.1
@@ -151,6 +156,7 @@ def test_runs_with_a_declared_payload_are_calibrated_at_their_mass(client: TestC
     assert cal["status"] == "done" and cal["runs_used"] == ids, cal
     assert cal["significant"] is False and cal["applied"] is False, cal["message"]
     assert all(abs(f["change"]) < 0.05 for f in cal["fitted"]), cal["fitted"]
+    assert not any(f["applied"] for f in cal["fitted"]), cal["fitted"]
     assert client.get("/api/v1/vehicles/laden").json()["version"] == 1
 
 

@@ -6,8 +6,10 @@ the registered one (fixed seeds): realistic sensor (noise 0.005 m/s² and 1e-4 r
 """
 
 import dataclasses
+import math
 from datetime import datetime
 
+import numpy as np
 import pytest
 
 from engine.bogie import BogieParams
@@ -231,3 +233,56 @@ def test_not_identifiable_names_the_vehicle_kinds_own_parameters(vehicle):
     assert len(held) == 3
     for name in held:
         assert set(name.split("/")) <= own, name
+
+
+def _objective_with(monkeypatch, optimum: dict[str, float], weight: float = 10.0) -> None:
+    """Replace the axle disagreement by a linear one in each fitted log factor whose
+    optimum is ``optimum`` (name -> log factor on TABLE1; beyond the fit's range for a
+    parameter that runs to its bound), the first ``weight`` times the others, over six
+    segments of one run."""
+    from engine import axle_disagreement
+    from engine.axle_disagreement import Evaluation
+
+    def evaluate(groups, vehicle):
+        theta = {n: math.log(getattr(vehicle, n) / getattr(TABLE1, n)) for n in optimum}
+        diff = [
+            np.array([theta[n] - t + 0.01 * (k % 3 - 1) for n, t in optimum.items()])
+            * np.array([weight] + [1.0] * (len(optimum) - 1))
+            for k in range(6)
+        ]
+        return Evaluation(diff, np.ones(6), np.zeros(6, dtype=np.intp))
+
+    monkeypatch.setattr(
+        axle_disagreement, "prepare", lambda runs, vehicle, cfg: ([None], [], [("run 0", 60.0)])
+    )
+    monkeypatch.setattr(axle_disagreement, "evaluate", evaluate)
+
+
+def test_only_significant_parameters_inside_the_range_are_applied(monkeypatch):
+    """Is fitted +20 %, ks1 at the fit's bound (its optimum beyond it), ks2 +2 % (under the
+    significance floor): only Is is applied, ks1 and ks2 keep their registered values, the
+    result and its message say so, and the objective reported is the applied vehicle's."""
+    _objective_with(monkeypatch, {"Is": math.log(1.2), "ks1": 2.0, "ks2": math.log(1.02)})
+    res = calibrate([CalibrationRun(None, 0.0, label="run 0")], TABLE1)
+    by = {f.name: f for f in res.fitted}
+    assert res.significant, res.message
+    assert abs(res.params.Is / TABLE1.Is - 1.2) < 0.01, res.message
+    assert res.params.ks1 == TABLE1.ks1 and res.params.ks2 == TABLE1.ks2, res.message
+    assert by["Is"].applied and not by["Is"].at_bound
+    assert by["ks1"].significant and by["ks1"].at_bound and not by["ks1"].applied
+    assert by["ks1"].after["ks1"] > 3.3 * TABLE1.ks1  # the fit's value is still reported
+    assert set(res.estimates()) == {"Is", "ks2"}  # but is no estimate for the health history
+    assert not by["ks2"].significant and not by["ks2"].at_bound and not by["ks2"].applied
+    assert "ks1 kept as registered (at the fit's bound)" in res.message
+    assert "ks2 kept as registered (not significant)" in res.message
+    # what is left with Is applied alone: ks1 2.0 and ks2 0.02 off, per segment
+    assert res.objective_after == pytest.approx(math.sqrt(4.0 + 0.02**2), rel=0.01)
+
+
+def test_a_fit_only_at_its_bound_applies_nothing(monkeypatch):
+    """Only ks1 moves, and it runs to the fit's bound: nothing is applied."""
+    _objective_with(monkeypatch, {"Is": 0.0, "ks1": -2.0, "ks2": 0.0})
+    res = calibrate([CalibrationRun(None, 0.0, label="run 0")], TABLE1)
+    assert [f.name for f in res.fitted if f.at_bound] == ["ks1"], res.fitted
+    assert not res.significant and res.params == TABLE1, res.message
+    assert not any(f.applied for f in res.fitted)

@@ -328,7 +328,7 @@ def health_history(session: Session, vehicle_id: int) -> list[ParameterEstimate]
         res = cal.result or {}
         at = cal.runs_from or cal.created_at
         for f in res.get("fitted", []):
-            if not f.get("identified"):
+            if not f.get("identified") or f.get("at_bound"):  # a bound is no estimate
                 continue
             for name, value in f["after"].items():
                 if name not in HEALTH_PARAMETERS:
