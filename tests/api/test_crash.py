@@ -169,7 +169,9 @@ def test_kills_at_any_moment_leave_whole_runs_or_none(settings, long_log) -> Non
 
     run_id = None
     outcomes = []
-    for k, fraction in enumerate((0.3, 0.6, 0.85, 0.97)):
+    # the window is measured once; where the machine's load falls after, the run is quicker
+    # than measured, and only an early kill still lands inside it
+    for k, fraction in enumerate((0.1, 0.3, 0.6, 0.85, 0.97)):
         server = LiveServer(settings, f"kill{k}", **QUEUED, TRACKPROFILE_MAX_ATTEMPTS=10).start()
         try:
             with httpx.Client(base_url=server.url, timeout=120) as c:
