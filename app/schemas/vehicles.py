@@ -283,10 +283,10 @@ class FittedParameterPublic(BaseModel):
     identified: bool
     significant: bool
     at_bound: bool = Field(False, description="The fitted value sits at the fit's range")
-    applied: bool = Field(
-        False,
-        description="In the calibrated vehicle (significant, not at the bound); otherwise the "
-        "registered value is kept",
+    applied: bool | None = Field(
+        None,
+        description="In the calibrated vehicle (significant, not at the bound); false: the "
+        "registered value is kept; null: calibrated before this was recorded",
     )
 
 

@@ -107,3 +107,39 @@ def test_vehicle_page_shows_versions_calibrations_health_and_calibrates(
     page.click("#run-vehicle-link")
     page.wait_for_selector("#calibrations-table")
     page.watch.assert_clean()
+
+
+def _fitted(name: str, change: float, applied: bool | None) -> dict[str, Any]:
+    return {"name": name, "change": change, "sd": 0.01, "identified": True,
+            "significant": applied is not False, "at_bound": False, "applied": applied,
+            "before": {}, "after": {}}  # fmt: skip
+
+
+def test_a_parameter_kept_as_registered_is_marked_in_the_calibrations(
+    page: Any, live_server: LiveServer
+) -> None:
+    """In an applied calibration, a fitted parameter that was not applied (not significant or
+    at the fit's bound) is marked "kept as registered" beside its change; one that was applied,
+    and every parameter of a calibration stored before ``applied`` was recorded (null), is not."""
+    with live_server.api() as api:
+        r = api.post("/api/v1/vehicles", json={"name": "bt-kept", "params": TABLE1.to_dict()})
+        assert r.status_code == 201, r.text
+    common = {"status": "done", "automatic": False, "created_at": "2026-03-01T10:00:00Z",
+              "runs_used": [1, 2], "objective_before": 0.2, "objective_after": 0.1,
+              "apply": True, "applied": True, "applied_version": 2, "message": "",
+              "details": None}  # fmt: skip
+    items = [
+        {**common, "id": 2, "fitted": [_fitted("Is", 0.12, True), _fitted("ks1", 2.3, False)]},
+        {**common, "id": 1, "fitted": [_fitted("Is", 0.10, None), _fitted("ks1", 0.01, None)]},
+    ]
+    page.route(
+        "**/api/v1/vehicles/bt-kept/calibrations",
+        lambda route: route.fulfill(json={"data": items}),
+    )
+    page.goto(f"{live_server.url}/#/vehicles/bt-kept")
+    page.wait_for_selector("#calibrations-table")
+    rows = page.locator("#calibrations-table tbody tr")
+    newest, older = rows.nth(0).inner_text(), rows.nth(1).inner_text()
+    assert "ks1 +230.0 % ± 1.0 % (kept as registered)" in newest, newest
+    assert "Is +12.0 % ± 1.0 % (kept" not in newest, newest
+    assert "kept as registered" not in older, older

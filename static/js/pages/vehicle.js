@@ -140,7 +140,7 @@ export async function render(main, params) {
       h("td", { class: "num" }, String(c.id)), h("td", {}, c.status + (c.automatic ? " (automatic)" : "")),
       h("td", {}, fmtDate(c.created_at)), h("td", { class: "num" }, String(c.runs_used.length)),
       h("td", {}, c.objective_before === null ? "—" : `${pct(c.objective_before)} → ${pct(c.objective_after)}`),
-      h("td", {}, c.fitted.length ? c.fitted.map((f) => `${f.name} ${changeText(f)}`).join("; ") : "—"),
+      h("td", {}, c.fitted.length ? c.fitted.map((f) => `${f.name} ${changeText(f)}${c.applied && f.applied === false ? " (kept as registered)" : ""}`).join("; ") : "—"),
       h("td", {}, c.applied ? `applied: version ${c.applied_version}` : (c.apply ? "not applied" : "—")),
       h("td", {}, c.status === "failed" ? (c.error?.message || "failed") : (c.message || ""))));
     calList.appendChild(scrollTable("Calibrations", h("table", { class: "data", id: "calibrations-table" },
