@@ -1,4 +1,5 @@
-"""Intervals along the chainage: the one rule that merges extents into zones.
+"""Intervals along the chainage: the one rule that merges extents into zones, and the runs
+of a mask (where a profile is defined, over a limit, ...).
 
 Dips of one profile (:func:`engine.detect.find_dips`), fitted soft zones of one run
 (:func:`engine.pipeline.process_run`) and soft spots of many runs (:func:`engine.register.
@@ -11,6 +12,13 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+
+def true_runs(mask: ArrayLike) -> list[tuple[int, int]]:
+    """Start and end (exclusive) indices of each run of True in the 1-D ``mask``, in order
+    (e.g. the stretches a profile covers: ``true_runs(np.isfinite(level))``)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(mask).astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def merge_intervals(

@@ -19,16 +19,11 @@ from numpy.typing import NDArray
 from scipy import signal
 
 from .detect import Dip, robust_sigma
+from .intervals import true_runs
 
 SPECTRUM_FLOOR = 0.02
 """Smallest noise density used, relative to its largest: outside the profile's band the
 measured density is near zero and would turn the filter into an amplifier of round-off."""
-
-
-def _runs(ok: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """Start and end (exclusive) indices of the runs of True in ``ok``."""
-    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def noise_spectrum(
@@ -42,7 +37,7 @@ def noise_spectrum(
     long enough for two segments.
     """
     nseg = int(round(segment_m / step_m))
-    runs = [(a, b) for a, b in _runs(np.isfinite(profile)) if b - a >= nseg]
+    runs = [(a, b) for a, b in true_runs(np.isfinite(profile)) if b - a >= nseg]
     if nseg < 8 or sum(b - a for a, b in runs) < 2 * nseg:
         return None
     dens, lengths = [], []
@@ -92,7 +87,7 @@ def matched_dips(
         return None
     freq, dens = spec
     y = np.array(profile, dtype=float)
-    runs = [(a, b) for a, b in _runs(np.isfinite(y)) if b - a >= 8]
+    runs = [(a, b) for a, b in true_runs(np.isfinite(y)) if b - a >= 8]
     longest = max(t.size for _, t in shapes)
     filters = [_run_filters(b - a, longest, step, freq, dens, shapes) for a, b in runs]
     stats, gains = _filtered(y, runs, filters, len(shapes))

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ParameterError
+from .intervals import true_runs
 from .track_quality import get_band
 
 LEVELS = ("immediate", "intervention", "alert")
@@ -286,9 +287,8 @@ def isolated_defects(
     reached = (mag[:, None] >= lim).sum(axis=1)  # 0 none, 1 alert, 2 intervention, 3 immediate
     names = ("alert", "intervention", "immediate")
     hit = reached > 0
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], hit.astype(np.int8), [0]])))
     out = []
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in true_runs(hit):
         i = a + int(np.argmax(mag[a:b]))
         sp = None if np.isnan(speed[i]) else float(speed[i])
         out.append(IsolatedDefect(band, float(x[i]), float(x[a]), float(x[b - 1]), float(v[i]),

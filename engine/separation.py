@@ -47,6 +47,7 @@ from .chainage import PRODUCT_BAND_M, bandpass_distance
 from .detect import DetectionConfig, Dip, add_dips, find_dips, robust_baseline, robust_sigma
 from .errors import ParameterError, check_settings
 from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
+from .intervals import true_runs
 from .matched_dips import matched_dips
 from .pass_equalise import EqualiseConfig, equalise_passes
 from .passes import Pass, align_passes, column_mean_sd, on_grid, pass_from_result
@@ -729,10 +730,8 @@ def _near_end(
 ) -> NDArray[np.bool_]:
     """Where ``profile`` is defined within ``distance_m`` (m) of an end of its run of
     defined points (on the regular ``grid``, m)."""
-    ok = np.isfinite(profile)
-    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
     out = np.zeros(grid.size, dtype=bool)
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in true_runs(np.isfinite(profile)):
         x = grid[a:b]
         out[a:b] = np.minimum(x - x[0], x[-1] - x) <= distance_m
     return out

@@ -31,6 +31,7 @@ from scipy import signal
 from scipy import stats as sstats
 
 from .errors import InversionError, ParameterError
+from .intervals import true_runs
 from .methods import METHODS, MethodInput
 from .pipeline import fuse_axles
 from .setup import Method, PreparedRun
@@ -146,9 +147,8 @@ class BandFilter:
         halves = self.sos(step_m)
         sos = np.vstack(halves)
         ok = np.isfinite(y)
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
         min_n = int(math.ceil(self.lambda_max_m / step_m))
-        for a, b in zip(edges[::2], edges[1::2], strict=True):
+        for a, b in true_runs(ok):
             n = b - a
             if n < min_n:
                 continue
@@ -181,8 +181,7 @@ def trim_ends(
     k = int(round(margin_m / step_m))
     if k <= 0:
         return v
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in true_runs(ok):
         v[a : min(b, a + k)] = np.nan
         v[max(a, b - k) : b] = np.nan
     return v
@@ -366,8 +365,7 @@ def observability(
     gain = np.sqrt(np.sum((resp / ref) ** 2, axis=1) / 2.0)
     low = gain < threshold
     ranges: list[tuple[float, float]] = []
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], low.astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in true_runs(low):
         ranges.append((round(float(lam[a]), 2), round(float(lam[b - 1]), 2)))
     span = vehicle.d1 + vehicle.d2
     bounce = tuple(

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from engine.decimate import minmax_indices
-from engine.intervals import merge_intervals
+from engine.intervals import merge_intervals, true_runs
 
 
 def test_merge_joins_overlaps_and_chains_within_the_gap() -> None:
@@ -83,3 +83,10 @@ def test_minmax_rows_as_a_sequence_or_without_gaps_keep_the_same_samples(n: int)
         assert np.array_equal(minmax_indices(list(data), 2000), want)
     with pytest.raises(ValueError, match="one length"):
         minmax_indices([y[0], y[1, :-1]], 2000)
+
+
+def test_true_runs_gives_each_run_of_true_as_start_and_exclusive_end() -> None:
+    """Runs at both ends, single points and no run at all."""
+    assert true_runs(np.array([1, 1, 0, 1, 0, 0, 1], dtype=bool)) == [(0, 2), (3, 4), (6, 7)]
+    assert true_runs(np.zeros(4, dtype=bool)) == []
+    assert true_runs(np.ones(3, dtype=bool)) == [(0, 3)]
