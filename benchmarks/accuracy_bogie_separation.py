@@ -50,6 +50,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
+from benchmarks.common import cached  # noqa: E402
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams  # noqa: E402
 from engine.calibration import (  # noqa: E402
     DEFAULT_FIT_BY_KIND,
@@ -242,9 +243,48 @@ def vehicle_sets(
 
 
 def passes_of(case: Case) -> dict[str, list[Pass]]:
-    """The case's passes, aligned, processed with the presets and with the true vehicles."""
-    fleet, runs = runs_of(case)
-    return processed(case, runs, vehicle_sets(fleet))
+    """The case's passes, aligned, processed with the presets and with the true vehicles
+    (cached: :func:`benchmarks.common.cached`)."""
+
+    def make() -> dict[str, list[Pass]]:
+        fleet, runs = runs_of(case)
+        return processed(case, runs, vehicle_sets(fleet))
+
+    out: dict[str, list[Pass]] = cached("bogie_passes", f"passes_of|{case!r}", make)
+    return out
+
+
+def calibrated_passes(name: str, case: Case) -> tuple[dict[str, list[Pass]], list[str]]:
+    """The case's passes processed with every vehicle set of the table (presets, true
+    vehicles, the calibrated sets) and the calibration rows (cached: processing and
+    calibrating take minutes, the separation seconds)."""
+
+    def make() -> tuple[dict[str, list[Pass]], list[str]]:
+        fleet, runs = runs_of(case)
+        calibrated = {
+            "calibrated": (calibrations(case, fleet, runs), False),
+            "calibrated, + kp where softer": (
+                calibrations(case, fleet, runs, plus_softer=True),
+                False,
+            ),
+            "calibrated, load declared": (calibrations(case, fleet, runs, declared=True), True),
+            "calibrated, load declared, softer stage": (
+                calibrations(case, fleet, runs, declared=True, softer_stage=True),
+                True,
+            ),
+        }
+        by_label = processed(case, runs, vehicle_sets(fleet, calibrated))
+        rows = [
+            calibration_row(name, kind, off, cals[kind], label)
+            for kind, off in (("coach", case.coach_off), ("wagon", case.wagon_off))
+            for label, (cals, _) in calibrated.items()
+        ]
+        return by_label, rows
+
+    out: tuple[dict[str, list[Pass]], list[str]] = cached(
+        "bogie_passes", f"calibrated_passes|{case!r}", make
+    )
+    return out
 
 
 def calibration_row(
@@ -309,25 +349,8 @@ def main() -> None:
     cal_rows = []
     for name in args.cases.split(","):
         case = CASES[name] if name in CASES else drawn(name)
-        fleet, runs = runs_of(case)
-        calibrated = {
-            "calibrated": (calibrations(case, fleet, runs), False),
-            "calibrated, + kp where softer": (
-                calibrations(case, fleet, runs, plus_softer=True),
-                False,
-            ),
-            "calibrated, load declared": (calibrations(case, fleet, runs, declared=True), True),
-            "calibrated, load declared, softer stage": (
-                calibrations(case, fleet, runs, declared=True, softer_stage=True),
-                True,
-            ),
-        }
-        by_label = processed(case, runs, vehicle_sets(fleet, calibrated))
-        cal_rows += [
-            calibration_row(name, kind, off, cals[kind], label)
-            for kind, off in (("coach", case.coach_off), ("wagon", case.wagon_off))
-            for label, (cals, _) in calibrated.items()
-        ]
+        by_label, rows = calibrated_passes(name, case)
+        cal_rows += rows
         for label, passes in by_label.items():
             for eq_label, cfg in (("white", SeparationConfig(matched_lengths_m=())),
                                   ("matched", SeparationConfig())):  # fmt: skip

@@ -116,3 +116,43 @@ def hour_log(duration_s: float = 3600.0, speed: float = 30.0, seed: int = 0):
     np.savez(path, t=log.time_s, a=log.accel_z_mps2, q=log.pitch_rate_radps,
              v=log.speed_mps, start=start)  # fmt: skip
     return log, start
+
+
+SEPARATION_ONLY = ("separation.py", "matched_dips.py")
+"""Engine modules that act only after the passes are processed (the separation and its
+detector): a change to them leaves processed passes valid."""
+
+
+def engine_digest(exclude: tuple[str, ...] = SEPARATION_ONLY) -> str:
+    """SHA-256 (16 hex digits) of every engine source but ``exclude``: what a cached result
+    computed by the engine depends on."""
+    import hashlib
+
+    root = Path(__file__).resolve().parents[1] / "engine"
+    h = hashlib.sha256()
+    for p in sorted(root.rglob("*.py")):
+        if p.name not in exclude:
+            h.update(str(p.relative_to(root)).encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def cached(name: str, key: str, make: Callable[[], Any]) -> Any:
+    """``make()``, kept under ``benchmarks/.cache/<name>/`` by ``key`` and the engine's
+    digest (:func:`engine_digest`, the separation's modules left out) so that a change to
+    the engine before the separation recomputes it. Set ``BENCH_NO_CACHE=1`` to recompute."""
+    import hashlib
+    import pickle
+
+    folder = CACHE / name
+    path = folder / (hashlib.sha256(f"{key}|{engine_digest()}".encode()).hexdigest()[:24] + ".pkl")
+    if path.exists() and not os.environ.get("BENCH_NO_CACHE"):
+        with path.open("rb") as f:
+            return pickle.load(f)
+    out = make()
+    folder.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    with tmp.open("wb") as f:
+        pickle.dump(out, f)
+    tmp.replace(path)
+    return out
