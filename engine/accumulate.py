@@ -281,15 +281,14 @@ def combined_noise(res: NDArray[np.float64], sigma: NDArray[np.float64]) -> Comb
 
 
 @dataclass(frozen=True)
-class AggregateSpot:
+class AggregateSpot(Dip):
     """A soft spot of the combined passes.
+
+    The extent, deepest point and depth (of the combined level below its baseline) are
+    :class:`engine.detect.Dip`'s.
 
     Attributes
     ----------
-    start_m, end_m, peak_m : float
-        Extent and deepest point, m.
-    depth_mm : float
-        Depth of the combined level below its baseline, mm.
     stiffness_loss_pct : float
         Fitted stiffness loss, % (NaN where the combined level is not smooth rail or no load
         was given).
@@ -302,10 +301,6 @@ class AggregateSpot:
         Passes that cover the whole spot.
     """
 
-    start_m: float
-    end_m: float
-    peak_m: float
-    depth_mm: float
     stiffness_loss_pct: float
     significance: float
     supporting: tuple[int, ...]

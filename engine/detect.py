@@ -66,7 +66,21 @@ class DetectionConfig:
 
 @dataclass(frozen=True)
 class Dip:
-    """A detected dip before stiffness fitting (chainages in m, depth in mm, positive)."""
+    """A detected dip before stiffness fitting: its extent and depth.
+
+    Every soft-spot record of the engine that reports a dip of the loaded level
+    (:class:`engine.results.SoftSpot`, :class:`engine.accumulate.AggregateSpot`) is a ``Dip``
+    with figures of its own after these.
+
+    Attributes
+    ----------
+    start_m, end_m : float
+        Chainage where the dip starts and ends, m.
+    peak_m : float
+        Chainage of the deepest point, m.
+    depth_mm : float
+        Depth below the local baseline, mm (positive = deeper).
+    """
 
     start_m: float
     end_m: float

@@ -9,6 +9,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .detect import Dip
+
 
 class _Figures:
     """A dataclass whose every field is a float, turned into a plain dict of floats."""
@@ -19,25 +21,17 @@ class _Figures:
 
 
 @dataclass(frozen=True)
-class SoftSpot(_Figures):
+class SoftSpot(Dip, _Figures):
     """A local dip of the loaded level: a place where the track support is weak.
+
+    The dip's extent and depth are :class:`engine.detect.Dip`'s.
 
     Attributes
     ----------
-    start_m, end_m : float
-        Chainage where the zone starts and ends, m.
-    peak_m : float
-        Chainage of the deepest point, m.
-    depth_mm : float
-        Depth of the dip below the local baseline, mm (positive = deeper).
     stiffness_loss_pct : float
         Estimated loss of support stiffness against nominal, % (0-100).
     """
 
-    start_m: float
-    end_m: float
-    peak_m: float
-    depth_mm: float
     stiffness_loss_pct: float
 
 
