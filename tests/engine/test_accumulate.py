@@ -151,3 +151,27 @@ def test_identical_passes_are_detected_on_with_finite_weights() -> None:
     assert np.all(np.isfinite(det.pass_noise_mm)) and np.all(det.pass_noise_mm > 0)
     assert [round(s.peak_m) for s in det.spots] == [400]
     assert det.spots[0].significance > 1e3
+
+
+def test_soft_spot_records_are_dips_with_their_own_figures_after() -> None:
+    """A single pass's and the combination's soft spots share the detector's Dip (its fields
+    first, in order), so positional construction and the keys a SoftSpot's dict carries to
+    the API and the CSV stay as they are."""
+    from dataclasses import fields
+
+    from engine.accumulate import AggregateSpot
+    from engine.detect import Dip
+    from engine.results import SoftSpot
+
+    head = ["start_m", "end_m", "peak_m", "depth_mm"]
+    assert [f.name for f in fields(Dip)] == head
+    for cls in (SoftSpot, AggregateSpot):
+        assert issubclass(cls, Dip)
+        assert [f.name for f in fields(cls)][:4] == head
+    spot = SoftSpot(10.0, 14.0, 12.0, 0.3, 40.0)
+    assert spot.to_dict() == {
+        "start_m": 10.0, "end_m": 14.0, "peak_m": 12.0, "depth_mm": 0.3, "stiffness_loss_pct": 40.0
+    }  # fmt: skip
+    assert list(spot.to_dict()) == [*head, "stiffness_loss_pct"]
+    agg = AggregateSpot(10.0, 14.0, 12.0, 0.3, 40.0, 6.0, (0, 1), (0, 1, 2))
+    assert (agg.depth_mm, agg.significance, agg.covering) == (0.3, 6.0, (0, 1, 2))
