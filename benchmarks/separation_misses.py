@@ -50,10 +50,9 @@ from numpy.typing import NDArray  # noqa: E402
 import engine.separation as separation  # noqa: E402
 from benchmarks.accuracy_bogie_separation import (  # noqa: E402
     CASES,
-    TOL_M,
-    TOL_PP,
     calibrated_passes,
     drawn,
+    within,
 )
 from engine.detect import robust_baseline, robust_sigma  # noqa: E402
 from engine.intervals import true_runs  # noqa: E402
@@ -143,7 +142,7 @@ def zone_rows(
         if hits:
             s = hits[0]
             d0, d1, dl = s.start_m - z.start_m, s.end_m - z.end_m, s.loss_pct - 100 * z.loss
-            if abs(d0) <= TOL_M and abs(d1) <= TOL_M and abs(dl) <= TOL_PP:
+            if within(d0, d1, dl):
                 counts[1] += 1
                 continue
         share = float(sep.separable[inside].mean())
@@ -163,9 +162,9 @@ def zone_rows(
             ]
             if others:
                 cause = "merged with a neighbour"
-            elif abs(d0) > TOL_M or abs(d1) > TOL_M:
+            elif not within(d0, d1, 0.0):
                 cause = "extent out (" + ", ".join(
-                    e for e, d in (("start", d0), ("end", d1)) if abs(d) > TOL_M
+                    e for e, d in (("start", d0), ("end", d1)) if not within(d, 0.0, 0.0)
                 ) + ")"  # fmt: skip
             else:
                 cause = "loss out"
