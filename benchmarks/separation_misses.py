@@ -27,8 +27,9 @@ is the measured one. Per ``edge_factor`` (``SeparationConfig``, the error of a p
 near its ends; 0.3 the default) and bin of distance to the nearer end of the stretch where the
 compliance is defined (``max_detectable_loss`` relaxed), away from the zones (±10 m): the
 robust spread of the compliance residual, the median of the estimator's standard deviation,
-and the robust spread of their ratio (the same ratio near the ends as in the middle: the
-edge term is the measured noise).
+the robust spread of their ratio (the same ratio near the ends as in the middle: the edge
+term is the measured noise), and that of the residual's 3-12 m part (a zone's own
+wavelengths) over the standard deviation.
 
 The profile the soft-spot extraction works on is read by wrapping
 ``engine.separation._soft_spots`` (a diagnostic: the separation itself is unchanged).
@@ -54,6 +55,7 @@ from benchmarks.accuracy_bogie_separation import (  # noqa: E402
     drawn,
     within,
 )
+from engine.chainage import bandpass_distance  # noqa: E402
 from engine.detect import robust_baseline, robust_sigma  # noqa: E402
 from engine.intervals import true_runs  # noqa: E402
 from engine.matched_dips import _filtered, _run_filters, noise_spectrum  # noqa: E402
@@ -187,19 +189,20 @@ def zone_rows(
 
 
 EDGE_BINS_M = (0.0, 10.0, 20.0, 30.0, 45.0, 60.0, np.inf)
+SHORT_BAND_M = (3.0, 12.0, 0.3)
+"""Band (m, m, taper) of a zone's own wavelengths in the edge check."""
 
 
 def edge_spread(cases: list[str], label: str, edge_factors: list[float]) -> None:
     """Print, per edge factor and distance bin, the compliance residual's measured spread
     against the estimator's (module docstring)."""
     print("| edge_factor | distance to the end (m) | points | residual spread (µm) "
-          "| estimator's sd, median (µm) | spread of residual / sd |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
+          "| estimator's sd, median (µm) | spread of residual / sd "
+          "| of its 3-12 m part / sd |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
     for factor in edge_factors:
         cfg = SeparationConfig(max_detectable_loss=0.99, edge_factor=factor)
-        bins: list[tuple[list[NDArray[np.float64]], list[NDArray[np.float64]]]] = [
-            ([], []) for _ in EDGE_BINS_M[1:]
-        ]
+        bins: list[tuple[list[NDArray[np.float64]], ...]] = [([], [], []) for _ in EDGE_BINS_M[1:]]
         for name in cases:
             case = CASES[name] if name in CASES else drawn(name)
             _, seen = extraction_inputs(calibrated_passes(name, case)[0][label], cfg)
@@ -211,18 +214,21 @@ def edge_spread(cases: list[str], label: str, edge_factors: list[float]) -> None
             for a, b in true_runs(np.isfinite(dip_mm)):
                 x = grid[a:b]
                 dist = np.minimum(x - x[0], x[-1] - x)
+                short = bandpass_distance(resid[a:b], float(grid[1] - grid[0]), *SHORT_BAND_M)
                 for i, (lo, hi) in enumerate(zip(EDGE_BINS_M[:-1], EDGE_BINS_M[1:], strict=True)):
                     m = (dist >= lo) & (dist < hi) & clear[a:b]
                     bins[i][0].append(resid[a:b][m])
                     bins[i][1].append(dip_sd[a:b][m])
-        for (lo, hi), (rs, sds) in zip(zip(EDGE_BINS_M[:-1], EDGE_BINS_M[1:], strict=True),
+                    bins[i][2].append(short[m])
+        for (lo, hi), (rs, sds, shorts) in zip(zip(EDGE_BINS_M[:-1], EDGE_BINS_M[1:], strict=True),
                                        bins, strict=True):  # fmt: skip
-            r, sd = np.concatenate(rs), np.concatenate(sds)
+            r, sd, sh = np.concatenate(rs), np.concatenate(sds), np.concatenate(shorts)
             if r.size == 0:
                 continue
             where = f"{lo:.0f}-{hi:.0f}" if np.isfinite(hi) else f"{lo:.0f}+"
             print(f"| {factor} | {where} | {r.size} | {1e3 * robust_sigma(r):.0f} | "
-                  f"{1e3 * float(np.median(sd)):.0f} | {robust_sigma(r / sd):.2f} |")  # fmt: skip
+                  f"{1e3 * float(np.median(sd)):.0f} | {robust_sigma(r / sd):.2f} | "
+                  f"{robust_sigma(sh / sd):.2f} |")  # fmt: skip
 
 
 def main() -> None:
