@@ -689,8 +689,8 @@ def stiffness_with_vehicles(
     session: Session, track_id: int, from_m: float | None = None, to_m: float | None = None
 ) -> StiffnessWindow:
     """:func:`read_stiffness` with each contributing run's vehicle name (``vehicle``), and
-    whether the window and each soft spot are provisional
-    (:func:`app.services.track.separation_trust.trust_of`)."""
+    whether each soft spot and the window (where some point of it is separable) are
+    provisional (:func:`app.services.track.separation_trust.trust_of`)."""
     window = read_stiffness(session, track_id, from_m, to_m)
     if not any(c["kind"] == "run" for c in window.contributors):
         return window
@@ -707,6 +707,9 @@ def stiffness_with_vehicles(
     return dataclasses.replace(
         window,
         contributors=contributors,
-        trust=trust_of(((c["kind"], c["id"]) for c in window.contributors), bases),
+        # nothing separated, nothing to trust or doubt: the message says what is missing
+        trust=trust_of(((c["kind"], c["id"]) for c in window.contributors), bases)
+        if window.separable
+        else TRUSTED,
         spot_trust=spot_trust,
     )
