@@ -1,6 +1,7 @@
 """A separated soft spot is provisional while a vehicle behind it has neither a calibration
 applied nor its runs' loads declared (``app.services.track.separation_trust``), in the
-register (``provisional_notes``) and the stiffness window (``stiffness_with_vehicles``) alike.
+register (``provisional_notes``), the stiffness window (``stiffness_with_vehicles``) and the
+track's HTML report alike.
 
 A coach and a wagon each pass once over a track whose stored separation (one chunk, one soft
 spot, written by hand: no numerics) names both runs. Then the coach is calibrated (a version
@@ -12,6 +13,7 @@ parameter as registered, or a load declared on only some of a vehicle's runs, do
 from __future__ import annotations
 
 import hashlib
+import html
 from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -32,6 +34,7 @@ from app.services.track.separation_store import (
 )
 from app.services.track.separation_trust import Trust
 from app.services.vehicles.versions import create_vehicle, new_version
+from app.services.views.exports import track_report
 from engine.vehicle_kinds import vehicle_from_dict
 from support.app_fixtures import database_url_for
 
@@ -94,15 +97,24 @@ def _separated_track(db: Database) -> dict[str, Any]:
 
 
 def _trust(db: Database, track_id: int) -> tuple[Trust, Trust, Trust]:
-    """The separated defect's, the stiffness window's and its soft spot's verdicts."""
+    """The separated defect's, the stiffness window's and its soft spot's verdicts; the
+    track's report says "provisional" exactly when they are."""
     with db.session() as s:
         defects = track_register(s, track_id)
         notes = provisional_notes(s, track_id, defects)
         window = stiffness_with_vehicles(s, track_id)
+        track = s.get(Track, track_id)
+        assert track is not None
+        report = track_report(s, track, top=25)
     (separated,) = [n for d, n in zip(defects, notes, strict=True) if d.source == "separated"]
     assert all(not n.provisional for d, n in zip(defects, notes, strict=True)
                if d.source != "separated")  # fmt: skip
     (spot,) = window.spot_trust
+    said = [separated, window.trust, spot]
+    assert ("<strong>provisional</strong>" in report) == separated.provisional
+    assert ("<strong>Provisional:</strong>" in report) == window.trust.provisional
+    for reason in {t.reason for t in said if t.provisional}:
+        assert html.escape(reason or "") in report
     return separated, window.trust, spot
 
 

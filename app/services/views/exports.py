@@ -24,7 +24,7 @@ from app.services.storage.profiles import iter_profile_rows, profile_blocks
 from app.services.storage.retention import require_detail
 from app.services.track.aggregate import read_track_profile
 from app.services.track.quality import track_quality
-from app.services.track.register import load_limits, track_register
+from app.services.track.register import load_limits, provisional_notes, track_register
 from app.services.track.separation_store import UPDATING, StiffnessWindow, stiffness_with_vehicles
 from app.services.track.separation_trust import PROVISIONAL_REMEDY, Trust
 from app.services.views.report import ReportInput, ReportRun, render_report
@@ -196,6 +196,7 @@ def track_report(session: Session, trk: Track, top: int) -> str:
     :func:`app.services.views.report.render_report`)."""
     limits, limits_row = load_limits(session, trk.id)
     defects = track_register(session, trk.id, limits)
+    trust = provisional_notes(session, trk.id, defects)
     cols = read_track_profile(session, trk.id)
     count = select(func.count()).select_from(Run).where(Run.track_id == trk.id)
     runs_total = session.scalar(count) or 0
@@ -231,6 +232,9 @@ def track_report(session: Session, trk: Track, top: int) -> str:
             description=trk.description,
             generated_at=datetime.now(UTC),
             defects=defects,
+            provisional={
+                d.id: t.reason or "" for d, t in zip(defects, trust, strict=True) if t.provisional
+            },
             limits=limits,
             limits_are_default=limits_row is None,
             runs=report_runs,
