@@ -27,7 +27,7 @@ from app.services.track.alignment import MERGED_STATUSES
 from app.services.track.quality_register import isolated_register
 from app.services.track.separation_history import pass_key, read_history
 from app.services.track.separation_store import NOT_SEPARABLE, separable_intervals, spot_support
-from app.services.track.separation_trust import TRUSTED, Trust, run_bases, trust_of
+from app.services.track.separation_trust import TRUSTED, Trust, judge, run_bases
 from engine.register import (
     Defect,
     Limits,
@@ -308,12 +308,13 @@ def provisional_notes(session: Session, track_id: int, defects: Sequence[Defect]
     latest separated sighting); any other is not (its figures rest on no other vehicle)."""
     if not any(d.source == "separated" for d in defects):
         return [TRUSTED] * len(defects)
-    bases = run_bases(session, track_id)
+    of = judge(run_bases(session, track_id))
     out = []
     for d in defects:
-        current = [o for o in d.history if o.source == "separated"]
-        if d.source != "separated" or not current:
-            out.append(TRUSTED)
-            continue
-        out.append(trust_of(((p.kind, p.id) for p in current[-1].passes), bases))
+        current = (
+            next((o for o in reversed(d.history) if o.source == "separated"), None)
+            if d.source == "separated"
+            else None
+        )
+        out.append(TRUSTED if current is None else of((p.kind, p.id) for p in current.passes))
     return out

@@ -50,7 +50,7 @@ from app.services.storage.profiles import finite_or_none
 from app.services.track.aggregate import CHUNK_POINTS, newest_runs
 from app.services.track.alignment import GRID_STEP_M
 from app.services.track.separation_history import record_separation
-from app.services.track.separation_trust import TRUSTED, Trust, run_bases, trust_of
+from app.services.track.separation_trust import TRUSTED, Trust, judge, run_bases
 from app.services.views.notation import km_m, km_m_range
 from engine.errors import EngineError
 from engine.separation import (
@@ -700,15 +700,15 @@ def stiffness_with_vehicles(
         if c["kind"] == "run" else c | {"vehicle": None}
         for c in window.contributors
     ]  # fmt: skip
+    of = judge(bases)
     spot_trust = tuple(
-        trust_of(((p["kind"], p["id"]) for p in spot_support(session, sp)), bases)
-        for sp in window.spots
+        of((p["kind"], p["id"]) for p in spot_support(session, sp)) for sp in window.spots
     )
     return dataclasses.replace(
         window,
         contributors=contributors,
         # nothing separated, nothing to trust or doubt: the message says what is missing
-        trust=trust_of(((c["kind"], c["id"]) for c in window.contributors), bases)
+        trust=of((c["kind"], c["id"]) for c in window.contributors)
         if window.separable
         else TRUSTED,
         spot_trust=spot_trust,

@@ -23,7 +23,7 @@ run is reprocessed.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -134,3 +134,18 @@ def trust_of(passes: Iterable[tuple[str, int]], bases: Mapping[int, RunBasis]) -
         for name, ids in sorted(unknown.items())
     )
     return Trust(True, reason)
+
+
+def judge(bases: Mapping[int, RunBasis]) -> Callable[[Iterable[tuple[str, int]]], Trust]:
+    """:func:`trust_of` over ``bases``, each set of passes judged once: a long line's spots
+    and defects mostly share the few sets of passes that separated them."""
+    seen: dict[tuple[tuple[str, int], ...], Trust] = {}
+
+    def of(passes: Iterable[tuple[str, int]]) -> Trust:
+        key = tuple(passes)
+        out = seen.get(key)
+        if out is None:
+            out = seen[key] = trust_of(key, bases)
+        return out
+
+    return of
