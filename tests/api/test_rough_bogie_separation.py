@@ -75,6 +75,9 @@ def register(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any
                 url = f"/api/v1/tracks/{track_name}/{what}"
                 answers[key + what] = client.get(url).json()
                 answers[key + what + "_csv"] = client.get(url, params={"format": "csv"}).text
+            answers[key + "zones"] = client.get(
+                f"/api/v1/views/tracks/{track_name}/chainage-map"
+            ).json()["zones"]
         yield answers
 
 
@@ -108,8 +111,8 @@ def test_separated_zones_are_provisional_until_the_runs_declare_their_loads(
 ) -> None:
     """The presets as registered, never calibrated, no load declared: every separated soft
     spot, the stiffness window and every separated defect are provisional, the reason naming
-    both vehicles and their runs, in JSON and in the CSV twins. The same runs declaring their
-    loads give the same zones, none provisional."""
+    both vehicles and their runs, in JSON, the CSV twins and the chainage map's zones. The
+    same runs declaring their loads give the same zones, none provisional."""
     st, defects = register["stiffness"], register["defects"]
     separated = [d for d in defects if d["source"] == "separated"]
     assert st["soft_spots"] and separated
@@ -125,6 +128,10 @@ def test_separated_zones_are_provisional_until_the_runs_declare_their_loads(
             reason
         )
     assert not any(d["provisional"] for d in defects if d["source"] != "separated")
+    zones = register["zones"]
+    assert any(z["source"] == "separated" for z in zones)
+    assert all(z["provisional"] == (z["source"] == "separated") for z in zones)
+    assert {z["provisional_reason"] for z in zones if z["provisional"]} <= set(reasons)
     assert f"# Provisional: {st['provisional_reason']}; calibrate" in register["stiffness_csv"]
     rows = list(csv.DictReader(io.StringIO(register["defects_csv"])))
     assert [r["provisional"] for r in rows] == ["1" if d["provisional"] else "0" for d in defects]
@@ -137,8 +144,8 @@ def test_separated_zones_are_provisional_until_the_runs_declare_their_loads(
         (s["start_m"], s["stiffness_loss_pct"]) for s in st["soft_spots"]
     ]
     assert not st2["provisional"] and st2["provisional_reason"] is None
-    assert not any(x["provisional"] or x["provisional_reason"]
-                   for x in [*st2["soft_spots"], *defects2])  # fmt: skip
+    declared = [*st2["soft_spots"], *defects2, *register["declared_zones"]]
+    assert not any(x["provisional"] or x["provisional_reason"] for x in declared)
     assert "Provisional" not in register["declared_stiffness_csv"]
     rows2 = list(csv.DictReader(io.StringIO(register["declared_defects_csv"])))
     assert rows2 and all(r["provisional"] == "0" for r in rows2)

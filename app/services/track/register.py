@@ -27,7 +27,7 @@ from app.services.track.alignment import MERGED_STATUSES
 from app.services.track.quality_register import isolated_register
 from app.services.track.separation_history import pass_key, read_history
 from app.services.track.separation_store import NOT_SEPARABLE, separable_intervals, spot_support
-from app.services.track.separation_trust import TRUSTED, Trust, judge, run_bases
+from app.services.track.separation_trust import TRUSTED, Trust, defects_trust, judge, run_bases
 from engine.register import (
     Defect,
     Limits,
@@ -304,17 +304,8 @@ def stiffness_notes(
 
 def provisional_notes(session: Session, track_id: int, defects: Sequence[Defect]) -> list[Trust]:
     """Whether each defect is provisional (see :mod:`app.services.track.separation_trust`):
-    a defect the separation found, judged by the passes of its current separation (its
-    latest separated sighting); any other is not (its figures rest on no other vehicle)."""
+    a defect the separation found, judged by the passes of its current separation; any
+    other is not."""
     if not any(d.source == "separated" for d in defects):
         return [TRUSTED] * len(defects)
-    of = judge(run_bases(session, track_id))
-    out = []
-    for d in defects:
-        current = (
-            next((o for o in reversed(d.history) if o.source == "separated"), None)
-            if d.source == "separated"
-            else None
-        )
-        out.append(TRUSTED if current is None else of((p.kind, p.id) for p in current.passes))
-    return out
+    return defects_trust(defects, judge(run_bases(session, track_id)))

@@ -31,6 +31,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Calibration, Run, Vehicle, VehicleVersion
+from engine.register import Defect
 
 PROVISIONAL_REMEDY = (
     "calibrate the vehicle from its runs, or declare each run's load (payload_kg or "
@@ -149,3 +150,21 @@ def judge(bases: Mapping[int, RunBasis]) -> Callable[[Iterable[tuple[str, int]]]
         return out
 
     return of
+
+
+def defects_trust(
+    defects: Sequence[Defect], of: Callable[[Iterable[tuple[str, int]]], Trust]
+) -> list[Trust]:
+    """Whether each defect is provisional: one the separation found (``source``
+    ``"separated"``) by the passes of its current separation (its latest separated
+    sighting), with ``of`` (:func:`judge`); any other is not (its figures rest on no vehicle's
+    comparison with another)."""
+    out = []
+    for d in defects:
+        current = (
+            next((o for o in reversed(d.history) if o.source == "separated"), None)
+            if d.source == "separated"
+            else None
+        )
+        out.append(TRUSTED if current is None else of((p.kind, p.id) for p in current.passes))
+    return out
