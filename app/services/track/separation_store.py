@@ -692,8 +692,8 @@ def stiffness_with_vehicles(
     whether each soft spot and the window (where some point of it is separable) are
     provisional (:func:`app.services.track.separation_trust.trust_of`)."""
     window = read_stiffness(session, track_id, from_m, to_m)
-    if not any(c["kind"] == "run" for c in window.contributors):
-        return window
+    if not window.spots and not any(c["kind"] == "run" for c in window.contributors):
+        return window  # surveys alone: known loads, no vehicle to name or doubt
     bases = run_bases(session, track_id)
     contributors = [
         c | {"vehicle": bases[c["id"]].vehicle if c["id"] in bases else None}
