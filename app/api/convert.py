@@ -27,6 +27,7 @@ from app.services.errors import Invalid
 from app.services.run_lifecycle.simulation import SimulationSpec
 from app.services.track.alignment import GRID_STEP_M
 from app.services.track.separation_store import StiffnessWindow, run_stiffness_basis
+from app.services.track.separation_trust import TRUSTED
 from app.services.views.window import Window
 from engine.sensor import SensorModel, sensor_for_grade
 from engine.synthetic import REALISTIC_SENSOR
@@ -180,10 +181,11 @@ def stiffness_public(trk: Track, window: Window, sep: StiffnessWindow) -> dict[s
                 "confidence": s.confidence,
                 "basis": "separated",
             }  # fmt: skip
-            for s in sep.spots
+            | (sep.spot_trust[i] if sep.spot_trust else TRUSTED).to_dict()
+            for i, s in enumerate(sep.spots)
         ],
         "contributors": sep.contributors,
-    }
+    } | sep.trust.to_dict()
 
 
 def simulation_spec(body: SimulateRequest) -> SimulationSpec:

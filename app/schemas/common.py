@@ -246,3 +246,21 @@ ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
     )
 }
 """Error answers documented on every API route."""
+
+
+PROVISIONAL_DOC = (
+    "True while a vehicle behind this separated result has neither a calibration applied to "
+    "the version its runs were processed with nor a declared load (payload_kg or "
+    "static_wheel_load_n) on every one of its runs: the separation reads an error in a "
+    "vehicle's parameters or load as a stiffness change, so such a result is far less "
+    "trustworthy. False for results every vehicle is known for, and for defects the "
+    "separation did not find"
+)
+"""The ``provisional`` field of every answer that gives separated results."""
+
+PROVISIONAL_REASON_DOC = (
+    "Why it is provisional: each vehicle and its runs ('vehicle X: no calibration and no "
+    "declared load on its runs 3, 5'); calibrate the vehicle or declare the runs' loads. "
+    "Null when not provisional"
+)
+"""The ``provisional_reason`` field beside :data:`PROVISIONAL_DOC`."""

@@ -11,7 +11,13 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, Field, field_validator, model_validator
 
-from .common import AlignmentStatus, Name, StrictModel
+from .common import (
+    PROVISIONAL_DOC,
+    PROVISIONAL_REASON_DOC,
+    AlignmentStatus,
+    Name,
+    StrictModel,
+)
 
 
 class SeparatedSpotPublic(BaseModel):
@@ -28,6 +34,8 @@ class SeparatedSpotPublic(BaseModel):
     loss_hi_pct: float | None = Field(description="Upper end of the loss's band, %")
     confidence: float | None = Field(description="Confidence the loss is real (0-1)")
     basis: Literal["separated"] = "separated"
+    provisional: bool = Field(default=False, description=PROVISIONAL_DOC)
+    provisional_reason: str | None = Field(default=None, description=PROVISIONAL_REASON_DOC)
 
 
 class ContributorPublic(BaseModel):
@@ -91,6 +99,10 @@ class StiffnessPublic(BaseModel):
     n_passes: list[int] = Field(description="Passes covering the point")
     load_ratio: list[float | None] = Field(description="Largest / smallest wheel force there")
     separable_at: list[bool] = Field(description="Whether the point is separable")
+    provisional: bool = Field(
+        default=False, description=PROVISIONAL_DOC + " (over the window's contributing passes)"
+    )
+    provisional_reason: str | None = Field(default=None, description=PROVISIONAL_REASON_DOC)
     soft_spots: list[SeparatedSpotPublic]
     contributors: list[ContributorPublic]
 

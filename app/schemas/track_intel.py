@@ -14,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from app.services.track.aggregate import NEWEST_PASSES
 from engine.register import SOURCES, Limits
 
-from .common import StrictModel
+from .common import PROVISIONAL_DOC, PROVISIONAL_REASON_DOC, StrictModel
 
 DefectStatus = Literal["new", "confirmed", "worsening", "stable"]
 LimitLevel = Literal["immediate", "intervention", "alert"]
@@ -150,6 +150,8 @@ class DefectPublic(BaseModel):
         description="Why no stiffness loss is given (one wheel load cannot tell geometry "
         "from stiffness here)",
     )
+    provisional: bool = Field(default=False, description=PROVISIONAL_DOC)
+    provisional_reason: str | None = Field(default=None, description=PROVISIONAL_REASON_DOC)
     next_limit: dict[str, Any] | None = Field(
         default=None,
         description="isolated: when the defect's passes, trended, reach its next level "

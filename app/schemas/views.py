@@ -11,6 +11,8 @@ from datetime import datetime
 
 from pydantic import BaseModel, Field
 
+from .common import PROVISIONAL_DOC, PROVISIONAL_REASON_DOC
+
 
 class CsvPreviewPublic(BaseModel):
     """How the engine reads the head of a run log: columns, first rows, recognised mapping."""
@@ -118,6 +120,8 @@ class ZonePublic(BaseModel):
     evidence_text: str = Field(
         default="", description="Its evidence as one line: 'separated: 4 passes, 2 loads'"
     )
+    provisional: bool = Field(default=False, description=PROVISIONAL_DOC)
+    provisional_reason: str | None = Field(default=None, description=PROVISIONAL_REASON_DOC)
 
 
 class MapTrackPublic(BaseModel):

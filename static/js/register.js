@@ -6,6 +6,7 @@ import { h, clear, append, announce, fmt, fmtDay, fmtKm, fmtKmRange, field, mess
 import { ApiError, apiFetch, apiSchema } from "./api.js";
 import { applyBounds, clearFieldErrors, numberProblem, showFieldError, showServerErrors } from "./formerrors.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, TERMS } from "./plots.js";
+import { provisionalLabel } from "./provisional.js";
 
 export const LEVEL_LABELS = { immediate: "Immediate action", intervention: "Intervention", alert: "Alert" };
 const SHORT_LEVEL = { immediate: "Immediate", intervention: "Intervention", alert: "Alert" };
@@ -54,7 +55,7 @@ export const REGISTER_COLUMNS = [
   { key: "start_m", label: "Zone", title: "Extent, chainage in km+m", num: true, get: (d) => d.start_m, show: (d) => fmtKmRange(d.start_m, d.end_m) },
   { key: "peak_m", label: "Peak", title: "Deepest point, chainage in km+m", num: true, get: (d) => d.peak_m, show: (d) => fmtKm(d.peak_m) },
   { key: "status", label: "Status", get: (d) => d.status, show: (d) => d.status, cls: (d) => `defect-status defect-${d.status}` },
-  { key: "runs_seen", label: "Evidence", title: "What supports the defect: single passes, or the separation of geometry from stiffness across passes of different wheel loads (passes that support it of the runs covering it)", get: (d) => d.runs_seen, show: evidenceOf },
+  { key: "runs_seen", label: "Evidence", title: "What supports the defect: single passes, or the separation of geometry from stiffness across passes of different wheel loads (passes that support it of the runs covering it); provisional: separated with a vehicle neither calibrated nor with its runs' loads declared", get: (d) => d.runs_seen, show: (d) => [evidenceOf(d), provisionalLabel(d)] },
   { key: "depth_mm", label: "Depth (mm)", title: TERMS.depth, num: true, get: (d) => d.depth_mm, show: (d) => fmt(d.depth_mm, 2) },
   { key: "stiffness_loss_pct", label: "Loss (%)", title: `${TERMS.loss} (with its band where the separation gives one)`, num: true, get: (d) => d.stiffness_loss_pct, show: lossOf },
   { key: "trend_mm_per_month", label: "Trend (mm/mo)", title: "Depth trend, mm per month (— until two runs, or two successive separations, saw the defect)", num: true, get: (d) => trendOf(d, "trend_mm_per_month"), show: (d) => signed(trendOf(d, "trend_mm_per_month"), 3) },
@@ -190,7 +191,7 @@ export function alertsCard(enc, getDefects = null) {
       h("td", { class: "num" }, fmt(d.depth_mm, 2)),
       h("td", { class: "num" }, lossOf(d)),
       h("td", {}, d.status),
-      h("td", {}, evidenceOf(d))));
+      h("td", {}, evidenceOf(d), provisionalLabel(d))));
     out.append(
       h("p", { class: "small", id: "alerts-count" }, `${alerts.length} defect${alerts.length === 1 ? "" : "s"} reached a limit since ${since}.`),
       scrollTable(`Alerts since ${since}`, h("table", { class: "data", id: "alerts-table" },

@@ -7,6 +7,7 @@
 import { h, fmt, fmtKm, fmtKmRange, messageBox } from "./dom.js";
 import { apiFetch } from "./api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly } from "./plots.js";
+import { provisionalBanner, provisionalLabel, spotsAre } from "./provisional.js";
 
 // Loss classes against the track's limits: colour and symbol say the same (no colour only).
 const LEVELS = [
@@ -73,7 +74,7 @@ function spotsTable(spots, limits) {
   if (!spots.length) return h("p", { class: "muted", id: "stiffness-spots" }, "No soft spot where the stiffness is separated.");
   const head = h("tr", {}, ...["Zone", "Peak", "Loss (%)", "Band (%)", "Level"].map((t) => h("th", { scope: "col" }, t)));
   const rows = spots.map((s) => h("tr", {},
-    h("td", { class: "num" }, fmtKmRange(s.start_m, s.end_m)),
+    h("td", { class: "num" }, fmtKmRange(s.start_m, s.end_m), provisionalLabel(s)),
     h("td", { class: "num" }, fmtKm(s.peak_m)),
     h("td", { class: "num" }, fmt(s.stiffness_loss_pct, 0)),
     h("td", { class: "num" }, `${fmt(s.loss_lo_pct, 0)}–${fmt(s.loss_hi_pct, 0)}`),
@@ -119,7 +120,11 @@ export function stiffnessCard(enc) {
       setTimeout(() => { if (section.isConnected) render(); }, RELOAD_MS);
     } else if (!st.updating) reloads = 0;
     details.replaceChildren(
-      h("h3", {}, "Soft spots (separated)"), spotsTable(st.soft_spots, limits),
+      h("h3", {}, "Soft spots (separated)"),
+      // the spots when some are provisional, else the map itself (its passes' vehicles)
+      provisionalBanner(st.soft_spots, spotsAre, "stiffness-provisional")
+        || provisionalBanner([st], () => "This stiffness map is", "stiffness-provisional") || "",
+      spotsTable(st.soft_spots, limits),
       h("h3", {}, "Contributing passes"), contributorsList(st));
     if (!st.n || !st.separable) {
       div.hidden = true;

@@ -11,6 +11,7 @@ frame of the first run uploaded, so the truth is compared after that run's start
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import io
 from collections.abc import Iterator
@@ -42,6 +43,9 @@ FLEET = (
 )
 """The order the runs arrive in: preset, vehicle, speed (m/s), logged start error (m)."""
 TRACK = "rough coach and wagon"
+DECLARED = "rough coach and wagon, loads declared"
+"""The same four runs on a second track, each declaring its load (no payload on top of the
+registered vehicle: the same wheel force, so the same separation)."""
 T0 = datetime(2026, 4, 6, 6, 0, tzinfo=UTC)
 
 
@@ -58,17 +62,23 @@ def register(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any
             )  # fmt: skip
             buf = io.StringIO()
             write_run_csv(syn.log, buf, digits=8)
-            r = upload(
-                client, buf.getvalue().encode(), track=TRACK, vehicle=preset,
-                start_chainage_m=round(syn.logged_start_chainage_m, 2),
-                recorded_at=(T0 + timedelta(days=i)).isoformat(),
-            )  # fmt: skip
-            assert r.status_code == 201, r.text
-        yield {
-            "stiffness": client.get(f"/api/v1/tracks/{TRACK}/stiffness").json(),
-            "defects": client.get(f"/api/v1/tracks/{TRACK}/defects").json(),
-            "frame_error_m": FLEET[0][3],
-        }
+            for track_name, payload_kg in ((TRACK, None), (DECLARED, 0.0)):
+                r = upload(
+                    client, buf.getvalue().encode(), track=track_name, vehicle=preset,
+                    start_chainage_m=round(syn.logged_start_chainage_m, 2),
+                    recorded_at=(T0 + timedelta(days=i)).isoformat(), payload_kg=payload_kg,
+                )  # fmt: skip
+                assert r.status_code == 201, r.text
+        answers: dict[str, Any] = {"frame_error_m": FLEET[0][3]}
+        for key, track_name in (("", TRACK), ("declared_", DECLARED)):
+            for what in ("stiffness", "defects"):
+                url = f"/api/v1/tracks/{track_name}/{what}"
+                answers[key + what] = client.get(url).json()
+                answers[key + what + "_csv"] = client.get(url, params={"format": "csv"}).text
+            answers[key + "zones"] = client.get(
+                f"/api/v1/views/tracks/{track_name}/chainage-map"
+            ).json()["zones"]
+        yield answers
 
 
 def test_coach_and_wagon_over_rough_rail_give_every_zone_in_the_register(
@@ -94,3 +104,48 @@ def test_coach_and_wagon_over_rough_rail_give_every_zone_in_the_register(
             and abs(d["stiffness_loss_pct"] - 100 * zone.loss) <= 10.0
             for d in over
         ), (zone, over)
+
+
+def test_separated_zones_are_provisional_until_the_runs_declare_their_loads(
+    register: dict[str, Any],
+) -> None:
+    """The presets as registered, never calibrated, no load declared: every separated soft
+    spot, the stiffness window and every separated defect are provisional, the reason naming
+    both vehicles and their runs, in JSON, the CSV twins and the chainage map's zones. The
+    same runs declaring their loads give the same zones, none provisional."""
+    st, defects = register["stiffness"], register["defects"]
+    separated = [d for d in defects if d["source"] == "separated"]
+    assert st["soft_spots"] and separated
+    reasons = [st["provisional_reason"]] + [
+        x["provisional_reason"] for x in [*st["soft_spots"], *separated]
+    ]
+    assert st["provisional"] and all(x["provisional"] for x in [*st["soft_spots"], *separated])
+    for reason in reasons:
+        assert reason.startswith(
+            "vehicle freight_wagon: no calibration and no declared load on its runs "
+        ), reason
+        assert "; vehicle passenger_coach: no calibration and no declared load on its runs " in (
+            reason
+        )
+    assert not any(d["provisional"] for d in defects if d["source"] != "separated")
+    zones = register["zones"]
+    assert any(z["source"] == "separated" for z in zones)
+    assert all(z["provisional"] == (z["source"] == "separated") for z in zones)
+    assert {z["provisional_reason"] for z in zones if z["provisional"]} <= set(reasons)
+    assert f"# Provisional: {st['provisional_reason']}; calibrate" in register["stiffness_csv"]
+    rows = list(csv.DictReader(io.StringIO(register["defects_csv"])))
+    assert [r["provisional"] for r in rows] == ["1" if d["provisional"] else "0" for d in defects]
+    assert [r["provisional_reason"] for r in rows] == [
+        d["provisional_reason"] or "" for d in defects
+    ]
+
+    st2, defects2 = register["declared_stiffness"], register["declared_defects"]
+    assert [(s["start_m"], s["stiffness_loss_pct"]) for s in st2["soft_spots"]] == [
+        (s["start_m"], s["stiffness_loss_pct"]) for s in st["soft_spots"]
+    ]
+    assert not st2["provisional"] and st2["provisional_reason"] is None
+    declared = [*st2["soft_spots"], *defects2, *register["declared_zones"]]
+    assert not any(x["provisional"] or x["provisional_reason"] for x in declared)
+    assert "Provisional" not in register["declared_stiffness_csv"]
+    rows2 = list(csv.DictReader(io.StringIO(register["declared_defects_csv"])))
+    assert rows2 and all(r["provisional"] == "0" for r in rows2)

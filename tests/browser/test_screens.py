@@ -63,13 +63,15 @@ def test_register_shows_separated_spots_with_depth_loss_and_evidence(
     page: Any, live_server: LiveServer, geo_track: dict[str, Any], screenshots: Path
 ) -> None:
     """Three separated defects: depth > 0, a loss with its band, 'separated: 4 passes, 2
-    loads', confirmed; zones in km+m; the stiffness message names no stretch over them."""
+    loads' and provisional (the presets as registered, no load declared), confirmed; zones in
+    km+m; the stiffness message names no stretch over them."""
     page.goto(f"{live_server.url}/#/tracks/{geo_track['id']}")
     page.wait_for_selector("#zone-table tbody tr")
     sep = [r for r in register_rows(page) if r["Evidence"].startswith("separated")]
     assert len(sep) == 3, register_rows(page)
     for row in sep:
-        assert row["Evidence"] == "separated: 4 passes, 2 loads"
+        # the presets as registered, no load declared: separated, but provisional
+        assert row["Evidence"] == "separated: 4 passes, 2 loads provisional"
         assert row["Status"] == "confirmed"
         assert float(row["Depth (mm)"]) > 0
         assert "(" in row["Loss (%)"] and "–" in row["Loss (%)"]  # the band

@@ -130,3 +130,38 @@ def test_a_track_whose_separation_is_being_redone_says_so_and_reloads(
     )
     assert answers == [True, False]  # reloaded once, by itself
     assert "not separable" in page.locator("#stiffness-message").inner_text()
+
+
+@pytest.mark.slow
+def test_provisional_spots_are_labelled_and_the_banners_say_why_and_what_to_do(
+    page: Any, live_server: LiveServer, tracks: dict[str, Any]
+) -> None:
+    """The mixed track's passes are the registered presets, none calibrated and no run with a
+    declared load: its separated soft spots are provisional. The stiffness map's spot table
+    and the register label each one "provisional", and a banner above each names the
+    vehicles and their runs and says to calibrate them or declare the runs' loads."""
+    st = tracks["stiffness"]
+    assert st["soft_spots"] and all(s["provisional"] for s in st["soft_spots"]), st["soft_spots"]
+    with live_server.api() as api:
+        defects = api.get(f"/api/v1/tracks/{tracks['mixed']}/defects").json()
+    provisional = [d for d in defects if d["provisional"]]
+    assert provisional and all(d["source"] == "separated" for d in provisional)
+    page.goto(f"{live_server.url}/#/tracks/{tracks['mixed']}")
+    page.wait_for_selector("#stiffness-spots tbody tr")
+    labels = page.locator("#stiffness-spots tbody .badge.provisional")
+    assert labels.count() == len(st["soft_spots"])
+    assert labels.first.inner_text() == "provisional"
+    assert labels.first.get_attribute("title") == st["soft_spots"][0]["provisional_reason"]
+    banner = page.locator("#stiffness-provisional")
+    register_banner = page.locator("#register-provisional")
+    for box in (banner, register_banner):
+        box.wait_for()
+        text = box.inner_text()
+        assert text.startswith("Provisional: "), text
+        assert "vehicle heavy: no calibration and no declared load on its run" in text
+        assert "vehicle table1: no calibration and no declared load on its runs" in text
+        assert "Calibrate each vehicle named" in text and "declare each run's load" in text
+    page.wait_for_selector("#zone-table tbody tr")
+    marked = page.locator("#zone-table tbody .badge.provisional")
+    assert marked.count() == len(provisional)
+    page.watch.assert_clean()

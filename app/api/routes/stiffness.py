@@ -39,8 +39,11 @@ def read_track_stiffness(
     point and the ratio of their wheel forces; the soft spots found and which runs and
     surveys (with their mean wheel force) contributed. Where the passes do not span enough
     wheel load the point is not separable: its stiffness and geometry are null and
-    ``message`` says why. ``?from_m=&to_m=`` selects a window; the ``.csv`` twin answers
-    ``chainage_m,k_rel,...,separable`` (with the message as a ``#`` comment line).
+    ``message`` says why. The window and each soft spot are ``provisional`` (with
+    ``provisional_reason``) while a vehicle behind them has neither a calibration applied nor
+    its runs' loads declared. ``?from_m=&to_m=`` selects a window; the ``.csv`` twin answers
+    ``chainage_m,k_rel,...,separable`` (with the message and the provisional reason as ``#``
+    comment lines).
     """
     trk = get_track(session, track)
     from_m, to_m = window.from_m, window.to_m

@@ -29,6 +29,7 @@ from app.services.track.aggregate import aggregated_profile_view
 from app.services.track.register import (
     LIMIT_FIELDS,
     load_limits,
+    provisional_notes,
     save_limits,
     stiffness_notes,
     track_register,
@@ -84,13 +85,14 @@ def _defects_answer(
     filename: str,
 ) -> Any:
     notes = stiffness_notes(session, track_id, defects)
+    trust = provisional_notes(session, track_id, defects)
     if fmt == "csv":
-        return csv_answer(exports.defects_csv(defects, notes), filename)
+        return csv_answer(exports.defects_csv(defects, notes, trust), filename)
     # The register's own dicts, serialised once (FastAPI's response-model pass would double
     # the time of a large register); their fields are those of DefectPublic.
     payload = [
-        exports.defect_dict(d, with_history) | exports.note_dict(note)
-        for d, note in zip(defects, notes, strict=True)
+        exports.defect_dict(d, with_history) | exports.note_dict(note) | tr.to_dict()
+        for d, note, tr in zip(defects, notes, trust, strict=True)
     ]
     return Response(orjson.dumps(payload), media_type="application/json")
 
@@ -111,7 +113,9 @@ def read_defects(
     """The soft-spot register: the soft spots of the track's aligned runs merged into tracked
     defects, with extent, first and last seen, runs seen (of the runs covering it), latest
     depth and stiffness loss, their trends per month, status and priority from the track's
-    limits; most urgent first (priority, then depth)."""
+    limits; most urgent first (priority, then depth). A defect the separation found is
+    ``provisional`` (``provisional_reason`` names the vehicles and runs) while a vehicle behind
+    it has neither a calibration applied nor its runs' loads declared."""
     trk = get_track(session, track)
     defects = read_settled(session, trk.id, "register", lambda: track_register(session, trk.id))
     return _defects_answer(

@@ -21,12 +21,13 @@ from typing import Any
 from sqlalchemy import ColumnElement, func, select
 from sqlalchemy.orm import Session
 
-from app.db.models import Run, SoftSpot, Survey, TrackLimits, TrackStiffness, TrackStiffnessSpot
-from app.services.track.aggregate import CHUNK_POINTS, read_combined_spots
-from app.services.track.alignment import GRID_STEP_M, MERGED_STATUSES
+from app.db.models import Run, SoftSpot, Survey, TrackLimits, TrackStiffnessSpot
+from app.services.track.aggregate import read_combined_spots
+from app.services.track.alignment import MERGED_STATUSES
 from app.services.track.quality_register import isolated_register
 from app.services.track.separation_history import pass_key, read_history
-from app.services.track.separation_store import NOT_SEPARABLE, separable_intervals
+from app.services.track.separation_store import NOT_SEPARABLE, separable_intervals, spot_support
+from app.services.track.separation_trust import TRUSTED, Trust, defects_trust, judge, run_bases
 from engine.register import (
     Defect,
     Limits,
@@ -197,7 +198,7 @@ def separated_observations(
     out = []
     for spot in spots:
         support = _supports(
-            spot.support if spot.support is not None else _chunk_passes(session, spot),
+            spot_support(session, spot),
             passes,
             made,
         )
@@ -254,19 +255,6 @@ def _separated(support: tuple[Support, ...], at: datetime, spot: Any) -> Observa
     )  # fmt: skip
 
 
-def _chunk_passes(session: Session, spot: TrackStiffnessSpot) -> list[dict[str, Any]]:
-    chunk = math.floor(spot.peak_m / GRID_STEP_M) // CHUNK_POINTS
-    meta = session.scalar(
-        select(TrackStiffness.meta).where(
-            TrackStiffness.track_id == spot.track_id, TrackStiffness.chunk == chunk
-        )
-    )
-    return [
-        {"kind": c["kind"], "id": c["id"], "force_n": c.get("mean_force_n")}
-        for c in (meta or {}).get("contributors", [])
-    ]
-
-
 def track_register(session: Session, track_id: int, limits: Limits | None = None) -> list[Defect]:
     """The track's defects, most urgent first (see ``engine.register.build_register``)."""
     if limits is None:
@@ -312,3 +300,12 @@ def stiffness_notes(
         else:
             out.append((None, NOT_SEPARABLE))
     return out
+
+
+def provisional_notes(session: Session, track_id: int, defects: Sequence[Defect]) -> list[Trust]:
+    """Whether each defect is provisional (see :mod:`app.services.track.separation_trust`):
+    a defect the separation found, judged by the passes of its current separation; any
+    other is not."""
+    if not any(d.source == "separated" for d in defects):
+        return [TRUSTED] * len(defects)
+    return defects_trust(defects, judge(run_bases(session, track_id)))

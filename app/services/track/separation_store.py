@@ -50,6 +50,7 @@ from app.services.storage.profiles import finite_or_none
 from app.services.track.aggregate import CHUNK_POINTS, newest_runs
 from app.services.track.alignment import GRID_STEP_M
 from app.services.track.separation_history import record_separation
+from app.services.track.separation_trust import TRUSTED, Trust, judge, run_bases
 from app.services.views.notation import km_m, km_m_range
 from engine.errors import EngineError
 from engine.separation import (
@@ -426,6 +427,11 @@ class StiffnessWindow:
     (``app.services.track.integrate.separate_pending``): what is read is the state before it."""
     not_separable: list[Stretch] = dataclasses.field(default_factory=list)
     """Where the window is not separable, and why (``message`` says it in words)."""
+    trust: Trust = TRUSTED
+    """Whether the window's separation is provisional (a contributing vehicle neither
+    calibrated nor with its runs' loads declared), as :func:`stiffness_with_vehicles` tells."""
+    spot_trust: tuple[Trust, ...] = ()
+    """The same for each of ``spots`` (empty where not told: every spot trusted)."""
 
     @property
     def n(self) -> int:
@@ -662,22 +668,48 @@ def separable_intervals(session: Session, track_id: int) -> list[tuple[float, fl
     return [(float(x[a]), float(x[b])) for a, b in zip(starts, ends, strict=True)]
 
 
+def spot_support(session: Session, spot: TrackStiffnessSpot) -> list[dict[str, Any]]:
+    """The passes behind a separated soft spot (``{"kind", "id", "force_n"}``): its stored
+    ``support``, or for a spot stored before that was kept, the passes of its chunk."""
+    if spot.support is not None:
+        return list(spot.support)
+    chunk = math.floor(spot.peak_m / GRID_STEP_M) // CHUNK_POINTS
+    meta = session.scalar(
+        select(TrackStiffness.meta).where(
+            TrackStiffness.track_id == spot.track_id, TrackStiffness.chunk == chunk
+        )
+    )
+    return [
+        {"kind": c["kind"], "id": c["id"], "force_n": c.get("mean_force_n")}
+        for c in (meta or {}).get("contributors", [])
+    ]
+
+
 def stiffness_with_vehicles(
     session: Session, track_id: int, from_m: float | None = None, to_m: float | None = None
 ) -> StiffnessWindow:
-    """:func:`read_stiffness` with each contributing run's vehicle name (``vehicle``)."""
+    """:func:`read_stiffness` with each contributing run's vehicle name (``vehicle``), and
+    whether each soft spot and the window (where some point of it is separable) are
+    provisional (:func:`app.services.track.separation_trust.trust_of`)."""
     window = read_stiffness(session, track_id, from_m, to_m)
-    ids = [c["id"] for c in window.contributors if c["kind"] == "run"]
-    if not ids:
-        return window
-    rows = session.execute(
-        select(Run.id, Vehicle.name)
-        .join(Vehicle, Vehicle.id == Run.vehicle_id)
-        .where(Run.id.in_(ids))
-    ).all()
-    names = {int(r[0]): str(r[1]) for r in rows}
+    if not window.spots and not any(c["kind"] == "run" for c in window.contributors):
+        return window  # surveys alone: known loads, no vehicle to name or doubt
+    bases = run_bases(session, track_id)
     contributors = [
-        c | {"vehicle": names.get(c["id"]) if c["kind"] == "run" else None}
+        c | {"vehicle": bases[c["id"]].vehicle if c["id"] in bases else None}
+        if c["kind"] == "run" else c | {"vehicle": None}
         for c in window.contributors
-    ]
-    return dataclasses.replace(window, contributors=contributors)
+    ]  # fmt: skip
+    of = judge(bases)
+    spot_trust = tuple(
+        of((p["kind"], p["id"]) for p in spot_support(session, sp)) for sp in window.spots
+    )
+    return dataclasses.replace(
+        window,
+        contributors=contributors,
+        # nothing separated, nothing to trust or doubt: the message says what is missing
+        trust=of((c["kind"], c["id"]) for c in window.contributors)
+        if window.separable
+        else TRUSTED,
+        spot_trust=spot_trust,
+    )

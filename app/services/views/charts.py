@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from datetime import datetime
 
 import numpy as np
@@ -48,6 +48,13 @@ from app.services.run_lifecycle.stored_runs import detail_run
 from app.services.storage.profiles import nullable, profile_arrays
 from app.services.storage.retention import require_detail
 from app.services.track.register import LOAD_RATIO, separated_observations
+from app.services.track.separation_trust import (
+    TRUSTED,
+    Trust,
+    defects_trust,
+    judge,
+    run_bases,
+)
 from app.services.views.window import Window
 from engine.chainage import GRID_STEP_M
 from engine.decimate import minmax_indices
@@ -199,11 +206,16 @@ def _spots(
 
 
 def map_zones(
-    spots: MapSpotsPublic, runs: list[Run], separated: Sequence[Observation] = ()
+    spots: MapSpotsPublic,
+    runs: list[Run],
+    separated: Sequence[Observation] = (),
+    of: Callable[[Iterable[tuple[str, int]]], Trust] | None = None,
 ) -> list[ZonePublic]:
     """The zones of the map: the register (:func:`engine.register.build_register`, the one
     zone model) over the soft spots shown, whatever the alignment state of their runs, and the
-    track's separated soft spots (``separated``: the register's own sightings).
+    track's separated soft spots (``separated``: the register's own sightings); a zone the
+    separation found is provisional as ``of`` judges its passes
+    (:func:`app.services.track.separation_trust.judge`; None: none is).
 
     A zone keeps the register's definitions: sightings overlapping or at most
     ``RegisterConfig.join_gap_m`` (1 m) apart join; one sighting per run (its deepest); the
@@ -248,6 +260,7 @@ def map_zones(
         extents.append((min(starts[i] for i in g), max(ends[i] for i in g)))
     spans = [extents[group_of[id(d.history[0])]] for d in defects]
     order = sorted(range(len(defects)), key=lambda k: spans[k][0])
+    trust = defects_trust(defects, of) if of is not None else [TRUSTED] * len(defects)
     return [
         ZonePublic(
             id=n + 1,
@@ -265,6 +278,8 @@ def map_zones(
             run_ids=sorted({p.id for o in d.history for p in o.passes if p.kind == "run"}),
             source=d.source,
             evidence_text=d.evidence_text,
+            provisional=trust[k].provisional,
+            provisional_reason=trust[k].reason,
         )
         for n, k in enumerate(order)
         for d in (defects[k],)
@@ -367,12 +382,22 @@ def chainage_map(
         runs_omitted=omitted,
         runs_pending=pending,
         spots=spot_cols,
-        zones=map_zones(spot_cols, runs, _separated_in(session, track.id, window))
+        zones=_zones(session, track.id, spot_cols, runs, window)
         if spot_cols is not None and zones
         else None,
         heatmap=heat,
         heatmap_note=note,
     )
+
+
+def _zones(
+    session: Session, track_id: int, spots: MapSpotsPublic, runs: list[Run], window: Window
+) -> list[ZonePublic]:
+    """The map's zones (:func:`map_zones`) with the track's separated soft spots in the
+    window, each judged provisional or not."""
+    separated = _separated_in(session, track_id, window)
+    of = judge(run_bases(session, track_id)) if separated else None
+    return map_zones(spots, runs, separated, of)
 
 
 def _separated_in(session: Session, track_id: int, window: Window) -> list[Observation]:

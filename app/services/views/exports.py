@@ -24,8 +24,9 @@ from app.services.storage.profiles import iter_profile_rows, profile_blocks
 from app.services.storage.retention import require_detail
 from app.services.track.aggregate import read_track_profile
 from app.services.track.quality import track_quality
-from app.services.track.register import load_limits, track_register
+from app.services.track.register import load_limits, provisional_notes, track_register
 from app.services.track.separation_store import UPDATING, StiffnessWindow, stiffness_with_vehicles
+from app.services.track.separation_trust import PROVISIONAL_REMEDY, Trust
 from app.services.views.report import ReportInput, ReportRun, render_report
 from app.services.views.report_quality import quality_section
 from app.services.views.report_stiffness import stiffness_section
@@ -37,7 +38,8 @@ DEFECT_CSV_FIELDS = (
     "priority", "id", "level", "level_since", "status", "start_m", "end_m", "peak_m",
     "depth_mm", "stiffness_loss_pct", "trend_mm_per_month", "trend_loss_pct_per_month",
     "runs_seen", "runs_covering", "first_seen", "last_seen", "stiffness_basis", "message",
-    "stiffness_loss_lo_pct", "stiffness_loss_hi_pct", "evidence_text",
+    "stiffness_loss_lo_pct", "stiffness_loss_hi_pct", "evidence_text", "provisional",
+    "provisional_reason",
 )  # fmt: skip
 DEFECT_FIELDS = tuple(
     f.name for f in dataclasses.fields(Defect) if f.name not in ("history", "evidence")
@@ -112,9 +114,15 @@ def _stiffness_cell(v: Any) -> str:
 
 def stiffness_csv(sep: StiffnessWindow) -> str:
     """A window of the separated stiffness as CSV (:data:`STIFFNESS_CSV_FIELDS`, 6 significant
-    digits, ``separable`` 1/0), after ``#`` lines saying it is being redone and why points are
-    not separable."""
-    lines = [f"# {note}" for note in (UPDATING if sep.updating else None, sep.message) if note]
+    digits, ``separable`` 1/0), after ``#`` lines saying it is being redone, why points are
+    not separable and why its separation is provisional."""
+    provisional = (
+        f"Provisional: {sep.trust.reason}; {PROVISIONAL_REMEDY} for it to count"
+        if sep.trust.provisional
+        else None
+    )
+    notes = (UPDATING if sep.updating else None, sep.message, provisional)
+    lines = [f"# {note}" for note in notes if note]
     lines.append(",".join(STIFFNESS_CSV_FIELDS))
     cols = [sep.columns[k] for k in STIFFNESS_CSV_FIELDS]
     lines += [",".join(_stiffness_cell(c[i]) for c in cols) for i in range(sep.n)]
@@ -157,18 +165,25 @@ def note_dict(note: tuple[str | None, str | None]) -> dict[str, str | None]:
     return {"stiffness_basis": note[0], "message": note[1]}
 
 
-def defects_csv(defects: Sequence[Defect], notes: Sequence[tuple[str | None, str | None]]) -> str:
+def defects_csv(
+    defects: Sequence[Defect],
+    notes: Sequence[tuple[str | None, str | None]],
+    trust: Sequence[Trust],
+) -> str:
     """The register as CSV, one defect a line in :data:`DEFECT_CSV_FIELDS` order (the
-    message quoted: it holds a comma)."""
+    texts quoted: they hold commas; ``provisional`` 1/0, see
+    :func:`app.services.track.register.provisional_notes`)."""
     lines = [",".join(DEFECT_CSV_FIELDS)]
-    for d, note in zip(defects, notes, strict=True):
-        row = defect_dict(d) | note_dict(note)
+    for d, note, tr in zip(defects, notes, trust, strict=True):
+        row = defect_dict(d) | note_dict(note) | tr.to_dict()
         cells = []
         for k in DEFECT_CSV_FIELDS:
             v = row[k]
-            if isinstance(v, float):
+            if isinstance(v, bool):
+                cells.append("1" if v else "0")
+            elif isinstance(v, float):
                 cells.append(f"{v:.6g}" if math.isfinite(v) else "")
-            elif k in ("message", "evidence_text") and v is not None:
+            elif k in ("message", "evidence_text", "provisional_reason") and v is not None:
                 cells.append('"' + str(v).replace('"', '""') + '"')
             else:
                 cells.append("" if v is None else str(v))
@@ -181,6 +196,7 @@ def track_report(session: Session, trk: Track, top: int) -> str:
     :func:`app.services.views.report.render_report`)."""
     limits, limits_row = load_limits(session, trk.id)
     defects = track_register(session, trk.id, limits)
+    trust = provisional_notes(session, trk.id, defects)
     cols = read_track_profile(session, trk.id)
     count = select(func.count()).select_from(Run).where(Run.track_id == trk.id)
     runs_total = session.scalar(count) or 0
@@ -216,6 +232,9 @@ def track_report(session: Session, trk: Track, top: int) -> str:
             description=trk.description,
             generated_at=datetime.now(UTC),
             defects=defects,
+            provisional={
+                d.id: t.reason or "" for d, t in zip(defects, trust, strict=True) if t.provisional
+            },
             limits=limits,
             limits_are_default=limits_row is None,
             runs=report_runs,

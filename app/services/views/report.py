@@ -8,14 +8,15 @@ Every piece of user text (track, run, vehicle and file names, descriptions) goes
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 from datetime import datetime
 from html import escape
 
 import numpy as np
 from numpy.typing import NDArray
 
+from app.services.track.separation_trust import PROVISIONAL_REMEDY
 from app.services.views.notation import km_m, km_m_range
 from engine.decimate import minmax_indices
 from engine.register import LEVELS, Defect, Limits
@@ -83,6 +84,9 @@ class ReportInput:
     """The stiffness section (``app.services.views.report_stiffness``), placed after the map."""
     quality_html: str = ""
     """The track quality section (``app.services.views.report_quality``), after the stiffness."""
+    provisional: Mapping[str, str] = field(default_factory=dict)
+    """The reason of each provisional defect, by id
+    (``app.services.track.register.provisional_notes``)."""
 
 
 def _num(v: float | None, digits: int = 2) -> str:
@@ -373,6 +377,14 @@ def _defects_table(data: ReportInput, defects: list[Defect], ranks: dict[str, in
     """The top defects' table (or why there is none)."""
     parts: list[str] = []
     parts.append(f"<h2>Top defects ({min(len(defects), data.top)} of {len(defects)})</h2>")
+    shown = [d.id for d in defects[: data.top] if d.id in data.provisional]
+    if shown:
+        reasons = "; ".join(dict.fromkeys(data.provisional[i] for i in shown))
+        parts.append(
+            f'<p class="note"><strong>Provisional</strong> ({len(shown)} of the defects below, '
+            "separated with vehicles whose parameters or loads are not known): "
+            f"{escape(reasons)}. To make them count: {escape(PROVISIONAL_REMEDY)}.</p>"
+        )
     if defects:
         rows = []
         for d in defects[: data.top]:
@@ -392,7 +404,9 @@ def _defects_table(data: ReportInput, defects: list[Defect], ranks: dict[str, in
                 f'<td class="num">{_loss_band(d)}</td>'
                 f'<td class="num">{_signed(d.trend_mm_per_month, 3)}</td>'
                 f'<td class="num">{_signed(d.trend_loss_pct_per_month, 1)}</td>'
-                f"<td>{escape(d.evidence_text)} ({d.runs_seen} of {d.runs_covering} covering)</td>"
+                f"<td>{escape(d.evidence_text)} ({d.runs_seen} of {d.runs_covering} covering)"
+                + ("; <strong>provisional</strong>" if d.id in data.provisional else "")
+                + "</td>"
                 f"<td>{_day(d.first_seen)}</td><td>{_day(d.last_seen)}</td>"
                 f"<td>{_day(d.level_since)}</td><td>{escape(d.id)}</td></tr>"
             )

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from app.services.track.separation_store import StiffnessWindow
+from app.services.track.separation_trust import PROVISIONAL_REMEDY
 from app.services.views.notation import km_m, km_m_range
 from engine.decimate import minmax_indices
 from engine.register import Limits
@@ -163,12 +164,19 @@ def stiffness_section(window: StiffnessWindow, limits: Limits) -> str:
             "separable. Points below nominal are coloured by the loss limit they reach; shaded: "
             "the separated soft spots.</p>"
         )
+        if window.trust.provisional:
+            parts.append(
+                f'<p class="note"><strong>Provisional:</strong> {escape(window.trust.reason or "")}'
+                f". To make it count: {escape(PROVISIONAL_REMEDY)}.</p>"
+            )
         if window.spots:
+            marks = [t.provisional for t in window.spot_trust] or [False] * len(window.spots)
             rows = "".join(
-                f'<tr><td class="num">{km_m_range(s.start_m, s.end_m)}</td>'
-                f'<td class="num">{km_m(s.peak_m)}</td><td class="num">{s.loss_pct:.0f}</td>'
+                f'<tr><td class="num">{km_m_range(s.start_m, s.end_m)}'
+                + (" <strong>provisional</strong>" if mark else "")
+                + f'</td><td class="num">{km_m(s.peak_m)}</td><td class="num">{s.loss_pct:.0f}</td>'
                 f'<td class="num">{_band(s.loss_lo_pct, s.loss_hi_pct)}</td></tr>'
-                for s in window.spots
+                for s, mark in zip(window.spots, marks, strict=True)
             )
             parts.append(
                 '<table><thead><tr><th class="num">Extent (km+m)</th>'

@@ -5,6 +5,7 @@ import { h, clear, announce, fmt, fmtKm, fmtKmRange, plural, scrollTable } from 
 import { apiFetch, apiGetOptional } from "../../api.js";
 import { baseLayout, CONFIG, loadPlotly, viridis } from "../../plots.js";
 import { REGISTER_COLUMNS, aggregateTraces, defectShapes } from "../../register.js";
+import { provisionalBanner, spotsAre } from "../../provisional.js";
 
 /** Group index of each load (N): sorted, a load 10 % or more above its group's lightest
  * starts a new group (the separation's own threshold); unknown loads: group 0. */
@@ -122,6 +123,8 @@ export function registerCards(main, { enc, getZones, isStopped }) {
   const draw = () => {
     const zones = getZones();
     clear(tableBox);
+    const doubt = provisionalBanner(zones, spotsAre, "register-provisional");
+    if (doubt) tableBox.appendChild(doubt);
     tableBox.appendChild(zones.length
       ? zoneTable(zones, onSelect)
       : h("p", { class: "muted", id: "register-empty" }, "No defect: no run found a soft spot on this track."));
