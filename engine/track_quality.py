@@ -36,7 +36,7 @@ from .methods import METHODS, MethodInput
 from .pipeline import fuse_axles
 from .setup import Method, PreparedRun
 from .spectral import vehicle_response
-from .vehicle import VehicleParams
+from .vehicle import VehicleModel
 
 FILTER_ORDER = 4
 """Order of each Butterworth half (high-pass, low-pass) of a band filter, per direction."""
@@ -307,7 +307,12 @@ class Observability:
     bounce_nulls_m, pitch_nulls_m : tuple of float
         Wavelengths (3-70 m) at which the axle spacing cancels the body's bounce (the
         accelerometer at the centre sees nothing: ``2 L / (2 k + 1)``) or its pitch (the
-        gyro sees nothing: ``L / k``), ``L`` the axle spacing, m.
+        gyro sees nothing: ``L / k``), ``L`` the axle spacing (a bogie vehicle: the bogie
+        centres' spacing), m.
+    wheelbase_nulls_m : tuple of float
+        Wavelengths (within the range examined) that a bogie's two wheelsets, ``a`` apart,
+        cancel between them (``2 a / (2 k + 1)``): the bogie does not move, so neither does
+        the body, m. Empty for a vehicle with one wheel per measured point.
     unobservable_m : tuple of (float, float)
         Wavelength ranges where ``gain`` is below ``threshold``: neither signal carries them
         above the noise, whatever the inversion does.
@@ -322,6 +327,7 @@ class Observability:
     unobservable_m: tuple[tuple[float, float], ...]
     speed_mps: float
     threshold: float
+    wheelbase_nulls_m: tuple[float, ...] = ()
 
     def to_dict(self) -> dict[str, object]:
         """Plain dict (no arrays) for answers and reports."""
@@ -330,12 +336,13 @@ class Observability:
             "threshold": self.threshold,
             "bounce_nulls_m": list(self.bounce_nulls_m),
             "pitch_nulls_m": list(self.pitch_nulls_m),
+            "wheelbase_nulls_m": list(self.wheelbase_nulls_m),
             "unobservable_m": [list(r) for r in self.unobservable_m],
         }
 
 
 def observability(
-    vehicle: VehicleParams,
+    vehicle: VehicleModel,
     speed_mps: float,
     *,
     lambda_min_m: float = 3.0,
@@ -345,10 +352,12 @@ def observability(
 ) -> Observability:
     """The wavelengths a car body on ``vehicle``'s suspension shows, at ``speed_mps`` (m/s).
 
-    A profile ``e^{i 2 pi x / lambda}`` enters at both axles (front ``d1`` ahead of the body
-    centre, rear ``d2`` behind); :func:`engine.spectral.vehicle_response` gives the body's
-    acceleration (at the sensor) and pitch rate. Each channel is scaled by its median over D1,
-    so the combined gain says how well the pair sees a wavelength compared with the D1 band.
+    A profile ``e^{i 2 pi x / lambda}`` enters at both measured points (front ``d1`` ahead of
+    the body centre, rear ``d2`` behind) as the mean over each point's wheels (a bogie's two
+    wheelsets; a half car's one axle); :func:`engine.spectral.vehicle_response` gives the
+    body's acceleration (at the sensor) and pitch rate. Each channel is scaled by its median
+    over D1, so the combined gain says how well the pair sees a wavelength compared with the
+    D1 band. Any vehicle kind (:class:`engine.vehicle.VehicleModel`).
     """
     if not (speed_mps > 0 and math.isfinite(speed_mps)):
         raise ParameterError(f"speed_mps must be > 0, got {speed_mps}", field="speed_mps")
@@ -357,7 +366,12 @@ def observability(
     lam = np.geomspace(lambda_min_m, lambda_max_m, n)
     k = 2 * np.pi / lam
     H = vehicle_response(vehicle, k * speed_mps)
-    u = np.stack([np.exp(1j * k * vehicle.d1), np.exp(-1j * k * vehicle.d2)], axis=1)
+    # a measured point's level is the mean of its wheels' (a bogie averages its wheelbase out)
+    front, rear = (
+        np.mean([np.exp(1j * k * o) for o in offsets], axis=0)
+        for offsets in vehicle.axle_wheel_offsets_m
+    )
+    u = np.stack([np.exp(1j * k * vehicle.d1) * front, np.exp(-1j * k * vehicle.d2) * rear], axis=1)
     resp = np.abs(np.einsum("wij,wj->wi", H, u))
     d1 = (lam >= 3.0) & (lam <= 25.0)
     ref = np.median(resp[d1], axis=0)
@@ -376,7 +390,20 @@ def observability(
     pitch = tuple(
         round(span / j, 2) for j in range(1, 100) if lambda_min_m <= span / j <= lambda_max_m
     )
-    return Observability(lam, gain, bounce, pitch, tuple(ranges), float(speed_mps), threshold)
+    wheelbases = {
+        round(max(o) - min(o), 6) for o in vehicle.axle_wheel_offsets_m if max(o) > min(o)
+    }
+    wheelbase = tuple(
+        sorted(
+            round(2 * a / (2 * j + 1), 2)
+            for a in wheelbases
+            for j in range(0, 100)
+            if lambda_min_m <= 2 * a / (2 * j + 1) <= lambda_max_m
+        )
+    )
+    return Observability(
+        lam, gain, bounce, pitch, tuple(ranges), float(speed_mps), threshold, wheelbase
+    )
 
 
 # ------------------------------------------------------------------------ section statistics

@@ -78,6 +78,10 @@ def register(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any
             answers[key + "zones"] = client.get(
                 f"/api/v1/views/tracks/{track_name}/chainage-map"
             ).json()["zones"]
+        report = client.get(f"/api/v1/tracks/{TRACK}/report")
+        answers["report"] = (report.status_code, report.text)
+        quality = client.get(f"/api/v1/tracks/{TRACK}/quality")
+        answers["quality"] = (quality.status_code, quality.json())
         yield answers
 
 
@@ -149,3 +153,18 @@ def test_separated_zones_are_provisional_until_the_runs_declare_their_loads(
     assert "Provisional" not in register["declared_stiffness_csv"]
     rows2 = list(csv.DictReader(io.StringIO(register["declared_defects_csv"])))
     assert rows2 and all(r["provisional"] == "0" for r in rows2)
+
+
+def test_a_bogie_fleet_track_has_its_report_and_quality_with_the_wheelbases_nulls(
+    register: dict[str, Any],
+) -> None:
+    """The track report and the quality answer of a track run by bogie vehicles are served
+    (they were a 500: the observability took every vehicle for a half car), and the
+    observability names each vehicle's wheelbase null (coach 2.6 m: 5.2 m; wagon 1.9 m:
+    3.8 m)."""
+    status, html = register["report"]
+    assert status == 200 and "<html" in html.lower()
+    status, q = register["quality"]
+    assert status == 200, q
+    nulls = {o["vehicle"]: o["wheelbase_nulls_m"] for o in q["observability"]}
+    assert nulls == {"passenger_coach": [5.2], "freight_wagon": [3.8]}

@@ -8,6 +8,7 @@ from datetime import UTC, datetime, timedelta
 import numpy as np
 import pytest
 
+from engine.bogie import PASSENGER_COACH
 from engine.errors import ParameterError
 from engine.quality_limits import (
     DEFAULT_ISOLATED_MM,
@@ -183,6 +184,19 @@ def test_observability_names_the_axle_spacing_nulls() -> None:
     assert o.unobservable_m == ()
     stiff = observability(TABLE1, 24.0, threshold=0.99)
     assert stiff.unobservable_m  # a demanding threshold does flag ranges
+
+
+def test_observability_of_a_bogie_vehicle_names_its_wheelbase_nulls() -> None:
+    """A bogie's two wheelsets 2.6 m apart cancel a 5.2 m wavelength between them (and its odd
+    fractions): the body cannot see it, whatever its suspension; the bogie centres' spacing
+    (19 m) gives the bounce and pitch nulls a half car's axles would."""
+    o = observability(PASSENGER_COACH, 28.0)
+    assert o.wheelbase_nulls_m == (5.2,)
+    assert o.bounce_nulls_m[0] == 38.0 and o.pitch_nulls_m[0] == 19.0
+    at = int(np.argmin(np.abs(o.wavelength_m - 5.2)))
+    assert o.gain[at] < 0.05 and any(a <= 5.2 <= b for a, b in o.unobservable_m)
+    assert observability(TABLE1, 24.0).wheelbase_nulls_m == ()
+    assert o.to_dict()["wheelbase_nulls_m"] == [5.2]
 
 
 def test_isolated_defects_agree_with_the_scalar_rule_at_boundaries() -> None:

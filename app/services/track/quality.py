@@ -80,7 +80,7 @@ from engine.track_quality import (
     section_statistics,
     trim_ends,
 )
-from engine.vehicle import VehicleParams
+from engine.vehicle_kinds import vehicle_from_dict
 
 PRODUCT_BAND_MAX_M = ProcessConfig().lambda_max_m
 """Longest wavelength the stored levels hold (m): D2 beyond it is missing from the answer."""
@@ -308,7 +308,7 @@ def _observability(
         speed = float(np.median(vs))
         if veh is None or not speed > 0:
             continue
-        o = observability(VehicleParams(**veh.params_dict()), speed)
+        o = observability(vehicle_from_dict(veh.params_dict()), speed)
         out.append({"vehicle_id": vid, "vehicle": veh.name} | o.to_dict())
     return out
 

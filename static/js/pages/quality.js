@@ -109,7 +109,8 @@ export async function render(main, [ref], query) {
   }
   for (const o of q.observability || []) {
     const blind = o.unobservable_m.length ? `; neither signal carries ${o.unobservable_m.map((r) => `${fmt(r[0], 1)}–${fmt(r[1], 1)} m`).join(", ")}` : "; the two signals together see all of 3–70 m";
-    facts.push(h("li", {}, `${o.vehicle} at ${fmt(o.speed_mps, 0)} m/s: bounce blind at ${o.bounce_nulls_m.join(", ")} m, pitch blind at ${o.pitch_nulls_m.join(", ")} m${blind}.`));
+    const wheelbase = (o.wheelbase_nulls_m || []).length ? `, its bogies' wheelsets cancel ${o.wheelbase_nulls_m.join(", ")} m` : "";
+    facts.push(h("li", {}, `${o.vehicle} at ${fmt(o.speed_mps, 0)} m/s: bounce blind at ${o.bounce_nulls_m.join(", ")} m, pitch blind at ${o.pitch_nulls_m.join(", ")} m${wheelbase}${blind}.`));
   }
   for (const sv of q.survey_comparison || []) {
     const worst = sv.sections.reduce((m, r) => Math.max(m, Math.abs(r.d1_sd_diff_mm ?? 0)), 0);
