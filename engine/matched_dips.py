@@ -81,18 +81,10 @@ def matched_dips(
         the profile's value there (positive down). None when the profile is too short to
         measure its noise on (:func:`noise_spectrum`) or no shape is given.
     """
-    step = float(chainage_m[1] - chainage_m[0])
-    spec = noise_spectrum(profile, step, segment_m)
-    if spec is None or not shapes:
+    setup = _setup(chainage_m, profile, shapes, segment_m)
+    if setup is None:
         return None
-    freq, dens = spec
-    y = np.array(profile, dtype=float)
-    runs = [(a, b) for a, b in true_runs(np.isfinite(y)) if b - a >= 8]
-    longest = max(t.size for _, t in shapes)
-    filters = [_run_filters(b - a, longest, step, freq, dens, shapes) for a, b in runs]
-    stats, gains = _filtered(y, runs, filters, len(shapes))
-    scale = np.array([robust_sigma(row) for row in stats])
-    scale = np.where(scale > 0, scale, np.inf)[:, None]
+    y, runs, filters, stats, gains, scale = setup
     taken = np.zeros(y.size, dtype=bool)
     out: list[Dip] = []
     # strongest first; each dip found is taken out of the profile before the next is looked
@@ -115,6 +107,62 @@ def matched_dips(
         stats, gains = _filtered(y, runs, filters, len(shapes))
     out.sort(key=lambda d: d.start_m)
     return out
+
+
+def matched_scores(
+    chainage_m: NDArray[np.float64],
+    profile: NDArray[np.float64],
+    shapes: Sequence[tuple[float, NDArray[np.float64]]],
+    segment_m: float,
+) -> NDArray[np.float64] | None:
+    """Per point, the largest over ``shapes`` of the matched filter's output over its robust
+    spread (the statistic :func:`matched_dips` thresholds, before any dip is taken out);
+    NaN where ``profile`` is not defined.
+
+    Parameters and None as :func:`matched_dips`.
+    """
+    setup = _setup(chainage_m, profile, shapes, segment_m)
+    if setup is None:
+        return None
+    stats, scale = setup[3], setup[5]
+    z = stats / scale
+    out = np.full(z.shape[1], np.nan)
+    defined = np.isfinite(z).any(axis=0)
+    out[defined] = np.nanmax(z[:, defined], axis=0)
+    return out
+
+
+def _setup(
+    chainage_m: NDArray[np.float64],
+    profile: NDArray[np.float64],
+    shapes: Sequence[tuple[float, NDArray[np.float64]]],
+    segment_m: float,
+) -> (
+    tuple[
+        NDArray[np.float64],
+        list[tuple[int, int]],
+        list[tuple[int, list[NDArray[np.complex128]], list[float]]],
+        NDArray[np.float64],
+        NDArray[np.float64],
+        NDArray[np.float64],
+    ]
+    | None
+):
+    """The profile (a copy), its runs, their filters, the filters' outputs and gains, and
+    each shape's robust spread of its output (shapes x 1, inf where zero); None as
+    :func:`matched_dips`."""
+    step = float(chainage_m[1] - chainage_m[0])
+    spec = noise_spectrum(profile, step, segment_m)
+    if spec is None or not shapes:
+        return None
+    freq, dens = spec
+    y = np.array(profile, dtype=float)
+    runs = [(a, b) for a, b in true_runs(np.isfinite(y)) if b - a >= 8]
+    longest = max(t.size for _, t in shapes)
+    filters = [_run_filters(b - a, longest, step, freq, dens, shapes) for a, b in runs]
+    stats, gains = _filtered(y, runs, filters, len(shapes))
+    scale = np.array([robust_sigma(row) for row in stats])
+    return y, runs, filters, stats, gains, np.where(scale > 0, scale, np.inf)[:, None]
 
 
 def _run_filters(

@@ -48,7 +48,7 @@ from .detect import DetectionConfig, Dip, add_dips, find_dips, robust_baseline, 
 from .errors import ParameterError, check_settings
 from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
 from .intervals import true_runs
-from .matched_dips import matched_dips
+from .matched_dips import matched_dips, matched_scores
 from .pass_equalise import EqualiseConfig, equalise_passes
 from .passes import Pass, align_passes, column_mean_sd, on_grid, pass_from_result
 from .stiffness import InfluenceLine, fit_zone, modal_dips, softening_modes
@@ -115,6 +115,11 @@ class SeparationConfig:
         its dips, and the residual's within ``lambda_max_m / 2`` of an end of the separable
         profile, are the candidates; empty, or too little profile to measure the noise on:
         the residual's dips alone.
+    near_end_matched_z : float
+        A residual's dip near an end is kept only where that filter's output reaches this
+        many of its standard deviations inside the dip: the filter's support is cut there,
+        so a zone gives less than ``noise_factor``, but the compliance's long-wave swings
+        near the ends give less still (docs/method.md §10); ``-inf`` keeps every one.
     """
 
     min_passes: int = 2
@@ -133,6 +138,7 @@ class SeparationConfig:
     grid_step_m: float | None = None
     equalise: EqualiseConfig | None = field(default_factory=EqualiseConfig)
     matched_lengths_m: tuple[float, ...] = (3.0, 4.5, 6.0, 8.0, 10.0)
+    near_end_matched_z: float = 3.75
 
     def __post_init__(self) -> None:
         checks = {
@@ -148,6 +154,7 @@ class SeparationConfig:
             "edge_decay_m": self.edge_decay_m is None or self.edge_decay_m > 0,
             "lambda_max_m": 0 < self.lambda_min_m < self.lambda_max_m,
             "grid_step_m": self.grid_step_m is None or 0 < self.grid_step_m <= 1.0,
+            "near_end_matched_z": not math.isnan(self.near_end_matched_z),
             "matched_lengths_m": all(
                 math.isfinite(v) and 0 < v < self.lambda_max_m for v in self.matched_lengths_m
             ),
@@ -737,6 +744,32 @@ def _near_end(
     return out
 
 
+def _seen_by_filter(
+    grid: NDArray[np.float64],
+    scaled: NDArray[np.float64],
+    dips: list[Dip],
+    shapes: list[tuple[float, NDArray[np.float64]]],
+    cfg: SeparationConfig,
+) -> list[Dip]:
+    """The residual's dips near an end of the separable profile ``scaled`` (on ``grid``, m)
+    in which the filter matched to the zone ``shapes`` reaches ``cfg.near_end_matched_z``.
+
+    The filter's support is cut near an end, so a zone there gives it less than it would
+    inside; the compliance's 10-40 m swings, which grow towards the ends with the passes'
+    edge errors, give the residual's threshold broad dips that the filter, weighing those
+    wavelengths by the noise, hardly sees (docs/method.md §10).
+    """
+    scores = matched_scores(grid, scaled, shapes, cfg.lambda_max_m)
+    if scores is None:
+        return dips
+    out = []
+    for d in dips:
+        inside = (grid >= d.start_m) & (grid <= d.end_m) & np.isfinite(scores)
+        if inside.any() and float(np.max(scores[inside])) >= cfg.near_end_matched_z:
+            out.append(d)
+    return out
+
+
 def _soft_spots(
     grid: NDArray[np.float64],
     dip_mm: NDArray[np.float64],
@@ -769,6 +802,8 @@ def _soft_spots(
             # excursions are what the filter tells from zones)
             near = _near_end(grid, scaled, 0.5 * cfg.lambda_max_m)
             cand = [d for d in cand if near[int(np.argmin(np.abs(grid - d.peak_m)))]]
+            if cand and cfg.near_end_matched_z > -math.inf:
+                cand = _seen_by_filter(grid, scaled, cand, shapes, cfg)
             cand = add_dips(grid, scaled, cand, found)
     sets = tuple(
         (

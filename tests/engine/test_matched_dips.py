@@ -8,7 +8,7 @@ import pytest
 from engine.chainage import bandpass_distance
 from engine.detect import robust_sigma
 from engine.errors import ParameterError
-from engine.matched_dips import matched_dips, noise_spectrum
+from engine.matched_dips import matched_dips, matched_scores, noise_spectrum
 from engine.separation import SeparationConfig
 
 STEP_M = 0.25
@@ -86,3 +86,28 @@ def test_separation_config_checks_matched_lengths():
     for bad in ((0.0,), (3.0, 40.0), (float("nan"),)):
         with pytest.raises(ParameterError, match="matched_lengths_m"):
             SeparationConfig(matched_lengths_m=bad)
+
+
+def test_scores_are_the_statistic_the_dips_are_found_on():
+    """``matched_scores`` peaks where ``matched_dips`` puts its strongest dip, over the
+    threshold there and under it on noise alone; NaN in the gaps."""
+    x = np.arange(0.0, 600.0, STEP_M)
+    y = _red_noise(np.random.default_rng(3), x.size)
+    t = SHAPES[3][1]
+    h = t.size // 2
+    k = int(round(450.0 / STEP_M))
+    y[k - h : k + h + 1] -= 5.0 * t
+    y[(x > 250.0) & (x < 330.0)] = np.nan
+    scores = matched_scores(x, y, SHAPES, 40.0)
+    found = matched_dips(x, y, SHAPES, 4.5, 40.0)
+    assert scores is not None and found
+    assert x[int(np.nanargmax(scores))] == found[0].peak_m
+    assert np.nanmax(scores) > 4.5 > np.nanmax(scores[np.abs(x - 450.0) > 40.0])
+    assert np.all(np.isnan(scores[(x > 250.0) & (x < 330.0)]))
+    assert matched_scores(x[:240], y[:240], SHAPES, 40.0) is None
+
+
+def test_separation_config_checks_the_near_end_threshold():
+    assert SeparationConfig(near_end_matched_z=-np.inf).near_end_matched_z == -np.inf
+    with pytest.raises(ParameterError, match="near_end_matched_z"):
+        SeparationConfig(near_end_matched_z=float("nan"))
