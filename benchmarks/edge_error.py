@@ -10,7 +10,9 @@ sensor noise and a vehicle already moving (its state at the cut's first sample u
 On the cut log's covered stretch, by distance ``d`` to its nearer end, the RMS of
 
 - ``total``: the cut log's level band-passed on its own coverage (as the separation does,
-  ``bandpass_distance`` 3-40 m) minus the truth band-passed on the whole coverage;
+  ``bandpass_distance`` 3-40 m) minus the truth band-passed twice on the whole coverage (the
+  level carries the inversion's band window, the same raised-cosine band in time at a
+  constant speed, before the band-pass);
 - ``inversion``: the cut log's level minus the whole log's, both band-passed on the cut's
   coverage (the inversion's end error alone: taper, wrap-around, unknown initial state);
   ``inversion, raw level`` the same unfiltered (what the separation's fit is given);
@@ -18,12 +20,14 @@ On the cut log's covered stretch, by distance ``d`` to its nearer end, the RMS o
   its own (the band filter's end error on an end-free level);
 - ``baseline``: the 40 m running baseline of the whole log's level taken on the cut's
   coverage minus on its own (what the detector's residual gets from the ends);
-- ``floor``: the whole log's band-passed level minus the band-passed truth (the error away
-  from any end);
+- ``floor``: the whole log's band-passed level minus that truth (the error away from any
+  end); ``floor, truth band-passed once``: against the truth band-passed once (what the
+  band's tapers alone make of a comparison that ignores the inversion's window);
 
 so that ``total = inversion + band-pass + floor`` point by point; and the truth's band-passed
 RMS. ``--peer`` adds the public peer runs' ``total`` against their
-bogie-mean truth (no cut: their ends are the logs' own).
+bogie-mean truth band-passed twice on the same stretch (no cut: their ends are the logs'
+own, and the truth's own band-pass shares the band filter's end error there).
 """
 
 from __future__ import annotations
@@ -113,16 +117,19 @@ def own_run(seed: int, kind: str) -> dict[str, list[float]]:
     d = distance_to_ends(ok, step)
     truth_bp = bp(run.true_profile(grid), step)
     whole_bp = bp(whole.level_mm, step)
+    # the level carries the inversion's band window already: band-passed, it is windowed twice
+    truth_ref = bp(truth_bp, step)
     base_part = robust_baseline(whole_in, step, BASELINE_M)
     base_whole = robust_baseline(whole.level_mm, step, BASELINE_M)
     return {
-        "total": by_distance(d, bp(lvl, step) - truth_bp),
+        "total": by_distance(d, bp(lvl, step) - truth_ref),
         "inversion": by_distance(d, bp(lvl, step) - bp(whole_in, step)),
         "inversion, raw level": by_distance(d, lvl - whole.level_mm),
         "raw / sigma_rail": by_distance(d, (lvl - whole.level_mm) / robust_sigma(lvl[::4])),
         "band-pass": by_distance(d, bp(whole_in, step) - whole_bp),
         "baseline": by_distance(d, base_part - base_whole),
-        "floor": by_distance(d, whole_bp - truth_bp),
+        "floor": by_distance(d, whole_bp - truth_ref),
+        "floor, truth band-passed once": by_distance(d, whole_bp - truth_bp),
         "truth": by_distance(d, truth_bp),
     }
 
@@ -141,10 +148,11 @@ def peer_runs(peer_dir: Path) -> dict[str, dict[str, list[float]]]:
         t = bogie_mean_truth(npz, grid) * 1e3
         ok = np.isfinite(t) & np.isfinite(res.level_mm)
         d = distance_to_ends(ok, step)
+        t_bp = bp(np.where(ok, t, np.nan), step)
         out[name] = {
             "total": by_distance(d, bp(np.where(ok, res.level_mm, np.nan), step)
-                                 - bp(np.where(ok, t, np.nan), step)),
-            "truth": by_distance(d, bp(np.where(ok, t, np.nan), step)),
+                                 - bp(t_bp, step)),
+            "truth": by_distance(d, t_bp),
         }  # fmt: skip
     return out
 
