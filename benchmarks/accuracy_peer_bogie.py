@@ -3,7 +3,9 @@
 Run: ``python benchmarks/accuracy_peer_bogie.py [--data DIR] [--vehicle bogie|lumped]
 [--separate [--truth-levels]]``
 
-Each run of ``DIR`` (default ``$SHARED_DIR/data/peer-bogie``, ``/work/shared`` without it)
+Each run of ``DIR`` (a CSV with its truth JSON and NPZ; default
+``$SHARED_DIR/data/peer-bogie``, ``/work/shared`` without it; unseen runs from
+``benchmarks/peer_runs/make_rose_runs.py``)
 is processed as a user would upload it: the CSV, its start chainage and direction, and the
 vehicle from its datasheet (``bogie``: the whole-vehicle values of the truth JSON as a
 :class:`engine.bogie.BogieParams`; ``lumped``: the README's lumped half car). Nothing of the
@@ -274,7 +276,9 @@ def main() -> None:
     ap.add_argument("--truth-levels", action="store_true",
                     help="with --separate: the truth levels instead of the product's")  # fmt: skip
     args = ap.parse_args()
-    csvs = sorted(args.data.glob("pub_*.csv"))
+    # Every run with its truth: the public ``pub_*`` ones or those made with
+    # benchmarks/peer_runs/make_rose_runs.py.
+    csvs = sorted(c for c in args.data.glob("*.csv") if c.with_suffix(".truth.json").exists())
     if args.runs:
         csvs = [c for c in csvs if c.stem in args.runs]
     if args.separate:
