@@ -47,7 +47,7 @@ from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.results import ProcessResult  # noqa: E402
-from engine.separation import separate  # noqa: E402
+from engine.separation import SeparationResult, separate  # noqa: E402
 from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
@@ -209,7 +209,31 @@ def separate_rough(csvs: list[Path], vehicle_kind: str, truth_levels: bool = Fal
         )
     ]
     lines += ["", f"False zones: {', '.join(false) or 'none'}. Message: {sep.message or 'none'}"]
-    return lines
+    return lines + resolution_lines(sep, zones)
+
+
+def resolution_lines(sep: SeparationResult, zones: list[dict]) -> list[str]:
+    """What the pair could resolve: the smallest detectable loss away from the zones, and each
+    zone's peak compliance excess over its standard deviation."""
+    x = sep.chainage_m
+    away = sep.separable.copy()
+    for z in zones:
+        away &= (x < z["start_m"] - 10.0) | (x > z["end_m"] + 10.0)
+    if not away.any():
+        return []
+    c0 = float(np.nanmedian(sep.compliance_mm_per_kn[away]))
+    parts = []
+    for z in zones:
+        inside = (x >= z["start_m"]) & (x <= z["end_m"]) & sep.separable
+        if inside.any():
+            excess = np.nanmax(sep.compliance_mm_per_kn[inside]) - c0
+            sd = float(np.nanmean(sep.compliance_sd_mm_per_kn[inside]))
+            parts.append(f"{z['start_m']:.1f}-{z['end_m']:.1f} m {excess / sd:.1f} sd")
+    return [
+        f"Smallest detectable loss away from the zones (median of 1 - k_rel_lo): "
+        f"{100 * (1 - np.nanmedian(sep.k_rel_lo[away])):.0f} %; peak compliance excess in each "
+        f"zone: {', '.join(parts) or 'none separable'}."
+    ]
 
 
 def run_one(csv: Path, vehicle_kind: str) -> dict[str, object]:
