@@ -19,12 +19,15 @@ Install (a separate venv, never the product's)::
 
 (``tests/test_data`` of the mirror holds large files that are absent, hence the path list.)
 
-Run (one case per process; each takes 8-30 min of one core and a few GB of memory)::
+Run (one case per process; each took 5-21 min of one core here, up to 5 GB of memory)::
 
     PYTHONPATH=/work/rose-src /work/rose-venv/bin/python \\
         benchmarks/peer_runs/make_rose_runs.py rose_coach_smooth --out /work/rose-runs
 
-``--travel-m 3`` makes a short smoke run. Cases: :data:`CASES`. Each writes
+``--travel-m 2`` makes a short smoke run (written under ``OUT/smoke``, no zone checked);
+``--from-npz WALL_S`` checks a run's written NPZ again and writes its JSON without ROSE (the
+arrays are written before the checks, so a run whose check failed can be looked at and its
+JSON made once the check is understood). Cases: :data:`CASES`. Each writes
 ``<case>.csv``, ``<case>.truth.json`` and ``<case>.truth.npz`` as the README's section 4
 describes, following its recipe: ROSE's public classes only, a Timoshenko UIC60 rail on pads,
 150 kg sleepers and ballast, non-linear Hertz contact, Newmark average acceleration with the
@@ -40,7 +43,8 @@ the truth says so: ``track.segment_joints`` is false and ``sleeper_x`` is read f
 Checks done on every run (the README warns a failed contact iteration can pass silently): no
 NaN, the wheels never lift off, |accel| far below g, the mean contact force equal to the
 static wheel load, the wheel following the loaded rail level (wheel - rail displacement
-equals the irregularity), and the rail-displacement dip under each wheel centred on each zone.
+equals the irregularity), and the dip of the leading wheel's rail receptance (displacement per
+unit contact force) centred on each listed zone within a sleeper bay.
 """
 
 from __future__ import annotations
