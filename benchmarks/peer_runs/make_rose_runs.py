@@ -126,7 +126,10 @@ ROSE time step each needs (README section 2.3)."""
 
 ZONES_SMOOTH = [(131.4, 135.0, 0.50), (221.4, 228.6, 0.30), (305.4, 311.4, 0.60)]
 ZONES_ROUGH = [(146.4, 151.2, 0.40), (190.2, 196.8, 0.55), (232.8, 236.4, 0.35)]
-"""Zones as (first soft sleeper, last soft sleeper, loss of overall support), m, m, -."""
+ZONES_ROUGH_2 = [(151.2, 158.4, 0.34), (190.2, 197.4, 0.55), (224.4, 232.2, 0.48)]
+"""Zones as (first soft sleeper, last soft sleeper, loss of overall support), m, m, -. The
+second rough set was drawn once (``numpy.random.default_rng(41)``: a start within 12 m of
+140/180/220 m, 6-13 bays, loss 30-60 %)."""
 
 IRREGULARITY: dict[str, Any] = {
     "spectrum": "German low disturbance",
@@ -147,7 +150,8 @@ IRREGULARITY: dict[str, Any] = {
     "spectrum_formula": "S(Omega) = A_v Omega_c^2 / ((Omega^2 + Omega_r^2)(Omega^2 + "
     "Omega_c^2)), one-sided",
 }
-"""The rough runs' geometry: the README's spectrum and synthesis, another phase seed."""
+IRREGULARITY_2 = IRREGULARITY | {"seed": 5602683}
+"""The rough runs' geometry: the README's spectrum and synthesis, other phase seeds."""
 
 CASES: dict[str, dict[str, Any]] = {
     "rose_coach_smooth": {
@@ -174,10 +178,28 @@ CASES: dict[str, dict[str, Any]] = {
         "n_sleepers": 560,
         "travel_m": 290.0,
     },
+    "rose2_coach_irr": {
+        "vehicle": "coach",
+        "speed": 29.0,
+        "zones": ZONES_ROUGH_2,
+        "irr": IRREGULARITY_2,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose2_freight_irr": {
+        "vehicle": "freight",
+        "speed": 23.0,
+        "zones": ZONES_ROUGH_2,
+        "irr": IRREGULARITY_2,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
 }
 """The runs: the smooth one alone on the public runs' 700-sleeper track; the two ``_irr``
 ones over one shorter track (same zones, same geometry; 560 sleepers, 290 m of travel, to fit
-the wagon's small time step into the time there was), each at its own speed."""
+the wagon's small time step into the time there was), each at its own speed. ``rose2_*``: a
+second such pair on another track (zones, geometry, speeds); write it to its own folder, the
+scoring pairs every ``_irr`` run of a folder."""
 
 BODY_START_M = 24.0
 CUT_FIRST_M = 40.0
