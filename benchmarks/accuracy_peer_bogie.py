@@ -1,9 +1,11 @@
 """Accuracy on the peer's runs: bogie vehicles on a layered track made with ROSE.
 
 Run: ``python benchmarks/accuracy_peer_bogie.py [--data DIR] [--vehicle bogie|lumped]
-[--separate [--truth-levels]]``
+[--separate [--truth-levels] [--compliance-every M]]``
 
-Each run of ``DIR`` (default ``$SHARED_DIR/data/peer-bogie``, ``/work/shared`` without it)
+Each run of ``DIR`` (a CSV with its truth JSON and NPZ; default
+``$SHARED_DIR/data/peer-bogie``, ``/work/shared`` without it; unseen runs from
+``benchmarks/peer_runs/make_rose_runs.py``)
 is processed as a user would upload it: the CSV, its start chainage and direction, and the
 vehicle from its datasheet (``bogie``: the whole-vehicle values of the truth JSON as a
 :class:`engine.bogie.BogieParams`; ``lumped``: the README's lumped half car). Nothing of the
@@ -45,7 +47,7 @@ from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.results import ProcessResult  # noqa: E402
-from engine.separation import separate  # noqa: E402
+from engine.separation import SeparationResult, separate  # noqa: E402
 from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
@@ -153,9 +155,12 @@ def truth_level(npz: dict, grid: NDArray[np.float64], offsets: tuple[float, ...]
     return np.asarray(np.interp(grid, x, level))
 
 
-def separate_rough(csvs: list[Path], vehicle_kind: str, truth_levels: bool = False) -> list[str]:
+def separate_rough(
+    csvs: list[Path], vehicle_kind: str, truth_levels: bool = False, every_m: float = 0.0
+) -> list[str]:
     """The rough runs together through the separation: one line per true zone and a summary.
-    ``truth_levels``: each pass's level replaced by its truth (the separation alone judged)."""
+    ``truth_levels``: each pass's level replaced by its truth (the separation alone judged);
+    ``every_m`` > 0: also the compliance excess every ``every_m`` m (:func:`compliance_lines`)."""
     done = [process_one(c, vehicle_kind) for c in csvs]
     passes = [
         pass_from_result(res, label=c.stem, wheel_offsets_m=veh.axle_wheel_offsets_m[0])
@@ -207,7 +212,48 @@ def separate_rough(csvs: list[Path], vehicle_kind: str, truth_levels: bool = Fal
         )
     ]
     lines += ["", f"False zones: {', '.join(false) or 'none'}. Message: {sep.message or 'none'}"]
-    return lines
+    lines += resolution_lines(sep, zones)
+    return lines + (compliance_lines(sep, every_m) if every_m else [])
+
+
+def compliance_lines(sep: SeparationResult, every_m: float) -> list[str]:
+    """The separated compliance over its median on the separable points, and its standard
+    deviation, every ``every_m`` m (um/kN; '-' where not separable)."""
+    x = sep.chainage_m
+    c0 = float(np.nanmedian(sep.compliance_mm_per_kn[sep.separable]))
+    out = ["", "| chainage (m) | compliance excess (um/kN) | sd (um/kN) |", "|---|---|---|"]
+    for g in np.arange(np.ceil(x[0] / every_m) * every_m, x[-1], every_m):
+        i = int(np.argmin(np.abs(x - g)))
+        if sep.separable[i]:
+            excess = 1e3 * (sep.compliance_mm_per_kn[i] - c0)
+            out.append(f"| {g:.0f} | {excess:+.2f} | {1e3 * sep.compliance_sd_mm_per_kn[i]:.2f} |")
+        else:
+            out.append(f"| {g:.0f} | - | - |")
+    return out
+
+
+def resolution_lines(sep: SeparationResult, zones: list[dict]) -> list[str]:
+    """What the pair could resolve: the smallest detectable loss away from the zones, and each
+    zone's peak compliance excess over its standard deviation."""
+    x = sep.chainage_m
+    away = sep.separable.copy()
+    for z in zones:
+        away &= (x < z["start_m"] - 10.0) | (x > z["end_m"] + 10.0)
+    if not away.any():
+        return []
+    c0 = float(np.nanmedian(sep.compliance_mm_per_kn[away]))
+    parts = []
+    for z in zones:
+        inside = (x >= z["start_m"]) & (x <= z["end_m"]) & sep.separable
+        if inside.any():
+            excess = np.nanmax(sep.compliance_mm_per_kn[inside]) - c0
+            sd = float(np.nanmean(sep.compliance_sd_mm_per_kn[inside]))
+            parts.append(f"{z['start_m']:.1f}-{z['end_m']:.1f} m {excess / sd:.1f} sd")
+    return [
+        f"Smallest detectable loss away from the zones (median of 1 - k_rel_lo): "
+        f"{100 * (1 - np.nanmedian(sep.k_rel_lo[away])):.0f} %; peak compliance excess in each "
+        f"zone: {', '.join(parts) or 'none separable'}."
+    ]
 
 
 def run_one(csv: Path, vehicle_kind: str) -> dict[str, object]:
@@ -271,15 +317,20 @@ def main() -> None:
     ap.add_argument("--vehicle", choices=("bogie", "lumped"), default="bogie")
     ap.add_argument("--runs", nargs="*", default=None, help="run names (default: all)")
     ap.add_argument("--separate", action="store_true", help="the rough runs together")
+    ap.add_argument("--compliance-every", type=float, default=0.0, metavar="M",
+                    help="with --separate: the compliance excess every M m")  # fmt: skip
     ap.add_argument("--truth-levels", action="store_true",
                     help="with --separate: the truth levels instead of the product's")  # fmt: skip
     args = ap.parse_args()
-    csvs = sorted(args.data.glob("pub_*.csv"))
+    # Every run with its truth: the public ``pub_*`` ones or those made with
+    # benchmarks/peer_runs/make_rose_runs.py.
+    csvs = sorted(c for c in args.data.glob("*.csv") if c.with_suffix(".truth.json").exists())
     if args.runs:
         csvs = [c for c in csvs if c.stem in args.runs]
     if args.separate:
         rough = [c for c in csvs if c.stem.endswith("_irr")]
-        print("\n".join(separate_rough(rough, args.vehicle, args.truth_levels)))
+        lines = separate_rough(rough, args.vehicle, args.truth_levels, args.compliance_every)
+        print("\n".join(lines))
         return
     results = [run_one(c, args.vehicle) for c in csvs]
     print("\n".join(table(results, args.vehicle)))

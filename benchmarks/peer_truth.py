@@ -18,6 +18,11 @@ mesh, so every chainage of the run (``x_wheels``, the irregularity, the CSV's st
 coordinate, and the zones' sleepers are ``0.3, 0.9, 1.5`` m past the listed ones.
 ``tests/engine/test_peer_bogie.py`` checks this on the truth itself (the sleeper ripple of the
 rail under a wheel is half a bay out of phase inside every zone).
+
+Runs made as one uniform mesh (``benchmarks/peer_runs/make_rose_runs.py``: each zone's
+ballast springs a model part of their own, no joints) say so with ``track.segment_joints``
+false; their sleepers are where listed and nothing is moved. A truth without the key is one
+of the public runs, built from segments.
 """
 
 from __future__ import annotations
@@ -72,17 +77,23 @@ def joint_gap_m(truth: dict) -> float:
     return float(trk["spacing"]) * (1.0 - 1.0 / int(trk["n_rail_per_sleeper"]))
 
 
+def has_segment_joints(truth: dict) -> bool:
+    """Whether the peer's track was joined from segments (the public runs) or is one mesh."""
+    return bool(truth["track"].get("segment_joints", True))
+
+
 def zones_as_built(truth: dict, npz: dict) -> list[dict]:
     """The truth's zones moved to where the peer's mesh has their sleepers.
 
     Each zone is a segment of its own, so a segment starts wherever the sleepers' loss
     changes; a sleeper in segment ``k`` (0 = the first) lies ``k * joint_gap_m`` past its
-    listed position. Returns copies of ``truth["zones"]`` with ``start_m``/``end_m`` moved
-    and the listed ones kept as ``listed_start_m``/``listed_end_m``.
+    listed position. On a track without joints (:func:`has_segment_joints`) nothing moves.
+    Returns copies of ``truth["zones"]`` with ``start_m``/``end_m`` moved and the listed ones
+    kept as ``listed_start_m``/``listed_end_m``.
     """
     sx = np.asarray(npz["sleeper_x"], dtype=float)
     segment = np.concatenate([[0], np.cumsum(np.diff(npz["sleeper_loss"]) != 0)])
-    gap = joint_gap_m(truth)
+    gap = joint_gap_m(truth) if has_segment_joints(truth) else 0.0
     out = []
     for z in truth["zones"]:
         k = int(segment[int(np.argmin(np.abs(sx - z["start_m"])))])

@@ -120,3 +120,32 @@ def test_peer_coach_zones_and_losses(coach_smooth) -> None:
         assert abs(spot.start_m - z["start_m"]) <= TOL_M
         assert abs(spot.end_m - z["end_m"]) <= TOL_M
         assert abs(spot.stiffness_loss_pct - 100 * z["stiffness_loss"]) <= 10.0
+
+
+def _truth_with_zones(segment_joints: bool | None) -> tuple[dict, dict]:
+    """A truth of two zones on a 0.6 m sleeper grid, with or without the joints key."""
+    track: dict = {"spacing": 0.6, "n_rail_per_sleeper": 2}
+    if segment_joints is not None:
+        track["segment_joints"] = segment_joints
+    zones = [
+        {"start_m": 6.0, "end_m": 8.4, "stiffness_loss": 0.5},
+        {"start_m": 18.0, "end_m": 21.0, "stiffness_loss": 0.3},
+    ]
+    sx = np.arange(50) * 0.6
+    loss = np.zeros(sx.size)
+    for z in zones:
+        loss[(sx >= z["start_m"] - 1e-9) & (sx <= z["end_m"] + 1e-9)] = z["stiffness_loss"]
+    return {"track": track, "zones": zones}, {"sleeper_x": sx, "sleeper_loss": loss}
+
+
+def test_zones_as_built_leaves_a_joint_free_track_unshifted() -> None:
+    """One uniform mesh (``segment_joints`` false) has its sleepers where listed; a track
+    joined from segments (the public runs: no key) moves the k-th segment k * 0.3 m."""
+    truth, npz = _truth_with_zones(False)
+    built = zones_as_built(truth, npz)
+    assert [(z["start_m"], z["end_m"]) for z in built] == [(6.0, 8.4), (18.0, 21.0)]
+    assert [(z["listed_start_m"], z["listed_end_m"]) for z in built] == [(6.0, 8.4), (18.0, 21.0)]
+    truth, npz = _truth_with_zones(None)
+    built = zones_as_built(truth, npz)
+    assert [z["start_m"] for z in built] == pytest.approx([6.3, 18.9])
+    assert [z["end_m"] for z in built] == pytest.approx([8.7, 21.9])
