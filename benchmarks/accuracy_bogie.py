@@ -28,6 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
+from benchmarks.peer_truth import FOUND_TOL_M, ends_within  # noqa: E402
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.sensor import SensorModel  # noqa: E402
@@ -35,7 +36,7 @@ from engine.setup import RunSetup, prepare_run
 from engine.synthetic import REALISTIC_SENSOR, make_run  # noqa: E402
 from engine.track import SoftZone  # noqa: E402
 
-TOL_M = 1.5
+TOL_M = FOUND_TOL_M
 
 
 def true_vehicle(registered: BogieParams, rng: np.random.Generator) -> BogieParams:
@@ -139,7 +140,7 @@ def main() -> None:
                     if r is None:
                         cells.append("missed")
                         continue
-                    ok = abs(r[0]) <= TOL_M and abs(r[1]) <= TOL_M
+                    ok = ends_within(r[0], r[1])
                     found += ok and abs(r[2]) <= 10
                     cells.append(f"{r[0]:+.1f}/{r[1]:+.1f}, {r[2]:+.0f}")
                 smooth = "yes" if res.geometry_check.smooth else "no"

@@ -51,6 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from benchmarks.common import cached  # noqa: E402
+from benchmarks.peer_truth import FOUND_TOL_M, FOUND_TOL_PP, ends_within  # noqa: E402
 from engine.bogie import FREIGHT_WAGON, PASSENGER_COACH, BogieParams  # noqa: E402
 from engine.calibration import (  # noqa: E402
     DEFAULT_FIT_BY_KIND,
@@ -68,8 +69,8 @@ from engine.synthetic import REALISTIC_SENSOR, SyntheticRun, make_run, make_trac
 from engine.track import SoftZone  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
 
-TOL_M = 1.5
-TOL_PP = 10.0
+TOL_M = FOUND_TOL_M
+TOL_PP = FOUND_TOL_PP
 
 
 @dataclasses.dataclass(frozen=True)
@@ -313,11 +314,7 @@ def within(d_start_m: float, d_end_m: float, d_loss_pp: float) -> bool:
     ``TOL_PP`` (pp). A reported end lies half a support spacing off the supports (0.6 m), so
     on zones whose ends are on that grid an end error is often exactly 1.5 m: compared to the
     millimetre, not to the last bit of the float sum."""
-    return (
-        round(abs(d_start_m), 3) <= TOL_M
-        and round(abs(d_end_m), 3) <= TOL_M
-        and abs(d_loss_pp) <= TOL_PP
-    )
+    return ends_within(d_start_m, d_end_m, TOL_M) and abs(d_loss_pp) <= TOL_PP
 
 
 def score(sep: SeparationResult, zones: tuple[SoftZone, ...]) -> dict[str, Any]:

@@ -37,9 +37,12 @@ import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
 from benchmarks.peer_truth import (  # noqa: E402
+    FOUND_TOL_M,
+    FOUND_TOL_PP,
     bogie_from_truth,
     bogie_mean_truth,
     butter_band,
+    ends_within,
     zones_as_built,
 )
 from engine.chainage import bandpass_distance  # noqa: E402
@@ -52,8 +55,7 @@ from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
 
-TOL_M = 1.5
-"""Zone end tolerance, m (README section 5)."""
+TOL_M = FOUND_TOL_M
 
 
 def default_dir() -> Path:
@@ -104,7 +106,7 @@ def zone_scores(res: ProcessResult, zones: list[dict]) -> dict[str, object]:
         if hit is not None:
             d0, d1 = hit.start_m - z["start_m"], hit.end_m - z["end_m"]
             row |= {
-                "found": abs(d0) <= TOL_M and abs(d1) <= TOL_M,
+                "found": ends_within(d0, d1),
                 "reported": (hit.start_m, hit.end_m, hit.stiffness_loss_pct),
                 "d_start": d0,
                 "d_end": d1,
@@ -193,7 +195,7 @@ def separate_rough(
         loss = 100 * z["stiffness_loss"]
         if hit:
             d0, d1 = hit[0].start_m - z["start_m"], hit[0].end_m - z["end_m"]
-            ok = abs(d0) <= TOL_M and abs(d1) <= TOL_M and abs(hit[0].loss_pct - loss) <= 10
+            ok = ends_within(d0, d1) and abs(hit[0].loss_pct - loss) <= FOUND_TOL_PP
             rep = (
                 f"{hit[0].start_m:.1f}-{hit[0].end_m:.1f} m | {d0:+.1f}, {d1:+.1f} | "
                 f"{loss:.0f} → {hit[0].loss_pct:.0f} % | {'yes' if ok else 'no'}"

@@ -35,6 +35,18 @@ from scipy.signal import butter, sosfiltfilt
 
 from engine.bogie import BogieParams
 
+FOUND_TOL_M = 1.5
+"""A found zone's ends lie within this of the true ones, m (README of ``peer-bogie``, §5)."""
+FOUND_TOL_PP = 10.0
+"""A zone's loss error passes within this, percentage points (the same section)."""
+
+
+def ends_within(d_start_m: float, d_end_m: float, tol_m: float = FOUND_TOL_M) -> bool:
+    """Whether both end errors (m) are within ``tol_m``, compared to the millimetre: a reported
+    end lies half a support spacing off the supports, so on zones whose ends are on that grid
+    an end error is often exactly 1.5 m, and the last bit of a float sum must not decide it."""
+    return round(abs(d_start_m), 3) <= tol_m and round(abs(d_end_m), 3) <= tol_m
+
 
 def bogie_from_truth(truth: dict[str, Any]) -> BogieParams:
     """The vehicle as its datasheet gives it (whole vehicle, SI), from the truth JSON."""

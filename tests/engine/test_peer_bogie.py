@@ -15,9 +15,11 @@ import pytest
 from scipy.ndimage import uniform_filter1d
 
 from benchmarks.peer_truth import (
+    FOUND_TOL_M,
     bogie_from_truth,
     bogie_mean_truth,
     butter_band,
+    ends_within,
     joint_gap_m,
     zones_as_built,
 )
@@ -27,7 +29,7 @@ from engine.results import ProcessResult
 from engine.setup import RunSetup, prepare_run
 from support.samples import shared_data_dir
 
-TOL_M = 1.5
+TOL_M = FOUND_TOL_M
 """Zone end tolerance of the peer README's section 5, m."""
 
 
@@ -117,8 +119,7 @@ def test_peer_coach_zones_and_losses(coach_smooth) -> None:
         hits = [s for s in res.soft_spots if s.start_m <= z["end_m"] and s.end_m >= z["start_m"]]
         assert len(hits) == 1, z
         spot = hits[0]
-        assert abs(spot.start_m - z["start_m"]) <= TOL_M
-        assert abs(spot.end_m - z["end_m"]) <= TOL_M
+        assert ends_within(spot.start_m - z["start_m"], spot.end_m - z["end_m"])
         assert abs(spot.stiffness_loss_pct - 100 * z["stiffness_loss"]) <= 10.0
 
 
