@@ -571,8 +571,9 @@ def separate(
         coef = np.where(np.isfinite(z) & fit_ok, weights * (fbar[:, None] - fm) * var_b, 0.0)
     wheels = _slope_wheel_sets(passes, shifts, np.nan_to_num(coef), fbar)
     if not estimated.any():
-        clear = fit_ok & np.all((edge_var < noise_mm[:, None] ** 2) | ~cov, axis=0)
-        s2 = _band_noise_scale(grid, b, np.sqrt(var_b), clear) ** 2
+        with np.errstate(invalid="ignore"):
+            edge_excess = np.max(np.where(cov, edge_var / noise_mm[:, None] ** 2, 0.0), axis=0)
+        s2 = _band_noise_scale(grid, b, np.sqrt(var_b), np.where(fit_ok, edge_excess, np.inf)) ** 2
         var_a, var_b = var_a * s2, var_b * s2
     sd_b = np.sqrt(var_b)  # mm/N
     losses = zone_depths(trk, *band)[0]
@@ -644,7 +645,7 @@ def _band_noise_scale(
     grid: NDArray[np.float64],
     dip_mm: NDArray[np.float64],
     dip_sd: NDArray[np.float64],
-    clear: NDArray[np.bool_],
+    edge_excess: NDArray[np.float64],
 ) -> float:
     """How much larger the noise of the compliance profile is, where a zone's dip is looked
     for, than the fit's own estimate from the prior per-pass noise.
@@ -654,12 +655,25 @@ def _band_noise_scale(
     (:func:`_soft_spots`), where the inversion's long-wave errors have gone. The measure is
     the robust spread of that baseline-free profile over the points clear of the passes'
     ends (zones are sparse; a track full of them reads noisier, the safe side), over the
-    median of the fit's standard deviation there; 1 with less than 40 m to measure on.
+    median of the fit's standard deviation there; 1 with less than 40 m of fitted profile.
+
+    ``edge_excess`` is, per point, the largest ratio of a covering pass's edge variance to
+    its noise variance (infinite where the fit is not made): the points under 1 are clear.
+    Where they span less than 40 m (a short run on rough rail: the edge term of a 1.5 mm
+    rail stays above a 0.04 mm prior for 110 m from each end) the 40 m least affected by the
+    ends are measured instead; the spread is relative to the fit's own standard deviation,
+    which holds the edge term, so it does not grow with it.
     """
     step = float(grid[1] - grid[0])
-    ok = clear & np.isfinite(dip_mm) & np.isfinite(dip_sd)
-    if ok.sum() * step < 40.0:
+    need = int(math.ceil(40.0 / step - 1e-9))
+    fitted = np.isfinite(dip_mm) & np.isfinite(dip_sd) & np.isfinite(edge_excess)
+    if fitted.sum() < need:
         return 1.0
+    ok = fitted & (edge_excess < 1.0)
+    if ok.sum() < need:
+        least = np.argsort(np.where(fitted, edge_excess, np.inf), kind="stable")[:need]
+        ok = np.zeros_like(fitted)
+        ok[least] = True
     resid = dip_mm - robust_baseline(np.where(ok, dip_mm, np.nan), step, 40.0)
     spread = robust_sigma(resid[ok])
     own = float(np.median(dip_sd[ok]))
