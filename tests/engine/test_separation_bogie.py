@@ -154,9 +154,9 @@ def test_a_coach_and_a_wagon_over_rough_rail_see_the_rail_through_each_others_wh
 def test_a_short_pair_on_rough_rail_measures_its_noise_in_its_middle():
     """One coach and one wagon pass over 260 m of rough rail (1.7 mm robust spread), the zone
     in the middle. The edge term (0.3 of the roughness, decaying over 46 m) stays above the
-    passes' prior noise for about 100 m from each end, so less than 40 m is clear of it: the
+    passes' prior noise for about 115 m from each end, so 29 m is clear of it: the
     compliance's noise is then measured on the 40 m least affected by the ends rather than
-    left at the prior (about three times the measured), which made nothing separable."""
+    left at the prior (four times the spread measured there), which made nothing separable."""
     coach = _rough_pass("coach", *COACH, seed=1, span_m=(-70.0, 190.0))
     wagon = _rough_pass("wagon", *WAGON, seed=2, span_m=(-70.0, 190.0))
     sep = separate([coach, wagon])
