@@ -56,6 +56,8 @@ def matched_dips(
     shapes: Sequence[tuple[float, NDArray[np.float64]]],
     noise_factor: float,
     segment_m: float,
+    spread_window_m: float | None = None,
+    local_share: float = 1.0,
 ) -> list[Dip] | None:
     """Dips of ``profile`` that a filter matched to a dip shape and to the profile's own
     noise finds more than ``noise_factor`` standard deviations deep.
@@ -73,6 +75,12 @@ def matched_dips(
         Threshold on each filter's output over its robust spread.
     segment_m : float
         Segment length of the noise spectrum's estimate, m (:func:`noise_spectrum`).
+    spread_window_m : float or None
+        Length (m) of the window of the output's running robust spread
+        (:func:`local_spread`), which, times ``local_share``, replaces the profile's one
+        spread where it is larger; None: the one spread everywhere.
+    local_share : float
+        The share of the running spread compared with the whole profile's.
 
     Returns
     -------
@@ -81,7 +89,7 @@ def matched_dips(
         the profile's value there (positive down). None when the profile is too short to
         measure its noise on (:func:`noise_spectrum`) or no shape is given.
     """
-    setup = _setup(chainage_m, profile, shapes, segment_m)
+    setup = _setup(chainage_m, profile, shapes, segment_m, spread_window_m, local_share)
     if setup is None:
         return None
     y, runs, filters, stats, gains, scale = setup
@@ -114,6 +122,8 @@ def matched_scores(
     profile: NDArray[np.float64],
     shapes: Sequence[tuple[float, NDArray[np.float64]]],
     segment_m: float,
+    spread_window_m: float | None = None,
+    local_share: float = 1.0,
 ) -> NDArray[np.float64] | None:
     """Per point, the largest over ``shapes`` of the matched filter's output over its robust
     spread (the statistic :func:`matched_dips` thresholds, before any dip is taken out);
@@ -121,7 +131,7 @@ def matched_scores(
 
     Parameters and None as :func:`matched_dips`.
     """
-    setup = _setup(chainage_m, profile, shapes, segment_m)
+    setup = _setup(chainage_m, profile, shapes, segment_m, spread_window_m, local_share)
     if setup is None:
         return None
     stats, scale = setup[3], setup[5]
@@ -137,6 +147,8 @@ def _setup(
     profile: NDArray[np.float64],
     shapes: Sequence[tuple[float, NDArray[np.float64]]],
     segment_m: float,
+    spread_window_m: float | None,
+    local_share: float,
 ) -> (
     tuple[
         NDArray[np.float64],
@@ -149,7 +161,8 @@ def _setup(
     | None
 ):
     """The profile (a copy), its runs, their filters, the filters' outputs and gains, and
-    each shape's robust spread of its output (shapes x 1, inf where zero); None as
+    each shape's robust spread of its output per point (shapes x points, inf where zero: the
+    larger of the whole profile's and, with ``spread_window_m``, the running one); None as
     :func:`matched_dips`."""
     step = float(chainage_m[1] - chainage_m[0])
     spec = noise_spectrum(profile, step, segment_m)
@@ -161,8 +174,40 @@ def _setup(
     longest = max(t.size for _, t in shapes)
     filters = [_run_filters(b - a, longest, step, freq, dens, shapes) for a, b in runs]
     stats, gains = _filtered(y, runs, filters, len(shapes))
-    scale = np.array([robust_sigma(row) for row in stats])
-    return y, runs, filters, stats, gains, np.where(scale > 0, scale, np.inf)[:, None]
+    scale = np.array([robust_sigma(row) for row in stats])[:, None] * np.ones(y.size)
+    if spread_window_m is not None:
+        # the compliance's noise follows the rail's roughness, which varies along the line:
+        # one spread over the profile sets the threshold too low where the rail is rougher
+        local = np.array([local_spread(row, step, spread_window_m) for row in stats])
+        scale = np.fmax(scale, local_share * local)
+    return y, runs, filters, stats, gains, np.where(scale > 0, scale, np.inf)
+
+
+def local_spread(x: NDArray[np.float64], step: float, window_m: float) -> NDArray[np.float64]:
+    """Robust spread (:func:`engine.detect.robust_sigma`) of ``x`` (on a regular grid of
+    ``step``, m) over a window of ``window_m`` (m) about each point, NaN where ``x`` is not
+    defined or fewer than half the window's points are about every evaluated point.
+
+    Evaluated every tenth of the window and interpolated linearly between: the spread
+    changes over the window's length, not faster. A zone's dip in the output, a small part
+    of the window, moves the median deviation little.
+    """
+    n = x.size
+    half = max(int(round(0.5 * window_m / step)), 1)
+    every = max(half // 5, 1)
+    at = np.arange(0, n, every)
+    if at[-1] != n - 1:
+        at = np.append(at, n - 1)
+    val = np.full(at.size, np.nan)
+    for j, k in enumerate(at):
+        w = x[max(k - half, 0) : k + half + 1]
+        if np.count_nonzero(np.isfinite(w)) >= half:
+            val[j] = robust_sigma(w)
+    out = np.full(n, np.nan)
+    ok = np.isfinite(val)
+    if ok.any():
+        out = np.interp(np.arange(n), at[ok], val[ok])
+    return np.where(np.isfinite(x), out, np.nan)
 
 
 def _run_filters(

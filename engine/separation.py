@@ -120,6 +120,13 @@ class SeparationConfig:
         many of its standard deviations inside the dip: the filter's support is cut there,
         so a zone gives less than ``noise_factor``, but the compliance's long-wave swings
         near the ends give less still (docs/method.md §10); ``-inf`` keeps every one.
+    matched_spread_m : float or None
+        Window (m) of that filter's running robust spread which, times
+        ``matched_local_share``, is used where larger than its spread over the whole profile
+        (the compliance's noise follows the rail's roughness along the line; docs/method.md
+        §10); None: the whole profile's alone.
+    matched_local_share : float
+        0-1: a dip must reach ``noise_factor`` times this share of the running spread.
     """
 
     min_passes: int = 2
@@ -139,6 +146,8 @@ class SeparationConfig:
     equalise: EqualiseConfig | None = field(default_factory=EqualiseConfig)
     matched_lengths_m: tuple[float, ...] = (3.0, 4.5, 6.0, 8.0, 10.0)
     near_end_matched_z: float = 3.75
+    matched_spread_m: float | None = 160.0
+    matched_local_share: float = 0.7
 
     def __post_init__(self) -> None:
         checks = {
@@ -155,6 +164,9 @@ class SeparationConfig:
             "lambda_max_m": 0 < self.lambda_min_m < self.lambda_max_m,
             "grid_step_m": self.grid_step_m is None or 0 < self.grid_step_m <= 1.0,
             "near_end_matched_z": not math.isnan(self.near_end_matched_z),
+            "matched_spread_m": self.matched_spread_m is None
+            or self.lambda_max_m <= self.matched_spread_m < math.inf,
+            "matched_local_share": 0.0 < self.matched_local_share <= 1.0,
             "matched_lengths_m": all(
                 math.isfinite(v) and 0 < v < self.lambda_max_m for v in self.matched_lengths_m
             ),
@@ -773,7 +785,9 @@ def _seen_by_filter(
     edge errors, give the residual's threshold broad dips that the filter, weighing those
     wavelengths by the noise, hardly sees (docs/method.md §10).
     """
-    scores = matched_scores(grid, scaled, shapes, cfg.lambda_max_m)
+    scores = matched_scores(
+        grid, scaled, shapes, cfg.lambda_max_m, cfg.matched_spread_m, cfg.matched_local_share
+    )
     if scores is None:
         return dips
     out = []
@@ -809,7 +823,15 @@ def _soft_spots(
         # the compliance's noise is coloured (the passes' long-wave errors differenced): a
         # filter matched to it and to a zone's dip sees zones the white threshold misses
         shapes = _zone_shapes(step, trk, wheels, cfg)
-        found = matched_dips(grid, scaled, shapes, cfg.noise_factor, cfg.lambda_max_m)
+        found = matched_dips(
+            grid,
+            scaled,
+            shapes,
+            cfg.noise_factor,
+            cfg.lambda_max_m,
+            cfg.matched_spread_m,
+            cfg.matched_local_share,
+        )
         if found is not None:
             # the residual's own dips only where the filter's view is cut: within half the
             # baseline window of an end of the separable profile (elsewhere its long-wave

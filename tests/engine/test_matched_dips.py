@@ -8,7 +8,7 @@ import pytest
 from engine.chainage import bandpass_distance
 from engine.detect import robust_sigma
 from engine.errors import ParameterError
-from engine.matched_dips import matched_dips, matched_scores, noise_spectrum
+from engine.matched_dips import local_spread, matched_dips, matched_scores, noise_spectrum
 from engine.separation import SeparationConfig
 
 STEP_M = 0.25
@@ -111,3 +111,54 @@ def test_separation_config_checks_the_near_end_threshold():
     assert SeparationConfig(near_end_matched_z=-np.inf).near_end_matched_z == -np.inf
     with pytest.raises(ParameterError, match="near_end_matched_z"):
         SeparationConfig(near_end_matched_z=float("nan"))
+
+
+def test_running_spread_keeps_a_rougher_stretch_from_reading_as_zones():
+    """Noise twice as strong over 300 m of 600 m (the rail rougher there): against the
+    whole profile's spread the filter reads several times more dips in that stretch than
+    against its running spread, and a zone in the quieter part is found either way."""
+    x = np.arange(0.0, 600.0, STEP_M)
+    rough = (x >= 150.0) & (x < 450.0)
+    t = SHAPES[2][1]
+    h = t.size // 2
+    k = int(round(480.0 / STEP_M))
+    one_spread = running = 0
+    for seed in range(10):
+        y = _red_noise(np.random.default_rng(seed), x.size) * np.where(rough, 2.0, 1.0)
+        y[k - h : k + h + 1] -= 6.0 * t
+        for window, count in ((None, 0), (160.0, 1)):
+            found = matched_dips(x, y, SHAPES, 4.5, 40.0, window)
+            assert any(abs(d.peak_m - 480.0) <= 1.5 for d in found)
+            n_rough = sum(bool(rough[int(round(d.peak_m / STEP_M))]) for d in found)
+            if count:
+                running += n_rough
+            else:
+                one_spread += n_rough
+    assert one_spread >= 8
+    assert running <= one_spread // 4
+
+
+def test_running_spread_follows_the_noise_and_not_a_zone():
+    """The running spread of noise of two levels is each level's away from the change;
+    a zone-sized dip ten deviations deep lifts it by less than a fifth."""
+    rng = np.random.default_rng(5)
+    x = np.arange(0.0, 600.0, STEP_M)
+    y = rng.standard_normal(x.size) * np.where(x < 300.0, 1.0, 3.0)
+    s = local_spread(y, STEP_M, 160.0)
+    assert np.median(s[x < 200.0]) == pytest.approx(1.0, rel=0.1)
+    assert np.median(s[x > 400.0]) == pytest.approx(3.0, rel=0.1)
+    z = y.copy()
+    z[(x > 100.0) & (x < 108.0)] -= 10.0
+    assert np.max(local_spread(z, STEP_M, 160.0) / s) < 1.2
+    y[(x > 500.0) & (x < 560.0)] = np.nan
+    assert np.isnan(local_spread(y, STEP_M, 160.0)[(x > 500.0) & (x < 560.0)]).all()
+
+
+def test_separation_config_checks_the_spread_window():
+    SeparationConfig(matched_spread_m=None)
+    for bad in (0.0, 10.0, float("inf"), float("nan")):
+        with pytest.raises(ParameterError, match="matched_spread_m"):
+            SeparationConfig(matched_spread_m=bad)
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ParameterError, match="matched_local_share"):
+            SeparationConfig(matched_local_share=bad)
