@@ -127,9 +127,10 @@ ROSE time step each needs (README section 2.3)."""
 ZONES_SMOOTH = [(131.4, 135.0, 0.50), (221.4, 228.6, 0.30), (305.4, 311.4, 0.60)]
 ZONES_ROUGH = [(146.4, 151.2, 0.40), (190.2, 196.8, 0.55), (232.8, 236.4, 0.35)]
 ZONES_ROUGH_2 = [(151.2, 158.4, 0.34), (190.2, 197.4, 0.55), (224.4, 232.2, 0.48)]
+ZONES_ROUGH_3 = [(143.4, 148.8, 0.31), (188.4, 192.0, 0.48), (213.6, 220.8, 0.38)]
 """Zones as (first soft sleeper, last soft sleeper, loss of overall support), m, m, -. The
-second rough set was drawn once (``numpy.random.default_rng(41)``: a start within 12 m of
-140/180/220 m, 6-13 bays, loss 30-60 %)."""
+second and third rough sets were drawn once each (``numpy.random.default_rng(41)`` and
+``(43)``: a start within 12 m of 140/180/220 m, 6-13 bays, loss 30-60 %)."""
 
 IRREGULARITY: dict[str, Any] = {
     "spectrum": "German low disturbance",
@@ -151,6 +152,7 @@ IRREGULARITY: dict[str, Any] = {
     "Omega_c^2)), one-sided",
 }
 IRREGULARITY_2 = IRREGULARITY | {"seed": 5602683}
+IRREGULARITY_3 = IRREGULARITY | {"seed": 5547915}
 """The rough runs' geometry: the README's spectrum and synthesis, other phase seeds."""
 
 CASES: dict[str, dict[str, Any]] = {
@@ -194,12 +196,28 @@ CASES: dict[str, dict[str, Any]] = {
         "n_sleepers": 560,
         "travel_m": 290.0,
     },
+    "rose3_coach_irr": {
+        "vehicle": "coach",
+        "speed": 25.0,
+        "zones": ZONES_ROUGH_3,
+        "irr": IRREGULARITY_3,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose3_freight_irr": {
+        "vehicle": "freight",
+        "speed": 22.0,
+        "zones": ZONES_ROUGH_3,
+        "irr": IRREGULARITY_3,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
 }
 """The runs: the smooth one alone on the public runs' 700-sleeper track; the two ``_irr``
 ones over one shorter track (same zones, same geometry; 560 sleepers, 290 m of travel, to fit
-the wagon's small time step into the time there was), each at its own speed. ``rose2_*``: a
-second such pair on another track (zones, geometry, speeds); write it to its own folder, the
-scoring pairs every ``_irr`` run of a folder."""
+the wagon's small time step into the time there was), each at its own speed. ``rose2_*`` and
+``rose3_*``: more such pairs, each on another track (zones, geometry, speeds); write each to
+its own folder, the scoring pairs every ``_irr`` run of a folder."""
 
 BODY_START_M = 24.0
 CUT_FIRST_M = 40.0
