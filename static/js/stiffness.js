@@ -4,7 +4,7 @@
 // and the passes that contributed with their wheel loads. Where the passes cannot separate
 // the two, the card says so in plain words and draws no stiffness.
 
-import { h, fmt, fmtKm, fmtKmRange, messageBox } from "./dom.js";
+import { h, fmt, fmtKm, fmtKmRange, messageBox, scrollTable } from "./dom.js";
 import { apiFetch } from "./api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly } from "./plots.js";
 import { provisionalBanner, provisionalLabel, spotsAre } from "./provisional.js";
@@ -72,14 +72,17 @@ function contributorsList(st) {
 
 function spotsTable(spots, limits) {
   if (!spots.length) return h("p", { class: "muted", id: "stiffness-spots" }, "No soft spot where the stiffness is separated.");
-  const head = h("tr", {}, ...["Zone", "Peak", "Loss (%)", "Band (%)", "Level"].map((t) => h("th", { scope: "col" }, t)));
+  // numeric headers aligned with their right-aligned columns
+  const head = h("tr", {}, ...["Zone", "Peak", "Loss (%)", "Band (%)", "Level"].map((t) => h("th", { scope: "col", class: t === "Level" ? null : "num" }, t)));
   const rows = spots.map((s) => h("tr", {},
     h("td", { class: "num" }, fmtKmRange(s.start_m, s.end_m), provisionalLabel(s)),
     h("td", { class: "num" }, fmtKm(s.peak_m)),
     h("td", { class: "num" }, fmt(s.stiffness_loss_pct, 0)),
     h("td", { class: "num" }, `${fmt(s.loss_lo_pct, 0)}–${fmt(s.loss_hi_pct, 0)}`),
     h("td", {}, lossLevel(s.stiffness_loss_pct, limits).label)));
-  return h("table", { class: "data", id: "stiffness-spots" }, h("thead", {}, head), h("tbody", {}, ...rows));
+  // in a box that scrolls sideways: on a phone the table is wider than the card
+  return scrollTable("Soft spots where the stiffness is separated",
+    h("table", { class: "data", id: "stiffness-spots" }, h("thead", {}, head), h("tbody", {}, ...rows)));
 }
 
 const UPDATING_NOTE = "a run stored a moment ago is being separated with the others; this map shows the state before it and reloads by itself.";
@@ -138,8 +141,10 @@ export function stiffnessCard(enc) {
       height: narrow ? 560 : 440, hovermode: "closest", shapes: spotShapes(st.soft_spots, limits),
       margin: narrow ? { l: 52, r: 8, t: 16, b: 150 } : { l: 64, r: 16, t: 16, b: 52 },
       legend: narrow ? { orientation: "h", x: 0, y: -0.12, yanchor: "top", font: { size: 10 } } : { orientation: "h", x: 0, y: 1.1 },
-      yaxis: { title: { text: "Stiffness (% of nominal)" }, domain: [0.4, 1], gridcolor: "#e3e6ea", automargin: true },
-      yaxis2: { title: { text: "Geometry (mm)" }, domain: [0, 0.3], gridcolor: "#e3e6ea", automargin: true },
+      // the chainage axis (ticks and title) sits under the stiffness plot: the gap down to
+      // the geometry plot holds both, so its title does not cross the geometry trace
+      yaxis: { title: { text: "Stiffness (% of nominal)" }, domain: [0.47, 1], gridcolor: "#e3e6ea", automargin: true },
+      yaxis2: { title: { text: "Geometry (mm)" }, domain: [0, 0.27], gridcolor: "#e3e6ea", automargin: true },
     });
     await (await loadPlotly()).react(div, stiffnessTraces(st, limits), layout, CONFIG);
     const sep = Math.round(100 * st.separable_fraction);

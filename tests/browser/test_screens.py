@@ -86,6 +86,27 @@ def test_register_shows_separated_spots_with_depth_loss_and_evidence(
     page.watch.assert_clean()
 
 
+def test_home_needs_attention_labels_the_provisional_defects(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any]
+) -> None:
+    """The start page's "Needs attention" lists the geometry set's separated defects at a
+    limit level with the register's "provisional" label (the presets as registered, no load
+    declared), not as findings."""
+    provisional = [d for d in geo_track["defects"] if d["provisional"] and d["level"]]
+    assert provisional, geo_track["defects"]
+    page.goto(f"{live_server.url}/#/")
+    page.wait_for_selector("#attention-table tbody tr")
+    # (the live server is shared: other tracks' defects may fill the table's 12 rows too)
+    badges = page.evaluate(
+        """t => [...document.querySelectorAll('#attention-table tbody tr')]
+                .filter(tr => tr.children[1].textContent.trim() === t)
+                .map(tr => tr.querySelector('.badge.provisional')?.textContent ?? null)""",
+        TRACK,
+    )
+    assert badges and badges == ["provisional"] * len(badges), badges
+    page.watch.assert_clean()
+
+
 def test_a_single_rough_pass_says_what_it_cannot_tell(
     page: Any, live_server: LiveServer, geo_track: dict[str, Any]
 ) -> None:

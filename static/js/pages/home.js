@@ -4,6 +4,7 @@ import { h, clear, announce, field, fmt, fmtDate, fmtKmRange, messageBox, plural
 import { ApiError, apiFetch, apiPostJson } from "../api.js";
 import { evidenceOf, LEVEL_LABELS } from "../register.js";
 import { loadPlotly } from "../plots.js";
+import { provisionalLabel } from "../provisional.js";
 
 const PAGE = 50;
 
@@ -181,12 +182,13 @@ async function fillAttention(section, tracks) {
     h("td", { class: "num" }, fmtKmRange(d.start_m, d.end_m)),
     h("td", { class: "num" }, fmt(d.depth_mm, 2)),
     h("td", { class: "num" }, fmt(d.stiffness_loss_pct, 0)),
-    h("td", {}, evidenceOf(d))));
+    // as in the register: a separated defect resting on unknown vehicles says so here too
+    h("td", {}, evidenceOf(d), provisionalLabel(d))));
   body.replaceWith(
     h("p", { class: "small", id: "attention-count" }, `${plural(found.length, "defect")} at a limit level across ${plural(new Set(found.map((d) => d.track.id)).size, "track")}${found.length > ATTENTION_ROWS ? `; the ${ATTENTION_ROWS} most urgent:` : ":"}`),
     scrollTable("Defects needing attention",
       h("table", { class: "data", id: "attention-table" },
-        h("thead", {}, h("tr", {}, ["Level", "Track", "Zone", "Depth (mm)", "Loss (%)", "Evidence"].map((t) => h("th", { scope: "col" }, t)))),
+        h("thead", {}, h("tr", {}, ["Level", "Track", "Zone", "Depth (mm)", "Loss (%)", "Evidence"].map((t, i) => h("th", { scope: "col", class: i >= 2 && i <= 4 ? "num" : null }, t)))),
         h("tbody", {}, rows))));
 }
 

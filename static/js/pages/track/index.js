@@ -87,7 +87,7 @@ export async function render(main, [ref], query) {
   // spots are what the track knows: say how many, beside the map's own count.
   const separated = register.filter((d) => d.source === "separated").length;
   const mapNote = document.getElementById("map-note");
-  if (separated && mapNote) mapNote.append(h("span", { id: "map-separated" }, `Besides: ${plural(separated, "soft spot")} separated from the rail's geometry across wheel loads (in the register below and on the stiffness map).`));
+  if (separated && mapNote) mapNote.append(" ", h("span", { id: "map-separated" }, `Besides: ${plural(separated, "soft spot")} separated from the rail's geometry across wheel loads (in the register below and on the stiffness map).`));
   const notice = alignmentNotice(trackRuns);
   if (notice) main.insertBefore(notice, mapView.section);
   // The aggregated profile is made of aligned runs only: no card for a track without any.
