@@ -2,7 +2,7 @@
 // profile plot, the alerts since a date, the limits form and the export links. Every value
 // from the API is shown through text nodes (h(), textContent); nothing is parsed as HTML.
 
-import { h, clear, append, announce, fmt, fmtDay, fmtKm, fmtKmRange, field, messageBox, scrollTable } from "./dom.js";
+import { h, clear, append, announce, fmt, fmtDay, fmtKm, fmtKmRange, field, messageBox, plural, scrollTable } from "./dom.js";
 import { ApiError, apiFetch, apiSchema } from "./api.js";
 import { applyBounds, clearFieldErrors, numberProblem, showFieldError, showServerErrors } from "./formerrors.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, TERMS } from "./plots.js";
@@ -127,7 +127,7 @@ export async function aggregateCard(enc, defects) {
       margin: { l: 64, r: 16, t: 16, b: 52 }, legend: { orientation: "h", x: 0, y: 1.12 },
     });
     await (await loadPlotly()).react(div, aggregateTraces(agg), layout, CONFIG);
-    note.textContent = `${agg.n.toLocaleString()} grid points${agg.decimated ? `, drawn as ${agg.chainage_m.length.toLocaleString()} (each stretch's lowest and highest point)` : ""}; up to ${Math.max(...agg.n_runs)} runs per point.`;
+    note.textContent = `${agg.n.toLocaleString()} grid points${agg.decimated ? `, drawn as ${agg.chainage_m.length.toLocaleString()} (each stretch's lowest and highest point)` : ""}; up to ${plural(Math.max(...agg.n_runs), "run")} per point.`;
   };
   return { section, render };
 }

@@ -93,4 +93,6 @@ def test_quality_view_shows_classes_levels_and_exceedances(
     assert q["unverified_limits"] == ["isolated_mm.D2", "class_sd_mm"]
     said = page.locator("#quality-unverified").inner_text()
     assert "not verified" in said and all(t in said for t in q["unverified_limits"])
+    # said once: the notes do not repeat the unverified tables in other words
+    assert page.locator("body").inner_text().count("not verified") == 1
     assert axe_violations(page, axe_source()) == []

@@ -62,7 +62,7 @@ function sectionsTable(q) {
   return h("table", { id: "quality-sections", class: "data" },
     h("caption", {}, `Sections of ${fmt(q.section_m, 0)} m`),
     h("thead", {}, h("tr", {}, ...["Chainage (m)", "D1 SD (mm)", "D2 SD (mm)", "Class", "Passes", "Days since last", "Repeatability D1, 95 % (mm)", "Line speed (km/h)", "Basis"].map((c) => h("th", { scope: "col" }, c)))),
-    h("tbody", {}, ...rows));
+    h("tbody", {}, ...(rows.length ? rows : [h("tr", {}, h("td", { colspan: 7, class: "muted" }, "None: no isolated defect at a limit level."))])));
 }
 
 function defectsTable(q) {
