@@ -96,3 +96,25 @@ def test_quality_view_shows_classes_levels_and_exceedances(
     # said once: the notes do not repeat the unverified tables in other words
     assert page.locator("body").inner_text().count("not verified") == 1
     assert axe_violations(page, axe_source()) == []
+
+
+def test_quality_view_says_none_when_no_isolated_defect(page: Any, live_server: LiveServer) -> None:
+    """A smooth line (no irregularity) has no isolated defect at a limit level: the defect
+    table says "None" in a row of its own, not an empty body that reads as not loaded."""
+    track = "Quality smooth line"
+    with live_server.api() as api:
+        r = api.post(
+            "/api/v1/simulate?wait=true",
+            json={"track": track, "length_m": 300, "speed_mps": 22.0, "zones": [],
+                  "start_chainage_m": 10.0, "sensor": "realistic", "seed": 341},
+        )  # fmt: skip
+        assert r.status_code in (200, 201), r.text
+        tid = api.get(f"/api/v1/tracks/{track}").json()["id"]
+        q = api.get(f"/api/v1/tracks/{tid}/quality").json()
+    assert q["sections"] and q["defects"] == [], q["defects"]
+    page.goto(f"{live_server.url}/#/tracks/{tid}/quality")
+    rows = page.locator("#quality-defects tbody tr")
+    rows.first.wait_for()
+    assert rows.count() == 1
+    assert rows.first.inner_text().startswith("None: no isolated defect")
+    page.watch.assert_clean()

@@ -3,7 +3,7 @@
 // defects, the exceedance list, per-section passes and repeatability, what rests on the
 // loaded level, and the CSV / GeoJSON exports. Everything comes from GET /tracks/{t}/quality.
 
-import { h, append, announce, fmt, messageBox, plural } from "../dom.js";
+import { h, append, announce, fmt, messageBox, plural, scrollTable } from "../dom.js";
 import { apiFetch } from "../api.js";
 import { baseLayout, CONFIG, loadPlotly } from "../plots.js";
 
@@ -62,7 +62,7 @@ function sectionsTable(q) {
   return h("table", { id: "quality-sections", class: "data" },
     h("caption", {}, `Sections of ${fmt(q.section_m, 0)} m`),
     h("thead", {}, h("tr", {}, ...["Chainage (m)", "D1 SD (mm)", "D2 SD (mm)", "Class", "Passes", "Days since last", "Repeatability D1, 95 % (mm)", "Line speed (km/h)", "Basis"].map((c) => h("th", { scope: "col" }, c)))),
-    h("tbody", {}, ...(rows.length ? rows : [h("tr", {}, h("td", { colspan: 7, class: "muted" }, "None: no isolated defect at a limit level."))])));
+    h("tbody", {}, ...rows));
 }
 
 function defectsTable(q) {
@@ -75,7 +75,8 @@ function defectsTable(q) {
   return h("table", { id: "quality-defects", class: "data" },
     h("caption", {}, "Isolated defects (mean to peak) against the speed-class limits"),
     h("thead", {}, h("tr", {}, ...["Peak (m)", "Band", "Value (mm)", "Level", "Line speed (km/h)", "Basis", "Next limit expected"].map((c) => h("th", { scope: "col" }, c)))),
-    h("tbody", {}, ...rows));
+    // an empty table would read as not loaded: say there is none
+    h("tbody", {}, ...(rows.length ? rows : [h("tr", {}, h("td", { colspan: 7, class: "muted" }, "None: no isolated defect at a limit level."))])));
 }
 
 export async function render(main, [ref], query) {
@@ -120,8 +121,11 @@ export async function render(main, [ref], query) {
   const classChart = h("div", { id: "quality-classes", class: "plot", role: "figure", "aria-label": "D1 standard deviation per section, coloured by quality class" });
   const levelChart = h("div", { id: "quality-levels", class: "plot", role: "figure", "aria-label": "D1 and D2 longitudinal level along chainage with the isolated defects" });
   main.append(
-    h("section", { class: "card", "aria-labelledby": "quality-classes-h" }, h("h2", { id: "quality-classes-h" }, "Sections by quality class"), classChart, sectionsTable(q)),
-    h("section", { class: "card", "aria-labelledby": "quality-levels-h" }, h("h2", { id: "quality-levels-h" }, "Longitudinal level and isolated defects"), levelChart, defectsTable(q)),
+    h("section", { class: "card", "aria-labelledby": "quality-classes-h" }, h("h2", { id: "quality-classes-h" }, "Sections by quality class"), classChart,
+      // the tables scroll in their card: on a phone they are wider than the screen
+      scrollTable("Sections by quality class", sectionsTable(q))),
+    h("section", { class: "card", "aria-labelledby": "quality-levels-h" }, h("h2", { id: "quality-levels-h" }, "Longitudinal level and isolated defects"), levelChart,
+      scrollTable("Isolated defects", defectsTable(q))),
   );
   const Plotly = await loadPlotly();
   await Plotly.newPlot(classChart, sectionTraces(q), baseLayout({ barmode: "overlay", yaxis: { title: { text: "D1 SD (mm)" }, rangemode: "tozero" } }), CONFIG);
