@@ -87,15 +87,20 @@ export const TERMS = {
   loss: "Stiffness loss: how much stiffer the supports should be here, as a percentage of the track's nominal support stiffness (80 kN/mm unless the track says otherwise). 50 % means half the nominal stiffness.",
 };
 
-/** A base layout: chainage on x, readable fonts, legend on top. */
+/** A legend in one row or a few under the x-axis title, at any plot height: placed from the
+ * figure's bottom edge, not as a fraction of the plot (which lands on the title when a phone
+ * makes the plot short); Plotly widens the bottom margin when the rows need it. */
+export const LEGEND_BELOW = { orientation: "h", x: 0, y: 0, yref: "container", yanchor: "bottom" };
+
+/** A base layout: chainage on x, readable fonts, legend below the axis title. */
 export function baseLayout(extra = {}) {
   return {
-    margin: { l: 64, r: 24, t: 36, b: 80 },
+    margin: { l: 64, r: 24, t: 36, b: 96 },
     font: { family: "system-ui, -apple-system, 'Segoe UI', Roboto, sans-serif", size: 13, color: "#1b1f24" },
     paper_bgcolor: "#ffffff",
     plot_bgcolor: "#ffffff",
     hovermode: "x unified",
-    legend: { orientation: "h", x: 0, y: -0.2, yanchor: "top" },
+    legend: LEGEND_BELOW,
     xaxis: { title: { text: "Chainage (m)" }, showgrid: true, gridcolor: "#e3e6ea", zeroline: false },
     yaxis: { title: { text: "Loaded level (mm)" }, showgrid: true, gridcolor: "#e3e6ea", zerolinecolor: "#9aa3ad", automargin: true },
     ...extra,

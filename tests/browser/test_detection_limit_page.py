@@ -34,8 +34,45 @@ def test_run_page_says_what_the_pass_could_not_see(page: Any, live_server: LiveS
     # limit follows
     assert text.startswith(("No soft spot detected. ", "No dip beyond this pass's detection"))
     assert "This pass could not see losses below" in text
-    assert f"{loss3:.0f} % over 3 m" in text and "over 6 m" in text
+    digits = loss_digits(run["detection_limit"]["min_loss_pct"])
+    assert f"{loss3:.{digits}f} % over 3 m" in text and "over 6 m" in text
     page.watch.assert_clean()
+
+
+def loss_digits(losses: list[float | None]) -> int:
+    """The page's rule for the limits' decimals: whole percent unless two different limits
+    would read alike."""
+    vals = [v for v in losses if v is not None]
+    alike = any(
+        abs(a - b) >= 0.05 and f"{a:.0f}" == f"{b:.0f}"
+        for i, a in enumerate(vals)
+        for b in vals[i + 1 :]
+    )
+    return 1 if alike else 0
+
+
+@pytest.mark.parametrize(
+    ("losses", "expected"),
+    [
+        ([16.35, 15.75], "losses below 16.4 % over 3 m or losses below 15.8 % over 6 m"),
+        ([31.2, 18.4], "losses below 31 % over 3 m or losses below 18 % over 6 m"),
+        ([16.02, 15.98], "losses below 16 % over 3 m or losses below 16 % over 6 m"),
+        ([None, 40.0], "any loss over 3 m or losses below 40 % over 6 m"),
+    ],
+)
+def test_limits_that_differ_do_not_read_alike(
+    page: Any, live_server: LiveServer, losses: list[float | None], expected: str
+) -> None:
+    """Two limits that differ (16.35 and 15.75 %) are not both shown as "16 %": the wording
+    takes one decimal then, and stays in whole percent otherwise (the same number twice, or
+    limits that round apart)."""
+    page.goto(f"{live_server.url}/#/")
+    text = page.evaluate(
+        """async (losses) => (await import('/static/js/visibility.js')).unseenText(
+            {zone_length_m: [3, 6], min_loss_pct: losses, threshold_mm: 0.07})""",
+        losses,
+    )
+    assert text == f"This pass could not see {expected} (its detection threshold: dips of 0.07 mm)."
 
 
 def test_simulate_page_offers_the_imu_grades(page: Any, live_server: LiveServer) -> None:
