@@ -88,9 +88,9 @@ def _alignment(run: Run) -> RunAlignmentPublic | None:
     )
 
 
-def track_public(track: Track, n_runs: int = 0) -> TrackPublic:
+def track_public(track: Track, n_runs: int = 0, has_centerline: bool = False) -> TrackPublic:
     """The public view of a track."""
-    return from_row(TrackPublic, track, n_runs=n_runs)
+    return from_row(TrackPublic, track, n_runs=n_runs, has_centerline=has_centerline)
 
 
 def vehicle_public(vehicle: Vehicle) -> VehiclePublic:

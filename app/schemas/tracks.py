@@ -56,6 +56,10 @@ class TrackPublic(BaseModel):
     rail: str
     created_at: datetime
     n_runs: int = Field(default=0, description="Number of runs stored on this track")
+    has_centerline: bool = Field(
+        default=False,
+        description="Whether the track has a centerline (GET .../centerline answers 404 without)",
+    )
 
 
 class TracksPublic(BaseModel):

@@ -233,6 +233,18 @@ def test_without_a_centerline_the_start_chainage_is_still_needed(
 # ---- centerline endpoints ------------------------------------------------------------------------
 
 
+def test_a_track_says_whether_it_has_a_centerline(lined: TestClient) -> None:
+    """GET /tracks and /tracks/{track} carry has_centerline, so a client need not ask for a
+    centerline that answers 404 (the track page did, and the browser logged an error)."""
+    lined.post("/api/v1/tracks", json={"name": "Bare"})
+    flags = {t["name"]: t["has_centerline"] for t in lined.get("/api/v1/tracks").json()["data"]}
+    assert flags == {"Line": True, "Bare": False}
+    assert lined.get("/api/v1/tracks/Line").json()["has_centerline"] is True
+    assert lined.get("/api/v1/tracks/Bare").json()["has_centerline"] is False
+    assert lined.delete("/api/v1/tracks/Line/centerline").status_code == 204
+    assert lined.get("/api/v1/tracks/Line").json()["has_centerline"] is False
+
+
 def test_centerline_put_get_plan_delete(lined: TestClient) -> None:
     r = lined.get("/api/v1/tracks/Line/centerline")
     assert r.status_code == 200 and r.headers["content-type"].startswith(GEOJSON)

@@ -140,3 +140,24 @@ def test_centerline_upload_gnss_run_and_plan_view(
         page.wait_for_selector("#plan-plot .main-svg")
         assert not axe_violations(page, src), (width, axe_violations(page, src))
     page.watch.assert_clean()
+
+
+def test_a_track_without_centerline_asks_for_none(page: Any, live_server: LiveServer) -> None:
+    """The track page of a track without a centerline says it has none and asks the service
+    for nothing that answers 404 (the browser's console logged each such request as an error
+    before the track said ``has_centerline``)."""
+    with live_server.api() as api:
+        r = api.post(
+            "/api/v1/simulate?wait=true",
+            json={"track": "No line", "length_m": 220, "speed_mps": 22.0, "seed": 6,
+                  "zones": [{"start_m": 100, "end_m": 105, "loss": 0.5}]},
+        )  # fmt: skip
+        assert r.status_code in (200, 201), r.text
+        tid = r.json()["run"]["track_id"]
+    failed: list[str] = []
+    page.on("response", lambda resp: failed.append(resp.url) if resp.status >= 400 else None)
+    page.goto(f"{live_server.url}/#/tracks/{tid}")
+    expect(page.locator("#plan-info")).to_contain_text("This track has no centerline")
+    page.wait_for_load_state("networkidle")
+    assert failed == []
+    page.watch.assert_clean()

@@ -8,6 +8,7 @@ from app.api.convert import track_public
 from app.api.deps import PageDep, SessionDep
 from app.schemas.tracks import TrackCreate, TrackPublic, TracksPublic
 from app.services import lookup
+from app.services.track.centerlines import with_centerline
 from app.services.track.deletion import delete_track as delete_track_and_runs
 from app.services.track.deletion import run_counts
 
@@ -18,8 +19,11 @@ router = APIRouter(prefix="/tracks", tags=["tracks"])
 def list_tracks(session: SessionDep, page: PageDep) -> TracksPublic:
     """Tracks by name, with how many runs each has."""
     tracks, count = lookup.list_tracks(session, page.offset, page.limit)
-    counts = run_counts(session, [t.id for t in tracks])
-    return TracksPublic(data=[track_public(t, counts.get(t.id, 0)) for t in tracks], count=count)
+    ids = [t.id for t in tracks]
+    counts, lines = run_counts(session, ids), with_centerline(session, ids)
+    return TracksPublic(
+        data=[track_public(t, counts.get(t.id, 0), t.id in lines) for t in tracks], count=count
+    )
 
 
 @router.post("", response_model=TrackPublic, status_code=201)
@@ -33,7 +37,8 @@ def create_track(session: SessionDep, body: TrackCreate) -> TrackPublic:
 def read_track(session: SessionDep, track: str) -> TrackPublic:
     """One track, by id or name."""
     row = lookup.get_track(session, track)
-    return track_public(row, run_counts(session, [row.id]).get(row.id, 0))
+    n_runs = run_counts(session, [row.id]).get(row.id, 0)
+    return track_public(row, n_runs, row.id in with_centerline(session, [row.id]))
 
 
 @router.delete("/{track}", status_code=204, response_class=Response)

@@ -11,6 +11,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db.models import Track, TrackCenterline
@@ -134,6 +135,16 @@ def load_centerline(session: Session, track_id: int) -> Centerline | None:
     """The track's centerline as the engine's object, None when it has none."""
     row = session.get(TrackCenterline, track_id)
     return Centerline.from_dict(row.data) if row is not None else None
+
+
+def with_centerline(session: Session, track_ids: list[int]) -> set[int]:
+    """Those of the tracks ``track_ids`` that have a centerline."""
+    if not track_ids:
+        return set()
+    rows = session.execute(
+        select(TrackCenterline.track_id).where(TrackCenterline.track_id.in_(track_ids))
+    ).all()
+    return {int(t) for (t,) in rows}
 
 
 def delete_centerline(session: Session, track: Track) -> None:

@@ -63,7 +63,7 @@ export async function render(main, [ref], query) {
     h("a", { href: `#/tracks/${encodeURIComponent(track.id)}/quality`, id: "track-quality-link" }, "Track quality (EN 13848)"),
   ]);
   // The centerline's plan view and upload (issue 11), also before the first run.
-  const plan = planCard(enc);
+  const plan = planCard(enc, { hasCenterline: track.has_centerline !== false });
   main.insertBefore(deleteTrackControl(track, track.n_runs ?? runs.length), status.el);
   if (runs.length === 0) {
     main.append(plan.section, h("p", { class: "muted" }, "No runs on this track yet."));

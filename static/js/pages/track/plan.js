@@ -31,7 +31,7 @@ function contentType(file) {
  * The plan card: {section, showDefects(getZones, onZone)}. `showDefects` marks the ranked
  * defects on the plan; clicking a marker calls `onZone(zone)` (the register opens it).
  */
-export function planCard(enc) {
+export function planCard(enc, { hasCenterline = true } = {}) {
   const plotDiv = h("div", { class: "plot plot-plan", id: "plan-plot", role: "figure", "aria-label": "Plan view of the track's centerline with chainage marks, the runs' stretches and the defects" });
   const info = h("p", { class: "hint", id: "plan-info" });
   const flag = h("p", { class: "message warning", id: "plan-flag", role: "status", hidden: true });
@@ -124,9 +124,11 @@ export function planCard(enc) {
     });
   }
 
+  // the track says whether it has a centerline: no request that is known to answer 404
+  let known = hasCenterline;
   async function load() {
     try {
-      plan = await apiGetOptional(`/api/v1/tracks/${enc}/centerline/plan`);
+      plan = known ? await apiGetOptional(`/api/v1/tracks/${enc}/centerline/plan`) : null;
     } catch (err) {
       status.show(`Cannot load the centerline: ${err.message}`, "error");
       return;
@@ -159,6 +161,7 @@ export function planCard(enc) {
         method: "PUT", headers: { "Content-Type": contentType(file), Accept: "application/json" }, body,
       });
       status.show(`Centerline stored: ${got.n_vertices} vertices, ${fmtKmRange(got.start_chainage_m, got.end_chainage_m)}.`, "success");
+      known = true;
       await load();
     } catch (err) {
       status.show(err instanceof ApiError ? `The centerline was refused: ${err.message}` : err.message, "error");
