@@ -60,7 +60,11 @@ def cmd_migrate(_ns: argparse.Namespace) -> int:
 
 def cmd_demo(ns: argparse.Namespace) -> int:
     ctx = AppContext(settings=get_settings(), db=_db())
-    body = SimulateRequest(track=ns.track, name="Demo run (simulated, two soft zones)")
+    # recorded "now" (to the minute): the run page and the register date it like a real pass
+    now = utcnow().replace(second=0, microsecond=0)
+    body = SimulateRequest(
+        track=ns.track, name="Demo run (simulated, two soft zones)", recorded_at=now
+    )
     try:
         run_id, created, truth = simulate_and_submit(ctx, simulation_spec(body))
     except (DomainError, EngineError) as exc:

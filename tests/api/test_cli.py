@@ -46,6 +46,7 @@ def test_demo_run_is_loaded_once_and_finds_its_zones(env_db, start_app) -> None:
     runs = c.get("/api/v1/runs", params={"track": "demo"}).json()
     assert runs["count"] == 1
     run = runs["data"][0]
+    assert run["recorded_at"] is not None  # dated like a real pass, not "Recorded: —"
     zones = run["options"]["simulation"]["zones"]
     assert len(zones) == 2
     assert_zones_match(c.get(f"/api/v1/runs/{run['id']}/soft-spots").json(), zones)

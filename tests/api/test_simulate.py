@@ -45,13 +45,16 @@ def test_simulated_run_finds_its_zone(client: TestClient) -> None:
 
 @pytest.mark.slow
 def test_same_simulation_is_not_stored_twice(client: TestClient, settings) -> None:
-    """The simulation is deterministic in its seed: the same request returns the stored run;
-    another seed is another run."""
+    """The simulation is deterministic in its seed: the same request returns the stored run,
+    also dated otherwise (the same log is one pass, as an upload's); another seed is another
+    run."""
     first = client.post("/api/v1/simulate", json=BODY).json()["run"]
     before = row_counts(settings)
     again = client.post("/api/v1/simulate", json=BODY)
     assert again.status_code == 200
     assert again.json()["run"]["id"] == first["id"]
+    dated = client.post("/api/v1/simulate", json={**BODY, "recorded_at": "2026-01-02T03:04:00Z"})
+    assert dated.status_code == 200 and dated.json()["run"]["id"] == first["id"]
     assert row_counts(settings) == before
     other = client.post("/api/v1/simulate", json={**BODY, "seed": 8})
     assert other.status_code == 201

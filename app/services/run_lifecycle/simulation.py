@@ -140,8 +140,11 @@ def simulate_and_submit(ctx: AppContext, spec: SimulationSpec) -> tuple[int, boo
         level_mm=[None if not math.isfinite(v) else v for v in level[::stride].tolist()],
     )
     # Same request, vehicle and track: same run (the simulation is deterministic in its seed).
+    # The date is not the log: dated otherwise it is the same pass (as an upload's file is),
+    # and null in the fingerprint keeps the runs stored before this rule found.
+    request = {**spec.record, "recorded_at": None} if "recorded_at" in spec.record else spec.record
     fingerprint = json.dumps(
-        {"request": spec.record, "vehicle": vp.to_dict(), "track": tp.to_dict()}, sort_keys=True
+        {"request": request, "vehicle": vp.to_dict(), "track": tp.to_dict()}, sort_keys=True
     )
     sub = Submission(
         log=syn.log,
