@@ -86,6 +86,22 @@ def test_register_shows_separated_spots_with_depth_loss_and_evidence(
     page.watch.assert_clean()
 
 
+def test_register_fits_a_1280_screen(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any]
+) -> None:
+    """At 1280 px the register's thirteen columns fit without sideways scrolling (its headers
+    wrap at their spaces, the evidence may take two lines), so the trends and dates are in
+    view."""
+    page.set_viewport_size({"width": 1280, "height": 900})
+    page.goto(f"{live_server.url}/#/tracks/{geo_track['id']}")
+    page.wait_for_selector("#zone-table tbody tr")
+    table_w, box_w = page.evaluate(
+        """() => { const t = document.getElementById('zone-table');
+                   return [t.scrollWidth, t.closest('.table-scroll').clientWidth]; }"""
+    )
+    assert table_w <= box_w + 1, f"register {table_w} px wide in a {box_w} px box"
+
+
 def test_home_needs_attention_labels_the_provisional_defects(
     page: Any, live_server: LiveServer, geo_track: dict[str, Any]
 ) -> None:
