@@ -88,7 +88,15 @@ def test_quality_view_shows_classes_levels_and_exceedances(
     assert page.locator("a[href*='quality.csv']").count() == 1
     facts = page.locator("#quality-facts li").all_inner_texts()
     assert any("Repeatability" in t for t in facts)
-    assert any(t.startswith("table1 at") and "16.52" in t for t in facts)
+    # one precision for the blind wavelengths (the API's 16.52, 5.51, 3.3 m read 16.5, 5.5, 3.3)
+    blind = next(t for t in facts if t.startswith("table1 at"))
+    assert "bounce blind at 16.5, 5.5, 3.3 m" in blind, blind
+    # the basis in words, its header explained
+    basis = sec_rows.nth(0).locator("td").nth(8).inner_text()
+    assert basis in ("separated geometry", "loaded profile", "both"), basis
+    assert "separated from the support" in (
+        page.locator("#quality-sections th", has_text="Level from").get_attribute("title") or ""
+    )
     # the track's own D1 limits; the other tables are still the unverified defaults, and said so
     assert q["unverified_limits"] == ["isolated_mm.D2", "class_sd_mm"]
     said = page.locator("#quality-unverified").inner_text()

@@ -11,6 +11,12 @@ import { baseLayout, CONFIG, loadPlotly } from "../plots.js";
 const CLASS_COLORS = { A: "#009E73", B: "#56B4E9", C: "#F0E442", D: "#E69F00", E: "#D55E00" };
 const LEVEL_LABEL = { immediate: "immediate action", intervention: "intervention", alert: "alert" };
 const LEVEL_SYMBOL = { immediate: "x", intervention: "diamond", alert: "square" };
+// The API's basis of a figure, in the words of the column "Level from" (its header explains).
+const BASIS_LABEL = { unloaded: "separated geometry", loaded: "loaded profile", mixed: "both" };
+const BASIS_TITLE = "Which level the figure comes from: the rail geometry separated from the support's stiffness (unloaded), the aggregated loaded profile of the runs (soft supports' dips included), or both over parts of the section.";
+const basisOf = (b) => BASIS_LABEL[b] || b;
+/** Column headers; "Level from" carries its explanation as a tooltip. */
+const headers = (names) => h("thead", {}, h("tr", {}, ...names.map((c) => h("th", { scope: "col", title: c === "Level from" ? BASIS_TITLE : null }, c))));
 
 function sectionTraces(q) {
   const secs = q.sections.filter((s) => s.d1_sd_mm !== null);
@@ -57,11 +63,11 @@ function sectionsTable(q) {
     h("td", {}, s.days_since_last_pass === null ? "—" : fmt(s.days_since_last_pass, 0)),
     h("td", {}, s.repeatability_d1_mm === null ? "—" : fmt(s.repeatability_d1_mm, 2)),
     h("td", {}, s.speed_kmh === null ? "—" : fmt(s.speed_kmh, 0)),
-    h("td", {}, s.basis),
+    h("td", {}, basisOf(s.basis)),
   ));
   return h("table", { id: "quality-sections", class: "data" },
     h("caption", {}, `Sections of ${fmt(q.section_m, 0)} m`),
-    h("thead", {}, h("tr", {}, ...["Chainage (m)", "D1 SD (mm)", "D2 SD (mm)", "Class", "Passes", "Days since last", "Repeatability D1, 95 % (mm)", "Line speed (km/h)", "Basis"].map((c) => h("th", { scope: "col" }, c)))),
+    headers(["Chainage (m)", "D1 SD (mm)", "D2 SD (mm)", "Class", "Passes", "Days since last", "Repeatability D1, 95 % (mm)", "Line speed (km/h)", "Level from"]),
     h("tbody", {}, ...rows));
 }
 
@@ -70,11 +76,11 @@ function defectsTable(q) {
   const rows = q.defects.map((d) => h("tr", {},
     h("td", {}, fmt(d.peak_m, 1)), h("td", {}, d.band), h("td", {}, fmt(d.value_mm, 2)),
     h("td", {}, LEVEL_LABEL[d.level]), h("td", {}, d.speed_kmh === null ? "unknown (strictest)" : fmt(d.speed_kmh, 0)),
-    h("td", {}, d.basis), h("td", {}, when(d.next_limit)),
+    h("td", {}, basisOf(d.basis)), h("td", {}, when(d.next_limit)),
   ));
   return h("table", { id: "quality-defects", class: "data" },
     h("caption", {}, "Isolated defects (mean to peak) against the speed-class limits"),
-    h("thead", {}, h("tr", {}, ...["Peak (m)", "Band", "Value (mm)", "Level", "Line speed (km/h)", "Basis", "Next limit expected"].map((c) => h("th", { scope: "col" }, c)))),
+    headers(["Peak (m)", "Band", "Value (mm)", "Level", "Line speed (km/h)", "Level from", "Next limit expected"]),
     // an empty table would read as not loaded: say there is none
     h("tbody", {}, ...(rows.length ? rows : [h("tr", {}, h("td", { colspan: 7, class: "muted" }, "None: no isolated defect at a limit level."))])));
 }
@@ -110,8 +116,8 @@ export async function render(main, [ref], query) {
   }
   for (const o of q.observability || []) {
     const blind = o.unobservable_m.length ? `; neither signal carries ${o.unobservable_m.map((r) => `${fmt(r[0], 1)}–${fmt(r[1], 1)} m`).join(", ")}` : "; the two signals together see all of 3–70 m";
-    const wheelbase = (o.wheelbase_nulls_m || []).length ? `, its bogies' wheelsets cancel ${o.wheelbase_nulls_m.join(", ")} m` : "";
-    facts.push(h("li", {}, `${o.vehicle} at ${fmt(o.speed_mps, 0)} m/s: bounce blind at ${o.bounce_nulls_m.join(", ")} m, pitch blind at ${o.pitch_nulls_m.join(", ")} m${wheelbase}${blind}.`));
+    const wheelbase = (o.wheelbase_nulls_m || []).length ? `, its bogies' wheelsets cancel ${o.wheelbase_nulls_m.map((x) => fmt(x, 1)).join(", ")} m` : "";
+    facts.push(h("li", {}, `${o.vehicle} at ${fmt(o.speed_mps, 0)} m/s: bounce blind at ${o.bounce_nulls_m.map((x) => fmt(x, 1)).join(", ")} m, pitch blind at ${o.pitch_nulls_m.map((x) => fmt(x, 1)).join(", ")} m${wheelbase}${blind}.`));
   }
   for (const sv of q.survey_comparison || []) {
     const worst = sv.sections.reduce((m, r) => Math.max(m, Math.abs(r.d1_sd_diff_mm ?? 0)), 0);
