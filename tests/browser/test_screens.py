@@ -102,6 +102,46 @@ def test_register_fits_a_1280_screen(
     assert table_w <= box_w + 1, f"register {table_w} px wide in a {box_w} px box"
 
 
+def test_separated_defect_across_runs_shows_each_load_s_dip(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any]
+) -> None:
+    """A separated defect hides in the rail geometry on the loaded profiles; "Defect across
+    runs" draws each pass minus the separated geometry (on by default there), so the heavy
+    passes' dips are deeper than the coaches' at the zone, and the toggle brings the loaded
+    levels (with the aggregate) back."""
+    sep = [d for d in geo_track["defects"] if d["source"] == "separated"]
+    assert sep
+    zone = sep[0]
+    page.goto(f"{live_server.url}/#/tracks/{geo_track['id']}")
+    page.wait_for_selector("#zone-table tbody tr")
+    km = f"{int(zone['start_m'] // 1000)}+{zone['start_m'] % 1000:05.1f}"
+    page.locator("#zone-table tbody tr", has_text=km).first.get_by_role("button").click()
+    page.wait_for_function(
+        "() => (document.getElementById('zone-info').textContent || '').includes('minus the')"
+    )
+    toggle = page.locator("#zone-minus-geometry")
+    assert toggle.is_visible() and toggle.is_checked()
+    lows = page.evaluate(
+        """([a, b]) => document.getElementById('zone-plot').data
+             .filter(t => String(t.meta).startsWith('run-'))
+             .map(t => [t.name, Math.min(...t.y.filter((v, i) => v !== null
+                                                     && t.x[i] >= a && t.x[i] <= b))])""",
+        [zone["start_m"], zone["end_m"]],
+    )
+    heavy = [low for name, low in lows if name.endswith("196 kN")]
+    coach = [low for name, low in lows if name.endswith("88 kN")]
+    assert len(heavy) == 2 and len(coach) == 2, lows
+    # about twice the load, about twice the dip (a geometric dip would be the same for all)
+    assert max(heavy) < 1.5 * min(coach) < 0, lows
+    title = "() => document.getElementById('zone-plot')._fullLayout.yaxis.title.text"
+    assert page.evaluate(title) == "Level minus geometry (mm)"
+    toggle.uncheck()
+    page.wait_for_function(f"() => ({title})() === 'Loaded level (mm)'")
+    metas = page.evaluate("() => document.getElementById('zone-plot').data.map(t => t.meta)")
+    assert "aggregate" in metas
+    page.watch.assert_clean()
+
+
 def test_home_needs_attention_labels_the_provisional_defects(
     page: Any, live_server: LiveServer, geo_track: dict[str, Any]
 ) -> None:

@@ -24,6 +24,33 @@ function loadGroups(loads) {
   return out;
 }
 
+/** Linear interpolation of (xs, ys) at x, xs increasing; null outside or next to a gap. */
+function interpAt(xs, ys, x) {
+  if (!xs.length || x < xs[0] || x > xs[xs.length - 1]) return null;
+  let lo = 0;
+  let hi = xs.length - 1;
+  while (hi - lo > 1) {
+    const mid = (lo + hi) >> 1;
+    if (xs[mid] <= x) lo = mid; else hi = mid;
+  }
+  const a = ys[lo];
+  const b = ys[hi];
+  if (a === null || b === null) return null;
+  return xs[hi] === xs[lo] ? a : a + ((b - a) * (x - xs[lo])) / (xs[hi] - xs[lo]);
+}
+
+/** Each run's level minus the separated rail geometry (mm; null where either is missing):
+ * what is left is the dip under that run's own wheel load, deeper under a heavier wheel
+ * where the support is soft. */
+export function minusGeometry(run, stiffness) {
+  const gx = stiffness.chainage_m;
+  const gy = stiffness.geometry_mm;
+  return run.level_mm.map((v, i) => {
+    const g = v === null ? null : interpAt(gx, gy, run.chainage_m[i]);
+    return g === null ? null : v - g;
+  });
+}
+
 /** Plotly axis ticks labelled in km+m over [from, to] m (about six of them). */
 export function kmTicks(from, to) {
   const span = Math.max(to - from, 1);
@@ -115,6 +142,12 @@ export function zoneTable(zones, onSelect, columns = REGISTER_COLUMNS) {
 export function registerCards(main, { enc, getZones, isStopped }) {
   const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "figure", "aria-label": "Profiles of all runs around the selected zone" });
   const zoneInfo = h("p", { class: "hint", id: "zone-info" }, "Choose a zone in the table to see its profile across runs.");
+  // A separated defect hides in the rail's geometry on the loaded profiles: with the separated
+  // geometry taken off, each pass's dip under its own load shows (on by default there).
+  const minusToggle = h("input", { type: "checkbox", id: "zone-minus-geometry", checked: true });
+  const minusLabel = h("label", { class: "check", hidden: true }, minusToggle, " Minus the separated rail geometry (each pass's dip under its own wheel load)");
+  let shownZone = null;
+  minusToggle.addEventListener("change", () => { if (shownZone) showZone(shownZone); });
   const onSelect = (zone) => {
     showZone(zone);
     zonePlotDiv.scrollIntoView({ behavior: "smooth", block: "nearest" });
@@ -138,21 +171,29 @@ export function registerCards(main, { enc, getZones, isStopped }) {
       tableBox),
     h("section", { class: "card", "aria-labelledby": "zoneplot-h" },
       h("h2", { id: "zoneplot-h" }, "Defect across runs"),
+      minusLabel,
       zoneInfo,
       zonePlotDiv),
   ));
 
   async function showZone(zone) {
+    shownZone = zone;
     const width = Math.max(zone.end_m - zone.start_m, 2);
     const from = zone.start_m - Math.max(20, 2 * width);
     const to = zone.end_m + Math.max(20, 2 * width);
+    const separated = zone.source === "separated";
+    minusLabel.hidden = !separated;
     zoneInfo.textContent = `Loading the profiles of ${fmtKmRange(from, to, 0)}…`;
     try {
-      const [win, aggWindow] = await Promise.all([
+      const [win, aggWindow, stiff] = await Promise.all([
         apiFetch(`/api/v1/views/tracks/${enc}/window?from_m=${from}&to_m=${to}`),
         apiGetOptional(`/api/v1/tracks/${enc}/profile?from_m=${from}&to_m=${to}`).catch(() => null),
+        separated && minusToggle.checked
+          ? apiGetOptional(`/api/v1/tracks/${enc}/stiffness?from_m=${from}&to_m=${to}`).catch(() => null)
+          : null,
       ]);
-      if (isStopped()) return;
+      if (isStopped() || shownZone !== zone) return;
+      const minus = !!(stiff && Array.isArray(stiff.geometry_mm) && stiff.geometry_mm.some((v) => v !== null));
       const traces = [];
       const wr = win.runs || [];
       // The wheel load tells weak support from geometry: a soft spot deepens under the heavier
@@ -164,17 +205,19 @@ export function registerCards(main, { enc, getZones, isStopped }) {
         const name = `${r.label || `run ${r.id}`} · ${kn}`;
         traces.push({
           type: "scatter", mode: "lines", name,
-          x: r.chainage_m, y: r.level_mm, meta: `run-${r.id}`,
+          x: r.chainage_m, y: minus ? minusGeometry(r, stiff) : r.level_mm, meta: `run-${r.id}`,
           line: { color: viridis(wr.length > 1 ? i / (wr.length - 1) : 0), width: 1.3, dash: dashes[groups[i] % dashes.length] },
           hovertemplate: `%{y:.3f} mm<extra>${escapeExtra(name)}</extra>`,
         });
       });
-      traces.push(...aggregateTraces(aggWindow));
+      // the aggregate is a loaded profile: beside the dips it would read as one more of them
+      if (!minus) traces.push(...aggregateTraces(aggWindow));
       const narrow = zonePlotDiv.clientWidth > 0 && zonePlotDiv.clientWidth < 560;
       const layout = baseLayout({
         height: narrow ? 380 + 18 * Math.min(traces.length, 12) : 380,
         shapes: defectShapes([zone]),
         xaxis: { title: { text: "Chainage (km+m)" }, range: [from, to], gridcolor: "#e3e6ea", ...kmTicks(from, to) },
+        yaxis: { title: { text: minus ? "Level minus geometry (mm)" : "Loaded level (mm)" }, showgrid: true, gridcolor: "#e3e6ea", zerolinecolor: "#9aa3ad", automargin: true },
         // On a phone the legend goes below the plot, which keeps the width.
         legend: narrow ? { orientation: "h", x: 0, y: -0.25, yanchor: "top", font: { size: 10 } } : { orientation: "v", x: 1.02, y: 1, font: { size: 11 } },
         margin: narrow ? { l: 52, r: 8, t: 24, b: 60 } : { l: 64, r: 12, t: 24, b: 52 },
@@ -184,7 +227,9 @@ export function registerCards(main, { enc, getZones, isStopped }) {
       const nLoads = new Set(groups).size;
       zoneInfo.textContent = `Zone ${fmtKmRange(zone.start_m, zone.end_m)} (shaded): ${covers}; evidence: ${zone.evidence_text || `${zone.runs_seen} detected a soft spot there`}.`
         + (wr.length > 1 ? " Lines run from dark (oldest) to light (newest)" : "")
-        + (nLoads > 1 ? `; ${nLoads} wheel loads, one dash each (solid: the lightest), named in the legend.` : wr.length > 1 ? "." : "");
+        + (nLoads > 1 ? `; ${nLoads} wheel loads, one dash each (solid: the lightest), named in the legend.` : wr.length > 1 ? "." : "")
+        + (minus ? " Drawn minus the separated rail geometry: each line is that pass's dip under its own wheel load, deeper under the heavier wheels where the support is soft." : "")
+        + (separated && minusToggle.checked && !minus ? " The separated geometry is not available here: the loaded levels are drawn." : "");
       announce(`Showing zone at ${fmtKm(zone.peak_m)} across ${plural(wr.length, "run")}.`);
     } catch (err) {
       zoneInfo.textContent = `Cannot load the zone's profiles: ${err.message}`;
