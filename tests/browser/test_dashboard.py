@@ -13,6 +13,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from browser.harness import (
     SAMPLE_START_M,
@@ -141,6 +142,16 @@ def test_uploaded_run_shows_profile_with_shaded_labelled_soft_spots(
             for x0, x1 in info["shapes"]
         )
     assert len(info["labels"]) == len(spots)
+    # each spot's peak marker sits on the drawn fused line, at the spot's deepest point
+    peaks = page.evaluate(
+        """() => { const gd = document.getElementById('profile-plot');
+                   const f = gd.data.find(t => t.name === 'Fused level');
+                   const p = gd.data.find(t => t.meta === 'peaks');
+                   return { fx: f.x, fy: f.y, px: p.x, py: p.y }; }"""
+    )
+    assert peaks["px"] == pytest.approx([s["peak_m"] for s in spots])
+    line = np.interp(peaks["px"], peaks["fx"], np.asarray(peaks["fy"], dtype=float))
+    assert peaks["py"] == pytest.approx(list(line), abs=1e-9)
     for s, text in zip(spots, info["labels"], strict=True):
         assert f"{s['depth_mm']:.2f} mm" in text and f"{s['stiffness_loss_pct']:.0f} %" in text
     assert page.locator("#spots-table tbody tr").count() == len(spots)

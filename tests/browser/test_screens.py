@@ -102,6 +102,57 @@ def test_register_fits_a_1280_screen(
     assert table_w <= box_w + 1, f"register {table_w} px wide in a {box_w} px box"
 
 
+def test_chainage_map_draws_the_separated_spots_in_a_top_row(
+    page: Any, live_server: LiveServer, geo_track: dict[str, Any]
+) -> None:
+    """Over rough rail no single run finds the soft spots, the separation does: the chainage
+    map shows them in a top row "Separated across loads", a marker at each separated defect's
+    deepest point with its extent, on the runs' depth scale; a click on one opens its profile
+    across runs (it was a count in the note only)."""
+    sep = sorted(
+        (d for d in geo_track["defects"] if d["source"] == "separated"), key=lambda d: d["peak_m"]
+    )
+    assert len(sep) == 3, geo_track["defects"]
+    page.goto(f"{live_server.url}/#/tracks/{geo_track['id']}")
+    page.wait_for_function(
+        "() => (document.getElementById('chainage-map')?.data || [])"
+        ".some(t => t.meta === 'separated')"
+    )
+    drawn = page.evaluate(
+        """() => { const d = document.getElementById('chainage-map');
+                   const t = d.data.find(t => t.meta === 'separated');
+                   const e = d.data.find(t => t.meta === 'separated-extents');
+                   return { x: t.x, y: t.y, ext: e.x, color: t.marker.color,
+                            top: d.layout.yaxis.categoryarray.at(-1) }; }"""
+    )
+    assert drawn["top"] == "Separated across loads"
+    assert set(drawn["y"]) == {"Separated across loads"}
+    assert sorted(drawn["x"]) == pytest.approx([d["peak_m"] for d in sep])
+    assert sorted(v for v in drawn["ext"] if v is not None) == pytest.approx(
+        sorted([d["start_m"] for d in sep] + [d["end_m"] for d in sep])
+    )
+    assert sorted(drawn["color"]) == pytest.approx(sorted(d["depth_mm"] for d in sep))
+    # a click on the marker of a defect other than the one shown first opens that one
+    # (the register comes most urgent first; the page shows the first defect at the start)
+    target = [d for d in geo_track["defects"] if d["source"] == "separated"][-1]
+    page.locator("#chainage-map").scroll_into_view_if_needed()
+    xy = page.evaluate(
+        """(x) => { const d = document.getElementById('chainage-map');
+                    const fl = d._fullLayout;
+                    const box = d.querySelector('.nsewdrag').getBoundingClientRect();
+                    return [box.left + fl.xaxis.l2p(x),
+                            box.top + fl.yaxis.l2p(fl.yaxis.d2l('Separated across loads'))]; }""",
+        target["peak_m"],
+    )
+    page.mouse.click(*xy)
+    km = f"{int(target['start_m'] // 1000)}+{target['start_m'] % 1000:05.1f}"
+    page.wait_for_function(
+        "km => (document.getElementById('zone-info').textContent || '').startsWith('Zone ' + km)",
+        arg=km,
+    )
+    page.watch.assert_clean()
+
+
 def test_separated_defect_across_runs_shows_each_load_s_dip(
     page: Any, live_server: LiveServer, geo_track: dict[str, Any]
 ) -> None:

@@ -5,6 +5,7 @@ import { h, clear, append, announce, fmt, fmtDate, fmtKm, downloadBlob, messageB
 import { ApiError, apiFetch, apiGetOptional, runErrorMessage } from "../api.js";
 import { baseLayout, COLORS, CONFIG, loadPlotly, softSpotLabels, softSpotShapes, TERMS, zoomControls, zoomTo } from "../plots.js";
 import { unseenText } from "../visibility.js";
+import { interpAt } from "../series.js";
 
 const META_FIELDS = [
   ["recorded_at", "Recorded", (v) => fmtDate(v)],
@@ -174,7 +175,7 @@ export async function render(main, [id]) {
     traces.push({
       type: "scatter", mode: "markers", name: "Soft spot peaks", meta: "peaks",
       x: spots.map((s) => s.peak_m),
-      y: spots.map((s) => interpolate(profile.chainage_m, profile.level_mm, s.peak_m)),
+      y: spots.map((s) => interpAt(profile.chainage_m, profile.level_mm, s.peak_m, { nearest: true })),
       marker: { symbol: "triangle-down", size: 11, color: COLORS.spotLine, line: { color: "#1b1f24", width: 1 } },
       customdata: spots.map((s, i) => [i + 1, s.depth_mm, s.stiffness_loss_pct, s.start_m, s.end_m]),
       hovertemplate: "S%{customdata[0]}: depth %{customdata[1]:.2f} mm, stiffness loss %{customdata[2]:.0f} %<br>%{customdata[3]:.1f}–%{customdata[4]:.1f} m<extra></extra>",
@@ -295,24 +296,6 @@ export async function render(main, [id]) {
     stopped = true;
     clearTimeout(timer);
   };
-}
-
-function interpolate(xs, ys, x) {
-  let lo = 0;
-  let hi = xs.length - 1;
-  if (hi < 0) return null;
-  if (x <= xs[0]) return ys[0];
-  if (x >= xs[hi]) return ys[hi];
-  while (hi - lo > 1) {
-    const mid = (lo + hi) >> 1;
-    if (xs[mid] <= x) lo = mid;
-    else hi = mid;
-  }
-  const f = (x - xs[lo]) / (xs[hi] - xs[lo]);
-  const a = ys[lo];
-  const b = ys[hi];
-  if (a === null || b === null) return a ?? b;
-  return a + (b - a) * f;
 }
 
 async function loadSignals(encId, div, note) {

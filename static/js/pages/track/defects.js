@@ -6,6 +6,7 @@ import { apiFetch, apiGetOptional } from "../../api.js";
 import { baseLayout, CONFIG, loadPlotly, viridis } from "../../plots.js";
 import { REGISTER_COLUMNS, aggregateTraces, defectShapes } from "../../register.js";
 import { provisionalBanner, spotsAre } from "../../provisional.js";
+import { interpAt } from "../../series.js";
 
 /** Group index of each load (N): sorted, a load 10 % or more above its group's lightest
  * starts a new group (the separation's own threshold); unknown loads: group 0. */
@@ -22,21 +23,6 @@ function loadGroups(loads) {
     out[i] = g;
   }
   return out;
-}
-
-/** Linear interpolation of (xs, ys) at x, xs increasing; null outside or next to a gap. */
-function interpAt(xs, ys, x) {
-  if (!xs.length || x < xs[0] || x > xs[xs.length - 1]) return null;
-  let lo = 0;
-  let hi = xs.length - 1;
-  while (hi - lo > 1) {
-    const mid = (lo + hi) >> 1;
-    if (xs[mid] <= x) lo = mid; else hi = mid;
-  }
-  const a = ys[lo];
-  const b = ys[hi];
-  if (a === null || b === null) return null;
-  return xs[hi] === xs[lo] ? a : a + ((b - a) * (x - xs[lo])) / (xs[hi] - xs[lo]);
 }
 
 /** Each run's level minus the separated rail geometry (mm; null where either is missing):
@@ -137,7 +123,8 @@ export function zoneTable(zones, onSelect, columns = REGISTER_COLUMNS) {
 
 /**
  * The register card and the "defect across runs" card, appended to `main`. `getZones` gives
- * the current ranked defects. Returns {draw (redraw the table), showZone}.
+ * the current ranked defects. Returns {draw (redraw the table), showZone, select (show and
+ * scroll to the plot)}.
  */
 export function registerCards(main, { enc, getZones, isStopped }) {
   const zonePlotDiv = h("div", { class: "plot plot-zone", id: "zone-plot", role: "figure", "aria-label": "Profiles of all runs around the selected zone" });
@@ -236,5 +223,5 @@ export function registerCards(main, { enc, getZones, isStopped }) {
     }
   }
 
-  return { draw, showZone };
+  return { draw, showZone, select: onSelect };
 }

@@ -87,7 +87,7 @@ export async function render(main, [ref], query) {
   // spots are what the track knows: say how many, beside the map's own count.
   const separated = register.filter((d) => d.source === "separated").length;
   const mapNote = document.getElementById("map-note");
-  if (separated && mapNote) mapNote.append(" ", h("span", { id: "map-separated" }, `Besides: ${plural(separated, "soft spot")} separated from the rail's geometry across wheel loads (in the register below and on the stiffness map).`));
+  if (separated && mapNote) mapNote.append(" ", h("span", { id: "map-separated" }, `Besides: ${plural(separated, "soft spot")} separated from the rail's geometry across wheel loads (the top row; in the register below and on the stiffness map).`));
   const notice = alignmentNotice(trackRuns);
   if (notice) main.insertBefore(notice, mapView.section);
   // The aggregated profile is made of aligned runs only: no card for a track without any.
@@ -111,6 +111,9 @@ export async function render(main, [ref], query) {
   main.appendChild(plan.section);
   plan.showRuns(runs);
   plan.showDefects(() => zones, (zone) => registerView.showZone(zone));
+  // The map's top row: the separated soft spots, ranked as in the register.
+  const separatedOnMap = () => mapView.showSeparated(zones.filter((d) => d.source === "separated"), registerView.select);
+  separatedOnMap();
 
   // ---- alerts and limits ---------------------------------------------------------------------
   // Alerts and limits serve the maintenance of aligned tracks (a track whose runs were never
@@ -121,6 +124,7 @@ export async function render(main, [ref], query) {
       register = await apiFetch(`/api/v1/tracks/${enc}/defects`);
       zones = ranked(register);
       registerView.draw();
+      await separatedOnMap();
       if (aggregate) await aggregate.render();
       if (stiffness) await stiffness.render();
       await alerts.load();

@@ -6,7 +6,11 @@
 import { h, fmt, fmtDate, plural } from "../../dom.js";
 import { apiFetch } from "../../api.js";
 import { baseLayout, CONFIG, loadPlotly, viridis, zoomControls } from "../../plots.js";
-import { CLASSES, runLabels, severityClass } from "./state.js";
+import { CLASSES, severityClass } from "./state.js";
+
+/** The map's top row: the register's soft spots separated from the rail's geometry across
+ * wheel loads (over rough rail no single run sees them). */
+export const SEPARATED_ROW = { wide: "Separated across loads", narrow: "Separated" };
 
 function legendBox() {
   return h("ul", { class: "severity-legend", "aria-label": "Severity classes by depth" },
@@ -102,14 +106,20 @@ function cellTraces(s, labels, depthMax, narrow, metresPerPixel) {
  * px, ~100 m per pixel) they would be thousands of invisible SVG paths, as costly to draw as
  * the markers themselves. More than `MAX_MARKERS` spots are drawn merged into cells.
  */
-export function mapTraces(map, heat, narrow = false, metresPerPixel = 0) {
-  const labels = narrow ? rowLabels(map.runs || [], true) : runLabels(map);
+export function mapTraces(map, heat, narrow = false, metresPerPixel = 0, separated = []) {
+  const labels = rowLabels(map.runs || [], narrow);
   const traces = [];
   if (map.heatmap) traces.push(heatmapTrace(map.heatmap, labels, heat));
   const s = map.spots || { run_index: [], start_m: [], end_m: [], peak_m: [], depth_mm: [], stiffness_loss_pct: [] };
   const n = s.peak_m.length;
-  const depthMax = Math.max(0.5, ...s.depth_mm);
-  if (n > MAX_MARKERS && metresPerPixel > 0) return traces.concat(cellTraces(s, labels, depthMax, narrow, metresPerPixel));
+  // one colour scale for the runs' spots and the separated ones (depth under 100 kN)
+  const depthMax = Math.max(0.5, ...s.depth_mm, ...separated.map((d) => d.depth_mm));
+  const sepTraces = separated.length ? separatedTraces(separated, narrow ? SEPARATED_ROW.narrow : SEPARATED_ROW.wide, depthMax) : [];
+  if (separated.length && traces.length) traces[0] = withEmptyRow(traces[0], sepTraces[0].y[0]);
+  if (n > MAX_MARKERS && metresPerPixel > 0) {
+    const cells = cellTraces(s, labels, depthMax, narrow, metresPerPixel);
+    return traces.concat(separated.length ? cells.map((t) => withEmptyRow(t, sepTraces[0].y[0])) : cells, sepTraces);
+  }
   if (n && medianExtent(s) >= metresPerPixel) {
     const segX = [];
     const segY = [];
@@ -139,7 +149,58 @@ export function mapTraces(map, heat, narrow = false, metresPerPixel = 0) {
       hovertemplate: "%{y}<br>%{customdata[0]:.1f}–%{customdata[1]:.1f} m, depth %{customdata[2]:.2f} mm, stiffness loss %{customdata[3]:.0f} %<extra></extra>",
     });
   }
-  return traces;
+  return traces.concat(sepTraces);
+}
+
+/** A heatmap trace with an empty first row labelled `label`: plotly's heatmap on a category
+ * axis expects a row of z (and of text and customdata) for every category of the axis, and
+ * fails to draw ("reading 'length'") when the separated row has none. */
+function withEmptyRow(trace, label) {
+  const width = trace.z.length ? trace.z[0].length : 0;
+  const empty = (v) => new Array(width).fill(v);
+  const padded = { ...trace, y: [label, ...trace.y], z: [empty(null), ...trace.z] };
+  if (trace.text) padded.text = [empty(""), ...trace.text];
+  if (trace.customdata) padded.customdata = [empty(null), ...trace.customdata];
+  return padded;
+}
+
+/** A loss with its band as words ("38 % (30–46 %)"; "—" when there is none). */
+function lossText(d) {
+  if (d.stiffness_loss_pct === null || d.stiffness_loss_pct === undefined) return "—";
+  const band = d.stiffness_loss_lo_pct !== null && d.stiffness_loss_lo_pct !== undefined && d.stiffness_loss_hi_pct !== null && d.stiffness_loss_hi_pct !== undefined
+    ? ` (${fmt(d.stiffness_loss_lo_pct, 0)}–${fmt(d.stiffness_loss_hi_pct, 0)} %)`
+    : "";
+  return `${fmt(d.stiffness_loss_pct, 0)} %${band}`;
+}
+
+/**
+ * The separated soft spots' row: their extents as bars and a marker at the deepest point,
+ * coloured, sized and shaped by their depth under a 100 kN wheel like the runs' spots
+ * (`defects`: the register's defects of source "separated"; `depthMax` the shared scale, mm).
+ * The markers carry the defect's rank (customdata[0]) so that a click can open it.
+ */
+export function separatedTraces(defects, label, depthMax) {
+  const segX = [];
+  const segY = [];
+  defects.forEach((d) => { segX.push(d.start_m, d.end_m, null); segY.push(label, label, null); });
+  return [
+    {
+      type: "scatter", mode: "lines", name: "Separated extent", meta: "separated-extents", x: segX, y: segY, hoverinfo: "skip", showlegend: false,
+      line: { color: "#1b1f24", width: 3 },
+    },
+    {
+      type: "scatter", mode: "markers", name: "Separated soft spots", meta: "separated",
+      x: defects.map((d) => d.peak_m), y: defects.map(() => label),
+      marker: {
+        color: defects.map((d) => d.depth_mm), colorscale: "Viridis", reversescale: true, cmin: 0, cmax: depthMax,
+        size: defects.map((d) => 8 + 14 * Math.min(d.depth_mm / depthMax, 1)),
+        symbol: defects.map((d) => CLASSES[severityClass(d.depth_mm)].symbol),
+        line: { color: "#1b1f24", width: 1 },
+      },
+      customdata: defects.map((d) => [d.rank ?? null, d.start_m, d.end_m, d.depth_mm, lossText(d), d.evidence_text || "separated"]),
+      hovertemplate: "%{y} (%{customdata[5]})<br>%{customdata[1]:.1f}–%{customdata[2]:.1f} m, depth %{customdata[3]:.2f} mm under 100 kN, stiffness loss %{customdata[4]}<br>click: its profile across runs<extra></extra>",
+    },
+  ];
 }
 
 /** Whether a plot is phone-narrow (< 560 px): shorter run labels, smaller margins and ticks,
@@ -192,7 +253,7 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
     h("div", { class: "section-head" },
       h("h2", { id: "map-h" }, "Chainage map"),
       h("label", { class: "check" }, heatToggle, " Profile level as background")),
-    h("p", { class: "hint" }, "Each row is a run (newest at the top). Markers are soft spots at their deepest point; zoomed in far enough to see it, a bar shows their extent. Darker, larger and more angular markers are deeper. With too many to draw one by one (a long line), a run's spots are merged per few pixels of chainage into a framed cell coloured by the deepest (hover: how many, the deepest); zoom in to see each. Drag to zoom; the background is recomputed for the zoomed window."),
+    h("p", { class: "hint" }, "Each row is a run (newest at the top); a top row “Separated”, when there is one, holds the soft spots separated from the rail's geometry across wheel loads (over rough rail no single run sees them; click one for its profile across runs). Markers are soft spots at their deepest point; zoomed in far enough to see it, a bar shows their extent. Darker, larger and more angular markers are deeper. With too many to draw one by one (a long line), a run's spots are merged per few pixels of chainage into a framed cell coloured by the deepest (hover: how many, the deepest); zoom in to see each. Drag to zoom; the background is recomputed for the zoomed window."),
     mapDiv,
     legend,
     mapNote,
@@ -201,8 +262,12 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
 
   const narrow = isNarrow(mapDiv);
   const labels = rowLabels(runs, narrow);
+  // the register's separated soft spots (they arrive after the map: `showSeparated`)
+  let separated = [];
+  let openZone = () => {};
+  const rows = () => (separated.length ? [narrow ? SEPARATED_ROW.narrow : SEPARATED_ROW.wide, ...labels] : labels);
   const P = await loadPlotly();
-  const layout = mapLayout(labels, map, narrow);
+  const layout = mapLayout(rows(), map, narrow);
   const fullRange = [map.chainage_min_m ?? 0, map.chainage_max_m ?? 0];
   await P.newPlot(mapDiv, mapTraces(map, heatToggle.checked, narrow, scaleOf(mapDiv, layout, fullRange)), layout, { ...CONFIG, scrollZoom: false });
   mapSection.insertBefore(zoomControls(mapDiv, { label: "Chainage map view" }), legend);
@@ -222,11 +287,13 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
   let relayoutTimer = null;
   let requestSeq = 0;
   let current = map;
+  let currentRange = null;
   const redraw = (m, range) => {
     current = m;
-    const lay = { ...mapLayout(labels, map, narrow), xaxis: { ...layout.xaxis } };
+    currentRange = range;
+    const lay = { ...mapLayout(rows(), map, narrow), xaxis: { ...layout.xaxis } };
     if (range) lay.xaxis = { ...lay.xaxis, range, autorange: false };
-    return P.react(mapDiv, mapTraces(m, heatToggle.checked, narrow, scaleOf(mapDiv, lay, range || fullRange)), lay, { ...CONFIG, scrollZoom: false });
+    return P.react(mapDiv, mapTraces(m, heatToggle.checked, narrow, scaleOf(mapDiv, lay, range || fullRange), separated), lay, { ...CONFIG, scrollZoom: false });
   };
 
   async function loadWindow(range) {
@@ -263,5 +330,20 @@ export async function mapCard(main, { enc, map, t0, isStopped }) {
     else if (heatToggle.checked) loadWindow(mapDiv.layout.xaxis.range.map(Number));
   });
 
-  return { section: mapSection, stop: () => clearTimeout(relayoutTimer) };
+  mapDiv.on("plotly_click", (ev) => {
+    const pt = (ev.points || []).find((p) => p.data.meta === "separated");
+    if (pt && separated[pt.pointIndex]) openZone(separated[pt.pointIndex]);
+  });
+
+  return {
+    section: mapSection,
+    stop: () => clearTimeout(relayoutTimer),
+    /** Draw the register's separated soft spots (ranked defects of source "separated") in
+     * the top row; a click on one calls `open(defect)`. */
+    showSeparated(defects, open) {
+      separated = defects;
+      openZone = open;
+      return separated.length ? redraw(current, currentRange) : Promise.resolve();
+    },
+  };
 }

@@ -45,7 +45,3 @@ export function loadTrackData(enc) {
 export function ranked(defects) {
   return defects.map((d, i) => ({ ...d, rank: i + 1 }));
 }
-
-export function runLabels(m) {
-  return (m.runs || []).map((r) => r.label || `run ${r.id}`);
-}
