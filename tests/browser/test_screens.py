@@ -107,8 +107,8 @@ def test_chainage_map_draws_the_separated_spots_in_a_top_row(
 ) -> None:
     """Over rough rail no single run finds the soft spots, the separation does: the chainage
     map shows them in a top row "Separated across loads", a marker at each separated defect's
-    deepest point with its extent, on the runs' depth scale; a click on one opens its profile
-    across runs (it was a count in the note only)."""
+    deepest point with its extent, on the runs' depth scale (drawn by them when no run has a
+    spot); a click on one opens its profile across runs (it was a count in the note only)."""
     sep = sorted(
         (d for d in geo_track["defects"] if d["source"] == "separated"), key=lambda d: d["peak_m"]
     )
@@ -123,8 +123,11 @@ def test_chainage_map_draws_the_separated_spots_in_a_top_row(
                    const t = d.data.find(t => t.meta === 'separated');
                    const e = d.data.find(t => t.meta === 'separated-extents');
                    return { x: t.x, y: t.y, ext: e.x, color: t.marker.color,
-                            top: d.layout.yaxis.categoryarray.at(-1) }; }"""
+                            top: d.layout.yaxis.categoryarray.at(-1),
+                            scales: d.querySelectorAll('.colorbar').length }; }"""
     )
+    # no single pass has a soft spot here: the separated markers draw the depth scale
+    assert drawn["scales"] == 1
     assert drawn["top"] == "Separated across loads"
     assert set(drawn["y"]) == {"Separated across loads"}
     assert sorted(drawn["x"]) == pytest.approx([d["peak_m"] for d in sep])

@@ -114,7 +114,7 @@ export function mapTraces(map, heat, narrow = false, metresPerPixel = 0, separat
   const n = s.peak_m.length;
   // one colour scale for the runs' spots and the separated ones (depth under 100 kN)
   const depthMax = Math.max(0.5, ...s.depth_mm, ...separated.map((d) => d.depth_mm));
-  const sepTraces = separated.length ? separatedTraces(separated, narrow ? SEPARATED_ROW.narrow : SEPARATED_ROW.wide, depthMax) : [];
+  const sepTraces = separated.length ? separatedTraces(separated, narrow ? SEPARATED_ROW.narrow : SEPARATED_ROW.wide, depthMax, n ? null : depthColorbar(narrow)) : [];
   if (separated.length && traces.length) traces[0] = withEmptyRow(traces[0], sepTraces[0].y[0]);
   if (n > MAX_MARKERS && metresPerPixel > 0) {
     const cells = cellTraces(s, labels, depthMax, narrow, metresPerPixel);
@@ -177,9 +177,10 @@ function lossText(d) {
  * The separated soft spots' row: their extents as bars and a marker at the deepest point,
  * coloured, sized and shaped by their depth under a 100 kN wheel like the runs' spots
  * (`defects`: the register's defects of source "separated"; `depthMax` the shared scale, mm).
- * The markers carry the defect's rank (customdata[0]) so that a click can open it.
+ * The markers carry the defect's rank (customdata[0]) so that a click can open it. `colorbar`:
+ * the depth scale, given when no run's spots draw it (over rough rail no single pass has any).
  */
-export function separatedTraces(defects, label, depthMax) {
+export function separatedTraces(defects, label, depthMax, colorbar = null) {
   const segX = [];
   const segY = [];
   defects.forEach((d) => { segX.push(d.start_m, d.end_m, null); segY.push(label, label, null); });
@@ -196,6 +197,7 @@ export function separatedTraces(defects, label, depthMax) {
         size: defects.map((d) => 8 + 14 * Math.min(d.depth_mm / depthMax, 1)),
         symbol: defects.map((d) => CLASSES[severityClass(d.depth_mm)].symbol),
         line: { color: "#1b1f24", width: 1 },
+        ...(colorbar ? { colorbar } : {}),
       },
       customdata: defects.map((d) => [d.rank ?? null, d.start_m, d.end_m, d.depth_mm, lossText(d), d.evidence_text || "separated"]),
       hovertemplate: "%{y} (%{customdata[5]})<br>%{customdata[1]:.1f}–%{customdata[2]:.1f} m, depth %{customdata[3]:.2f} mm under 100 kN, stiffness loss %{customdata[4]}<br>click: its profile across runs<extra></extra>",
