@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from .align import align_profiles
+from .align import END_RING_M, align_profiles
 from .errors import ParameterError
 from .pipeline import fuse_axles
 from .results import ProcessResult
@@ -73,6 +73,7 @@ def align_passes(
     max_shift_m: float = 10.0,
     recentre: bool = True,
     stretch_m: float = 2000.0,
+    edge_m: float = END_RING_M,
 ) -> tuple[list[Pass], list[float]]:
     """Align passes to one another by cross-correlating their levels.
 
@@ -81,7 +82,8 @@ def align_passes(
     With ``recentre`` the common frame is then shifted so that the offsets average zero: each
     logged start chainage is an independent estimate of the true one, so their mean is the
     best estimate of the track's frame. A pass whose alignment is not trusted keeps its
-    logged chainage. Returns the shifted passes and the offsets, m.
+    logged chainage. Each pass's first and last ``edge_m`` metres (its level's ring) are left
+    out of its comparison. Returns the shifted passes and the offsets, m.
     """
     if not passes:
         return [], []
@@ -106,7 +108,7 @@ def align_passes(
                     p.chainage_m, [grid[lo] - max_shift_m, grid[hi - 1] + max_shift_m]
                 )
                 a = align_profiles(grid[sel], ref[sel], p.chainage_m[k0:k1], pl[k0:k1],
-                                   max_shift_m=max_shift_m)  # fmt: skip
+                                   max_shift_m=max_shift_m, edge_m=edge_m)  # fmt: skip
                 off = a.offset_m if a.ok else 0.0
         offsets.append(off)
         shifted = np.interp(grid, p.chainage_m + off, np.asarray(p.level_mm, dtype=float),

@@ -171,14 +171,15 @@ def test_a_short_pair_on_rough_rail_measures_its_noise_in_its_middle():
 @pytest.mark.slow
 def test_matched_detector_finds_zones_the_white_threshold_misses_on_rough_rail():
     """The engine's rough-rail case n101 (benchmarks/accuracy_bogie_separation.py, made after
-    the matched detector to judge it; true vehicles): the residual's white threshold finds
-    one zone of three, the detector matched to the compliance's coloured noise all three,
-    ends within 1.5 m and losses within 10 pp, and no false zone."""
+    the matched detector to judge it; true vehicles): the residual's white threshold misses a
+    zone of three (two found since passes are aligned without their ringing ends, one
+    before), the detector matched to the compliance's coloured noise finds all three, ends
+    within 1.5 m and losses within 10 pp, and no false zone."""
     case = CASES["n101"]
     passes = passes_of(case)["true vehicles"]
     white = score(separate(passes, config=SeparationConfig(matched_lengths_m=())), case.zones)
     matched = score(separate(passes), case.zones)
-    assert white["found"] <= 1
+    assert white["found"] < len(case.zones)
     assert matched["found"] == len(case.zones)
     assert matched["false"] == [] and white["false"] == []
 

@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 
 from app.services.track.aggregate import read_aggregate_grid
 from engine.accumulate import MIN_Z, trusted
-from engine.align import align_profiles
+from engine.align import END_RING_M, align_profiles
 from engine.chainage import GRID_STEP_M
 from engine.detect import robust_baseline, robust_sigma
 from engine.errors import EngineError
@@ -235,6 +235,7 @@ def align_to_track(
         al = align_profiles(
             ref_c, ref, own_c, own,
             max_shift_m=MAX_SHIFT_M, min_overlap_m=MIN_OVERLAP_M, min_correlation=MIN_CORRELATION,
+            edge_m=END_RING_M,
         )  # fmt: skip
     except EngineError as exc:
         why = f"cannot align: {exc}"
