@@ -1,7 +1,8 @@
 """Is a pass's end error a few shapes, and does the difference of two passes find them? (issue 32)
 
 Run: ``python benchmarks/edge_ring_basis.py [--seeds 9101-9103] [--test-seeds 9104-9105]
-[--k 6] [--peer]`` (about 6 min on 2 cores the first time; the runs are cached,
+[--k 6] [--peer] [--sensitivity] [--cases b43,...,d8300] [--free-seeds 8200-8209]
+[--no-pairs]`` (about 6 min on 2 cores the first time; the runs are cached,
 :func:`benchmarks.common.cached`).
 
 A measurement, not a product path. A pass's level rings over its first and last ~100 m
@@ -26,6 +27,13 @@ first sample and after its last. The error is linear in what is missing, so this
    on the peer pair's difference; error against the truth's difference (the peer's levels
    under each vehicle, band-passed on the whole track) before and after; and the separation of
    the pair, corrected or not, at ``edge_factor`` 0.3 (default), 0.15, 0.08 and 0.04.
+5. ``--cases`` / ``--free-seeds``: the engine's own bogie cases (``accuracy_bogie_separation``'s
+   named cases, ``d<seed>`` drawn with zones) and zone-free drawn tracks
+   (``separation_false_alarms``), each pass's shapes at its speed with the vehicle it was
+   processed with, fitted over the four passes; zones found and false spots, as processed
+   and fitted, at each edge factor.
+6. ``--sensitivity``: the last seed's errors against shapes from the first seed alone, from
+   other speeds, from a vehicle 10 % heavier; the half car's own shapes.
 """
 
 from __future__ import annotations
@@ -445,6 +453,53 @@ def case_lines(k: int, train: list[int], names: list[str], free: list[int]) -> l
     return lines + [""]
 
 
+def sensitivity_lines(k: int, train: list[int]) -> list[str]:
+    """How much the shapes depend on what makes them: energy of the last seed's start and
+    end errors left outside shapes made from the first seed alone, at another speed, for a
+    vehicle 10 % heavier; and the half car's own shapes (held out as in section 1)."""
+    from engine.synthetic import TABLE1
+
+    lines = [
+        "## 6. What the shapes depend on: energy left outside them (start; end), "
+        "0-120 m and 40-100 m",
+        "",
+        "| errors of | shapes from | start | end |",
+        "|---|---|---|---|",
+    ]
+
+    def left(rows: Array, b: Array, step: float) -> str:
+        r = rows - (rows @ b.T) @ b
+        seg = slice(int(40 / step), int(100 / step))
+        whole = np.sum(r**2) / np.sum(rows**2)
+        mid = np.sum(r[:, seg] ** 2) / np.sum(rows[:, seg] ** 2)
+        return f"{whole:.4f}, {mid:.4f}"
+
+    for kind, (veh, v0) in OWN.items():
+        s0, e0, step = end_errors(veh, v0, train)
+        third = s0.shape[0] // len(train)
+        ts, te = s0[-third:], e0[-third:]
+        variants = [(f"seed {train[0]} alone", s0[:third], e0[:third])]
+        for dv in (-2.0, -1.0, 1.0, 2.0):
+            s1, e1, _ = end_errors(veh, v0 + dv, train)
+            variants.append((f"{v0 + dv:.0f} m/s", s1, e1))
+        heavy = veh.replace(body_mass_kg=1.1 * veh.body_mass_kg)
+        s2, e2, _ = end_errors(heavy, v0, train)
+        variants.append(("a body 10 % heavier", s2, e2))
+        for label, s1, e1 in variants:
+            lines.append(
+                f"| {kind} {v0:.0f} m/s, seed {train[-1]} | {label} | "
+                f"{left(ts, shapes(s1, k), step)} | {left(te, shapes(e1, k), step)} |"
+            )
+    s3, e3, step = end_errors(TABLE1, 22.0, train)
+    n_train = s3.shape[0] * 2 // 3
+    lines.append(
+        f"| half car TABLE1 22 m/s, held-out third | the other cuts | "
+        f"{left(s3[n_train:], shapes(s3[:n_train], k), step)} | "
+        f"{left(e3[n_train:], shapes(e3[:n_train], k), step)} |"
+    )
+    return lines + [""]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="9101-9103", help="seeds whose cuts give the shapes")
@@ -454,11 +509,14 @@ def main() -> None:
     ap.add_argument("--cases", default="", help="own bogie cases, e.g. b43,s7,d5000")
     ap.add_argument("--free-seeds", default="", help="zone-free drawn tracks, e.g. 8200-8209")
     ap.add_argument("--no-pairs", action="store_true", help="skip sections 1-3")
+    ap.add_argument("--sensitivity", action="store_true", help="what the shapes depend on")
     args = ap.parse_args()
     train, test = seeds_arg(args.seeds), seeds_arg(args.test_seeds)
     lines = [] if args.no_pairs else own_pairs(args.k, train, test)
     if args.peer:
         lines += peer_lines(args.k, train)
+    if args.sensitivity:
+        lines += sensitivity_lines(args.k, train)
     if args.cases or args.free_seeds:
         names = [n for n in args.cases.split(",") if n]
         free = seeds_arg(args.free_seeds) if args.free_seeds else []
