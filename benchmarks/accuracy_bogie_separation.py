@@ -61,6 +61,7 @@ from engine.calibration import (  # noqa: E402
     calibrate,
 )
 from engine.detect import robust_sigma  # noqa: E402
+from engine.end_rings import end_ring_shapes, run_speed_mps  # noqa: E402
 from engine.passes import Pass, align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.separation import SeparationConfig, SeparationResult, separate  # noqa: E402
@@ -220,7 +221,9 @@ def processed(
             res = process_run(prepare_run(run.log, RunSetup(run.logged_start_chainage_m,
                                                             vehicle=veh)))  # fmt: skip
             wheels = veh.axle_wheel_offsets_m[0]
-            passes.append(pass_from_result(res, label=f"run {i} {kind}", wheel_offsets_m=wheels))
+            rings = end_ring_shapes(veh, run_speed_mps(res))
+            passes.append(pass_from_result(res, label=f"run {i} {kind}", wheel_offsets_m=wheels,
+                                           end_rings=rings))  # fmt: skip
         out[label] = align_passes(passes)[0]
     return out
 

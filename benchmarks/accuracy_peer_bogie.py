@@ -46,6 +46,7 @@ from benchmarks.peer_truth import (  # noqa: E402
     zones_as_built,
 )
 from engine.chainage import bandpass_distance  # noqa: E402
+from engine.end_rings import end_ring_shapes, run_speed_mps  # noqa: E402
 from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
@@ -165,9 +166,12 @@ def separate_rough(
     ``every_m`` > 0: also the compliance excess every ``every_m`` m (:func:`compliance_lines`)."""
     done = [process_one(c, vehicle_kind) for c in csvs]
     passes = [
-        pass_from_result(res, label=c.stem, wheel_offsets_m=veh.axle_wheel_offsets_m[0])
+        pass_from_result(
+            res, label=c.stem, wheel_offsets_m=veh.axle_wheel_offsets_m[0],
+            end_rings=None if truth_levels else end_ring_shapes(veh, run_speed_mps(res)),
+        )
         for c, (res, veh, _, _) in zip(csvs, done, strict=True)
-    ]
+    ]  # fmt: skip
     if truth_levels:
         for j, c in enumerate(csvs):
             p = passes[j]

@@ -1,8 +1,8 @@
 """Is a pass's end error a few shapes, and does the difference of two passes find them? (issue 32)
 
 Run: ``python benchmarks/edge_ring_basis.py [--seeds 9101-9103] [--test-seeds 9104-9105]
-[--k 6] [--peer] [--sensitivity] [--cases b43,...,d8300] [--free-seeds 8200-8209]
-[--no-pairs]`` (about 6 min on 2 cores the first time; the runs are cached,
+[--k 6] [--peer] [--sensitivity] [--timing] [--cases b43,...,d8300]
+[--free-seeds 8200-8209] [--no-pairs]`` (about 6 min on 2 cores the first time; the runs are cached,
 :func:`benchmarks.common.cached`).
 
 A measurement, not a product path. A pass's level rings over its first and last ~100 m
@@ -29,11 +29,13 @@ first sample and after its last. The error is linear in what is missing, so this
    the pair, corrected or not, at ``edge_factor`` 0.3 (default), 0.15, 0.08 and 0.04.
 5. ``--cases`` / ``--free-seeds``: the engine's own bogie cases (``accuracy_bogie_separation``'s
    named cases, ``d<seed>`` drawn with zones) and zone-free drawn tracks
-   (``separation_false_alarms``), each pass's shapes at its speed with the vehicle it was
-   processed with, fitted over the four passes; zones found and false spots, as processed
-   and fitted, at each edge factor.
+   (``separation_false_alarms``) through the product's separation: without the passes' end
+   rings (edge factor 0.3, as before them, and 0.08) and with them (the engine's shapes,
+   ``engine.end_rings``: the product's default); zones found and false spots.
 6. ``--sensitivity``: the last seed's errors against shapes from the first seed alone, from
    other speeds, from a vehicle 10 % heavier; the half car's own shapes.
+7. ``--timing``: the separation's CPU time with and without the rings (``--cases``' named
+   cases, b43, s7 and s11 without).
 """
 
 from __future__ import annotations
@@ -60,7 +62,6 @@ from engine.vehicle_kinds import Vehicle  # noqa: E402
 SPAN_M = 120.0
 TAPER_M = 30.0
 EDGE_FACTORS = (0.3, 0.15, 0.08)
-SHAPE_SPEED_STEP = 1.0
 CUT_LEN_M = 300.0
 TRACK_M = 1100.0
 BINS_M = ((0.0, 25.0), (25.0, 50.0), (50.0, 75.0), (75.0, 100.0), (100.0, 150.0))
@@ -397,59 +398,53 @@ def peer_lines(k: int, train: list[int]) -> list[str]:
     return lines + [""]
 
 
-def case_lines(k: int, train: list[int], names: list[str], free: list[int]) -> list[str]:
+def case_lines(names: list[str], free: list[int]) -> list[str]:
     """The engine's own bogie cases (named, ``d<seed>`` drawn with zones) and zone-free drawn
-    tracks: each pass's shapes at its speed (rounded to ``SHAPE_SPEED_STEP``) with the vehicle
-    it was processed with, fitted over all four passes; separated at each edge factor."""
-    from benchmarks.accuracy_bogie_separation import CASES, _off, drawn, passes_of, score
+    tracks through the product's separation: the passes without their end rings at the
+    default edge term (the separation before the rings) and at ``edge_factor`` 0.08, and with
+    the engine's ring shapes (:func:`engine.end_rings.end_ring_shapes`, fitted by
+    ``separate``: the product now)."""
+    from benchmarks.accuracy_bogie_separation import CASES, drawn, passes_of, score
     from benchmarks.separation_false_alarms import drawn_case
     from engine.separation import SeparationConfig, separate
 
     jobs = [(n, CASES[n] if n in CASES else drawn(n)) for n in names]
     jobs += [(f"free {seed}", drawn_case(seed)) for seed in free]
-    totals: dict[tuple[str, bool, float], list[int]] = {}
+    variants = (
+        ("no rings, edge 0.3", False, SeparationConfig()),
+        ("no rings, edge 0.08", False, SeparationConfig(edge_factor=0.08)),
+        ("rings fitted (default)", True, SeparationConfig()),
+    )
+    totals: dict[tuple[str, str], list[int]] = {}
     lines = [
         "## 5. The engine's own bogie cases: zones found / zones, false spots",
         "",
-        "| case | vehicles | edge_factor | as processed | fitted |",
-        "|---|---|---|---|---|",
+        "| case | vehicles | " + " | ".join(v[0] for v in variants) + " |",
+        "|---|---|" + "---|" * len(variants),
     ]
     for name, case in jobs:
-        fleet = {
-            "coach": (_off(PASSENGER_COACH, case.coach_off), PASSENGER_COACH),
-            "wagon": (_off(FREIGHT_WAGON, case.wagon_off), FREIGHT_WAGON),
-        }
         for label, passes in passes_of(case).items():
-            pick = 1 if label == "registered presets" else 0
-            bases = []
-            for kind, speed, _ in case.runs:
-                v = SHAPE_SPEED_STEP * round(speed / SHAPE_SPEED_STEP)
-                s, e, sstep = end_errors(fleet[kind][pick], v, train)
-                bases.append((shapes(s, k), shapes(e, k), sstep))
-            fixed = fitted_passes(passes, bases)
-            for ef in EDGE_FACTORS:
-                cells = []
-                for fit, ps in ((False, passes), (True, fixed)):
-                    sep = separate(ps, config=SeparationConfig(edge_factor=ef))
-                    sc = score(sep, case.zones)
-                    t = totals.setdefault((label, fit, ef), [0, 0, 0])
-                    t[0] += sc["found"]
-                    t[1] += len(case.zones)
-                    t[2] += len(sc["false"])
-                    cells.append(
-                        f"{sc['found']}/{len(case.zones)}"
-                        + (f", false {', '.join(sc['false'])}" if sc["false"] else "")
-                    )
-                lines.append(f"| {name} | {label} | {ef} | {cells[0]} | {cells[1]} |")
-    lines += ["", "| vehicles | edge_factor | as processed | fitted |", "|---|---|---|---|"]
-    for label in ("registered presets", "true vehicles"):
-        for ef in EDGE_FACTORS:
-            a, b = totals.get((label, False, ef)), totals.get((label, True, ef))
-            if a and b:
-                lines.append(
-                    f"| {label} | {ef} | {a[0]}/{a[1]} found, {a[2]} false "
-                    f"| {b[0]}/{b[1]} found, {b[2]} false |"
+            cells = []
+            for vname, rings, cfg in variants:
+                ps = passes if rings else [replace(p, end_rings=None) for p in passes]
+                sc = score(separate(ps, config=cfg), case.zones)
+                t = totals.setdefault((label, vname), [0, 0, 0])
+                t[0] += sc["found"]
+                t[1] += len(case.zones)
+                t[2] += len(sc["false"])
+                cells.append(
+                    f"{sc['found']}/{len(case.zones)}"
+                    + (f", false {', '.join(sc['false'])}" if sc["false"] else "")
                 )
+            lines.append(f"| {name} | {label} | " + " | ".join(cells) + " |")
+    lines += ["", "| vehicles | " + " | ".join(v[0] for v in variants) + " |",
+              "|---|" + "---|" * len(variants)]  # fmt: skip
+    for label in ("registered presets", "true vehicles"):
+        cells = []
+        for vname, _, _ in variants:
+            f, n, fa = totals.get((label, vname), [0, 0, 0])
+            cells.append(f"{f}/{n} found, {fa} false")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return lines + [""]
 
 
@@ -500,6 +495,37 @@ def sensitivity_lines(k: int, train: list[int]) -> list[str]:
     return lines + [""]
 
 
+def timing_lines(names: list[str]) -> list[str]:
+    """CPU time of ``separate`` on the named cases' passes with and without their end rings
+    (three interleaved rounds; the shapes already made: they are made once per process)."""
+    import time
+
+    from benchmarks.accuracy_bogie_separation import CASES, passes_of
+    from engine.separation import separate
+
+    sets = []
+    for name in names:
+        for passes in passes_of(CASES[name]).values():
+            sets.append((passes, [replace(p, end_rings=None) for p in passes]))
+    without = with_rings = 0.0
+    for _ in range(3):
+        for passes, bare in sets:
+            t = time.process_time()
+            separate(bare)
+            without += time.process_time() - t
+            t = time.process_time()
+            separate(passes)
+            with_rings += time.process_time() - t
+    n = 3 * len(sets)
+    return [
+        "## 7. CPU time of the separation (4 passes, 500-600 m)",
+        "",
+        f"{len(sets)} separations, 3 rounds: without the rings {1e3 * without / n:.0f} ms each, "
+        f"with them {1e3 * with_rings / n:.0f} ms (x{with_rings / without:.2f}).",
+        "",
+    ]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="9101-9103", help="seeds whose cuts give the shapes")
@@ -510,6 +536,7 @@ def main() -> None:
     ap.add_argument("--free-seeds", default="", help="zone-free drawn tracks, e.g. 8200-8209")
     ap.add_argument("--no-pairs", action="store_true", help="skip sections 1-3")
     ap.add_argument("--sensitivity", action="store_true", help="what the shapes depend on")
+    ap.add_argument("--timing", action="store_true", help="the separation's CPU time")
     args = ap.parse_args()
     train, test = seeds_arg(args.seeds), seeds_arg(args.test_seeds)
     lines = [] if args.no_pairs else own_pairs(args.k, train, test)
@@ -517,10 +544,12 @@ def main() -> None:
         lines += peer_lines(args.k, train)
     if args.sensitivity:
         lines += sensitivity_lines(args.k, train)
+    if args.timing:
+        lines += timing_lines([n for n in args.cases.split(",") if n] or ["b43", "s7", "s11"])
     if args.cases or args.free_seeds:
         names = [n for n in args.cases.split(",") if n]
         free = seeds_arg(args.free_seeds) if args.free_seeds else []
-        lines += case_lines(args.k, train, names, free)
+        lines += case_lines(names, free)
     print("\n".join(lines))
 
 

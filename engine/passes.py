@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .align import END_RING_M, align_profiles
+from .end_rings import EndRingShapes
 from .errors import ParameterError
 from .pipeline import fuse_axles
 from .results import ProcessResult
@@ -35,6 +36,11 @@ class Pass:
         The wheels of the measured point relative to it, m, sharing ``force_n`` equally:
         ``(0,)`` for a half car's axle or a survey's point load, ``(+a/2, -a/2)`` for a bogie
         of wheelbase ``a`` (the vehicle's ``axle_wheel_offsets_m``).
+    end_rings : EndRingShapes, optional
+        The ring shapes of the pass's vehicle at its speed
+        (:func:`engine.end_rings.end_ring_shapes`): the separation fits them across the passes
+        and takes them off this pass's level (:func:`engine.end_rings.fit_end_rings`). None:
+        the level is taken as it is (a survey).
     """
 
     chainage_m: NDArray[np.float64]
@@ -43,6 +49,7 @@ class Pass:
     kind: str = "run"
     label: str = ""
     wheel_offsets_m: tuple[float, ...] = (0.0,)
+    end_rings: EndRingShapes | None = None
 
 
 def pass_from_result(
@@ -52,19 +59,22 @@ def pass_from_result(
     kind: str = "run",
     label: str = "",
     wheel_offsets_m: tuple[float, ...] = (0.0,),
+    end_rings: EndRingShapes | None = None,
 ) -> Pass:
     """A pass from one processed run: fused level and the mean of both axles' wheel forces.
 
     ``offset_m`` (m) is added to the run's chainage (its alignment to the track);
     ``wheel_offsets_m`` are the vehicle's wheels about a measured point
-    (``vehicle.axle_wheel_offsets_m[0]``; a half car's axle by default).
+    (``vehicle.axle_wheel_offsets_m[0]``; a half car's axle by default); ``end_rings`` the
+    vehicle's ring shapes at the run's speed (:func:`engine.end_rings.end_ring_shapes`).
     """
     if result.front_force_n is None or result.rear_force_n is None:
         raise ParameterError("the processed run has no wheel force (front_force_n) to separate")
     force = fuse_axles(result.front_force_n, result.rear_force_n)
     return Pass(
-        result.chainage_m + offset_m, result.level_mm, force, kind, label, tuple(wheel_offsets_m)
-    )
+        result.chainage_m + offset_m, result.level_mm, force, kind, label, tuple(wheel_offsets_m),
+        end_rings,
+    )  # fmt: skip
 
 
 def align_passes(

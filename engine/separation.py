@@ -45,6 +45,7 @@ from scipy.interpolate import make_interp_spline
 
 from .chainage import PRODUCT_BAND_M, bandpass_distance
 from .detect import DetectionConfig, Dip, add_dips, find_dips, robust_baseline, robust_sigma
+from .end_rings import EndRingConfig, fit_end_rings
 from .errors import ParameterError, check_settings
 from .geometry_check import SMOOTH_RAIL_MESSAGE, SMOOTH_RAIL_SIGMA_MM, is_smooth_rail
 from .intervals import true_runs
@@ -102,6 +103,12 @@ class SeparationConfig:
         Error of a pass's level near its ends: ``edge_factor`` times the rail's roughness
         (robust spread of the level about its baseline) at the end, decaying over
         ``edge_decay_m`` (default 1.15 ``lambda_max_m``); measured, docs/method.md.
+    end_ring_edge_factor : float
+        ``edge_factor`` of a pass whose end rings were fitted (:attr:`Pass.end_rings`): what
+        the fit leaves, 0.3-0.5 of the ring at 25-100 m from an end on the peer's (ROSE)
+        runs (docs/accuracy.md "The ends' ring as a few shapes").
+    end_rings : EndRingConfig
+        How the end rings are fitted (:func:`engine.end_rings.fit_end_rings`).
     lambda_min_m, lambda_max_m, taper : float
         The band of the passes' levels (the product's, 3-40 m).
     grid_step_m : float or None
@@ -138,6 +145,8 @@ class SeparationConfig:
     prior_noise_mm: float = 0.04
     reference_load_n: float = 100e3
     edge_factor: float = 0.3
+    end_ring_edge_factor: float = 0.12
+    end_rings: EndRingConfig = field(default_factory=EndRingConfig)
     edge_decay_m: float | None = None
     lambda_min_m: float = PRODUCT_BAND_M[0]
     lambda_max_m: float = PRODUCT_BAND_M[1]
@@ -160,6 +169,7 @@ class SeparationConfig:
             "prior_noise_mm": self.prior_noise_mm > 0,
             "reference_load_n": self.reference_load_n > 0,
             "edge_factor": self.edge_factor >= 0,
+            "end_ring_edge_factor": self.end_ring_edge_factor >= 0,
             "edge_decay_m": self.edge_decay_m is None or self.edge_decay_m > 0,
             "lambda_max_m": 0 < self.lambda_min_m < self.lambda_max_m,
             "grid_step_m": self.grid_step_m is None or 0 < self.grid_step_m <= 1.0,
@@ -446,13 +456,18 @@ def _shift_mean(
 
 
 def _edge_variance(
-    grid: NDArray[np.float64], levels: NDArray[np.float64], step: float, cfg: SeparationConfig
+    grid: NDArray[np.float64],
+    levels: NDArray[np.float64],
+    step: float,
+    cfg: SeparationConfig,
+    factors: Sequence[float],
 ) -> NDArray[np.float64]:
     """Variance of each pass's level error near its ends, mm² (passes x points).
 
-    ``(edge_factor * sigma_j * exp(-d / edge_decay_m))²`` with ``d`` the distance to the
+    ``(factors[j] * sigma_j * exp(-d / edge_decay_m))²`` with ``d`` the distance to the
     nearer end of the pass's coverage and ``sigma_j`` the robust spread of its band-passed
-    level (the rail's roughness as this pass sees it).
+    level (the rail's roughness as this pass sees it); ``factors[j]`` the config's
+    ``edge_factor``, or ``end_ring_edge_factor`` for a pass whose end rings were fitted.
     """
     out = np.zeros_like(levels)
     decay = cfg.edge_decay_m if cfg.edge_decay_m is not None else 1.15 * cfg.lambda_max_m
@@ -464,7 +479,7 @@ def _edge_variance(
         d = np.minimum(grid - grid[idx[0]], grid[idx[-1]] - grid)
         # every 4th point (1 m) is plenty for a robust spread of a band-passed level
         sigma = robust_sigma(levels[j, ::4])
-        out[j] = np.where(ok, (cfg.edge_factor * sigma * np.exp(-np.maximum(d, 0) / decay)) ** 2, 0)
+        out[j] = np.where(ok, (factors[j] * sigma * np.exp(-np.maximum(d, 0) / decay)) ** 2, 0)
     return out
 
 
@@ -517,6 +532,11 @@ def separate(
     if len(passes) == 0:
         raise ParameterError("separation needs at least one pass")
     step = cfg.grid_step_m or float(passes[0].chainage_m[1] - passes[0].chainage_m[0])
+    # the passes' end rings (where their shapes are given) off their levels, before all else
+    passes = fit_end_rings(passes, cfg.end_rings)
+    edge_factors = [
+        cfg.edge_factor if p.end_rings is None else cfg.end_ring_edge_factor for p in passes
+    ]
     grid, levels, forces = on_grid(passes, step)
     n_pass = len(passes)
     infl = InfluenceLine(trk)
@@ -553,7 +573,7 @@ def separate(
     # near a pass's ends the inversion's band edges ring over ~lambda_max: an error growing
     # with the rail's roughness (docs/method.md, measured) enters as extra variance
     viewed = np.array([_shift_mean(grid, levels[j], shifts[j]) for j in range(n_pass)])
-    edge_var = _edge_variance(grid, viewed, step, cfg)
+    edge_var = _edge_variance(grid, viewed, step, cfg, edge_factors)
     if cfg.equalise is not None:
         trust = cfg.prior_noise_mm**2 / (cfg.prior_noise_mm**2 + edge_var)
         z = equalise_passes(z, step, cfg.lambda_min_m, cfg.lambda_max_m, trust, fbar,

@@ -52,6 +52,7 @@ from app.services.track.alignment import GRID_STEP_M
 from app.services.track.separation_history import record_separation
 from app.services.track.separation_trust import TRUSTED, Trust, judge, run_bases
 from app.services.views.notation import km_m, km_m_range
+from engine.end_rings import EndRingShapes, end_ring_shapes, ring_speed_mps
 from engine.errors import EngineError
 from engine.separation import (
     NOT_SEPARABLE_MESSAGE,
@@ -123,6 +124,8 @@ class PassLevels:
     wheel_offsets_m: tuple[float, ...] = (0.0,)
     """The wheels sharing ``force_n`` about the measured point, m (a bogie's two; a survey's
     and a half car's axle: one)."""
+    end_rings: EndRingShapes | None = None
+    """The run's vehicle's ring shapes at its speed (none for a survey)."""
 
     @property
     def label(self) -> str:
@@ -171,7 +174,10 @@ def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[P
         part = _unblob(levels)
         lv[at : at + CHUNK_POINTS] = part
         fv[at : at + CHUNK_POINTS] = np.where(np.isfinite(part), float(load), np.nan)
-    wheels = _run_wheels(session, [pid for kind, pid in passes if kind == "run"])
+    # the end rings are fitted across passes: one pass alone needs no shapes
+    vehicles = _run_vehicles(
+        session, [pid for kind, pid in passes if kind == "run"], rings=len(passes) >= 2
+    )
     out = []
     for (kind, pid), (lv, fv) in sorted(passes.items()):
         # A wheel force that is not a compression (a pass stored under a vehicle that was not
@@ -182,18 +188,23 @@ def read_passes(session: Session, track_id: int, c_lo: int, c_hi: int) -> list[P
         fv[~np.isfinite(lv)] = np.nan
         lv[~np.isfinite(fv)] = np.nan
         if np.isfinite(lv).any():
-            one = wheels.get(pid, (0.0,)) if kind == "run" else (0.0,)  # a survey: a point load
-            out.append(PassLevels(kind, pid, lv, fv, one))
+            # a survey: a point load, and a level with no inversion's ring
+            one, rings = vehicles.get(pid, ((0.0,), None)) if kind == "run" else ((0.0,), None)
+            out.append(PassLevels(kind, pid, lv, fv, one, rings))
     return out
 
 
-def _run_wheels(session: Session, run_ids: list[int]) -> dict[int, tuple[float, ...]]:
-    """Each run's wheels about its measured point (m), from the vehicle version that made its
-    results (the vehicle's current parameters where that version is not stored)."""
+def _run_vehicles(
+    session: Session, run_ids: list[int], *, rings: bool = True
+) -> dict[int, tuple[tuple[float, ...], EndRingShapes | None]]:
+    """Each run's wheels about its measured point (m) and, with ``rings``, its vehicle's end
+    ring shapes at the run's speed, from the vehicle version that made its results (the
+    vehicle's current parameters where that version is not stored). Shapes that cannot be
+    made leave the run's level as it is (its ends weighed as without them)."""
     if not run_ids:
         return {}
     rows = session.execute(
-        select(Run.id, Run.vehicle_version, Vehicle)
+        select(Run.id, Run.vehicle_version, Run.speed_min_mps, Run.speed_max_mps, Vehicle)
         .join(Vehicle, Vehicle.id == Run.vehicle_id)
         .where(Run.id.in_(run_ids))
     ).all()
@@ -201,14 +212,21 @@ def _run_wheels(session: Session, run_ids: list[int]) -> dict[int, tuple[float, 
         (vid, ver): prm
         for vid, ver, prm in session.execute(
             select(VehicleVersion.vehicle_id, VehicleVersion.version, VehicleVersion.params).where(
-                VehicleVersion.vehicle_id.in_({v.id for _, _, v in rows})
+                VehicleVersion.vehicle_id.in_({v.id for *_, v in rows})
             )
         )
     }
-    out: dict[int, tuple[float, ...]] = {}
-    for rid, ver, veh in rows:
+    out: dict[int, tuple[tuple[float, ...], EndRingShapes | None]] = {}
+    for rid, ver, v_lo, v_hi, veh in rows:
         prm = versions.get((veh.id, ver if ver is not None else veh.version), veh.params_dict())
-        out[int(rid)] = tuple(vehicle_from_dict(prm).axle_wheel_offsets_m[0])
+        vehicle = vehicle_from_dict(prm)
+        shapes: EndRingShapes | None = None
+        try:
+            if rings:
+                shapes = end_ring_shapes(vehicle, ring_speed_mps(v_lo, v_hi))
+        except (EngineError, ValueError):
+            log.warning("no end ring shapes for run %s", rid, exc_info=True)
+        out[int(rid)] = (tuple(vehicle.axle_wheel_offsets_m[0]), shapes)
     return out
 
 
@@ -335,7 +353,7 @@ def recompute_stiffness(session: Session, track_id: int, c_lo: int, c_hi: int) -
             res = separate(
                 [
                     Pass(chainage_m=grid, level_mm=p.level_mm, force_n=p.force_n, kind=p.kind,
-                         label=p.label, wheel_offsets_m=p.wheel_offsets_m)
+                         label=p.label, wheel_offsets_m=p.wheel_offsets_m, end_rings=p.end_rings)
                     for p in passes
                 ],
                 params,
