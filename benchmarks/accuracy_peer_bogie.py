@@ -159,7 +159,11 @@ def truth_level(npz: dict, grid: NDArray[np.float64], offsets: tuple[float, ...]
 
 
 def separate_rough(
-    csvs: list[Path], vehicle_kind: str, truth_levels: bool = False, every_m: float = 0.0
+    csvs: list[Path],
+    vehicle_kind: str,
+    truth_levels: bool = False,
+    every_m: float = 0.0,
+    rings: bool = True,
 ) -> list[str]:
     """The rough runs together through the separation: one line per true zone and a summary.
     ``truth_levels``: each pass's level replaced by its truth (the separation alone judged);
@@ -168,7 +172,8 @@ def separate_rough(
     passes = [
         pass_from_result(
             res, label=c.stem, wheel_offsets_m=veh.axle_wheel_offsets_m[0],
-            end_rings=None if truth_levels else end_ring_shapes(veh, run_speed_mps(res)),
+            end_rings=end_ring_shapes(veh, run_speed_mps(res)) if rings and not truth_levels
+            else None,
         )
         for c, (res, veh, _, _) in zip(csvs, done, strict=True)
     ]  # fmt: skip
@@ -325,6 +330,11 @@ def main() -> None:
     ap.add_argument("--separate", action="store_true", help="the rough runs together")
     ap.add_argument("--compliance-every", type=float, default=0.0, metavar="M",
                     help="with --separate: the compliance excess every M m")  # fmt: skip
+    ap.add_argument(
+        "--no-rings",
+        action="store_true",
+        help="with --separate: the passes without their end rings (as before them)",
+    )
     ap.add_argument("--truth-levels", action="store_true",
                     help="with --separate: the truth levels instead of the product's")  # fmt: skip
     args = ap.parse_args()
@@ -335,7 +345,8 @@ def main() -> None:
         csvs = [c for c in csvs if c.stem in args.runs]
     if args.separate:
         rough = [c for c in csvs if c.stem.endswith("_irr")]
-        lines = separate_rough(rough, args.vehicle, args.truth_levels, args.compliance_every)
+        lines = separate_rough(rough, args.vehicle, args.truth_levels, args.compliance_every,
+                               rings=not args.no_rings)  # fmt: skip
         print("\n".join(lines))
         return
     results = [run_one(c, args.vehicle) for c in csvs]
