@@ -242,12 +242,6 @@ def _columns(
     return cols
 
 
-def _in_span(cols: dict[int, NDArray[np.float64]], j: int, n: int) -> NDArray[np.bool_]:
-    """Where pass ``j``'s shapes reach (none without shapes), of ``n`` grid points."""
-    c = cols.get(j)
-    return np.zeros(n, dtype=bool) if c is None else np.asarray(np.any(c != 0.0, axis=1))
-
-
 def _pair_rows(
     j: int, k: int, idx: NDArray[np.intp], cols: dict[int, NDArray[np.float64]],
     at: dict[int, slice],
@@ -339,12 +333,15 @@ def fit_end_rings(passes: Sequence[Pass], config: EndRingConfig | None = None) -
         offset += c.shape[1]
     # one block of rows per pair of overlapping passes, where either has a shape: the normal
     # equations are summed pair by pair (many passes stay small: 12 unknowns per pass)
+    # where each pass's shapes reach (none without shapes), once per pass
+    none = np.zeros(grid.size, dtype=bool)
+    span = {j: np.any(c != 0.0, axis=1) for j, c in cols.items()}
     pairs = []
     for j, k in itertools.combinations(range(len(passes)), 2):
         if j not in cols and k not in cols:
             continue
         ok = np.isfinite(levels[j]) & np.isfinite(levels[k])
-        ok &= _in_span(cols, j, grid.size) | _in_span(cols, k, grid.size)
+        ok &= span.get(j, none) | span.get(k, none)
         if ok.any():
             pairs.append((j, k, np.flatnonzero(ok)))
     if not pairs:
