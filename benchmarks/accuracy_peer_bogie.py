@@ -1,9 +1,10 @@
 """Accuracy on the peer's runs: bogie vehicles on a layered track made with ROSE.
 
-Run: ``python benchmarks/accuracy_peer_bogie.py [--data DIR] [--vehicle bogie|lumped]
-[--separate [--truth-levels] [--compliance-every M]]``
+Run: ``python benchmarks/accuracy_peer_bogie.py [--data DIR [DIR ...]] [--vehicle
+bogie|lumped] [--separate [--truth-levels] [--compliance-every M] [--no-rings]]
+[--ring-variants]``
 
-Each run of ``DIR`` (a CSV with its truth JSON and NPZ; default
+Each run of each ``DIR`` (a CSV with its truth JSON and NPZ; default
 ``$SHARED_DIR/data/peer-bogie``, ``/work/shared`` without it; unseen runs from
 ``benchmarks/peer_runs/make_rose_runs.py``)
 is processed as a user would upload it: the CSV, its start chainage and direction, and the
@@ -19,6 +20,12 @@ in percentage points; the profile against the bogie-mean truth, band-passed 3-25
 ``--separate``: the rough-rail runs (coach and wagon) together through the separation, each
 pass with its vehicle's wheels (``engine.separation.separate``), aligned as the service
 aligns them; scored the same way, plus the share of covered points that is separable.
+With several folders (one track each), each is separated on its own and the zones found and
+false zones are summed over them at the end.
+
+``--ring-variants``: the same separations with other settings of the passes' end-ring fit
+(:data:`RING_VARIANTS`: fewer or more shapes, a tighter or looser prior, longer shapes), zones
+found and false zones per folder side by side.
 """
 
 from __future__ import annotations
@@ -46,12 +53,12 @@ from benchmarks.peer_truth import (  # noqa: E402
     zones_as_built,
 )
 from engine.chainage import bandpass_distance  # noqa: E402
-from engine.end_rings import end_ring_shapes, run_speed_mps  # noqa: E402
+from engine.end_rings import EndRingConfig, end_ring_shapes, run_speed_mps  # noqa: E402
 from engine.logio.parse import read_run_csv  # noqa: E402
 from engine.passes import align_passes, pass_from_result  # noqa: E402
 from engine.pipeline import process_run  # noqa: E402
 from engine.results import ProcessResult  # noqa: E402
-from engine.separation import SeparationResult, separate  # noqa: E402
+from engine.separation import SeparationConfig, SeparationResult, separate  # noqa: E402
 from engine.setup import RunSetup, prepare_run  # noqa: E402
 from engine.vehicle import VehicleParams  # noqa: E402
 from engine.vehicle_kinds import Vehicle  # noqa: E402
@@ -164,15 +171,20 @@ def separate_rough(
     truth_levels: bool = False,
     every_m: float = 0.0,
     rings: bool = True,
+    tally: list[int] | None = None,
+    ring_config: EndRingConfig | None = None,
 ) -> list[str]:
     """The rough runs together through the separation: one line per true zone and a summary.
     ``truth_levels``: each pass's level replaced by its truth (the separation alone judged);
-    ``every_m`` > 0: also the compliance excess every ``every_m`` m (:func:`compliance_lines`)."""
+    ``every_m`` > 0: also the compliance excess every ``every_m`` m (:func:`compliance_lines`);
+    ``tally``: ``[zones found, zones, false zones]``, added to; ``ring_config``: how the
+    passes' end rings are made and fitted (default: the product's)."""
     done = [process_one(c, vehicle_kind) for c in csvs]
     passes = [
         pass_from_result(
             res, label=c.stem, wheel_offsets_m=veh.axle_wheel_offsets_m[0],
-            end_rings=end_ring_shapes(veh, run_speed_mps(res)) if rings and not truth_levels
+            end_rings=end_ring_shapes(veh, run_speed_mps(res), ring_config)
+            if rings and not truth_levels
             else None,
         )
         for c, (res, veh, _, _) in zip(csvs, done, strict=True)
@@ -184,7 +196,7 @@ def separate_rough(
                             p.wheel_offsets_m)  # fmt: skip
             passes[j] = replace(p, level_mm=np.where(np.isfinite(p.level_mm), t, np.nan))
     passes, offsets = align_passes(passes, recentre=not truth_levels)
-    sep = separate(passes)
+    sep = separate(passes, config=SeparationConfig(end_rings=ring_config or EndRingConfig()))
     zones = zones_as_built(done[0][2], dict(np.load(csvs[0].with_suffix(".truth.npz"))))
     covered = sep.n_passes > 0
     lines = [
@@ -222,9 +234,47 @@ def separate_rough(
             s.start_m <= z["end_m"] + TOL_M and s.end_m >= z["start_m"] - TOL_M for z in zones
         )
     ]
+    if tally is not None:
+        tally[0] += sum(line.endswith("| yes |") for line in lines)
+        tally[1] += len(zones)
+        tally[2] += len(false)
     lines += ["", f"False zones: {', '.join(false) or 'none'}. Message: {sep.message or 'none'}"]
     lines += resolution_lines(sep, zones)
     return lines + (compliance_lines(sep, every_m) if every_m else [])
+
+
+RING_VARIANTS: dict[str, EndRingConfig] = {
+    "product (6 shapes per end, prior 3x)": EndRingConfig(),
+    "4 shapes": EndRingConfig(n_shapes=4),
+    "8 shapes": EndRingConfig(n_shapes=8),
+    "prior 1x (tighter)": EndRingConfig(prior_scale=1.0),
+    "prior 10x (looser)": EndRingConfig(prior_scale=10.0),
+    "span 160 m (fade 40 m, 400 m cuts)": EndRingConfig(
+        span_m=160.0, fade_m=40.0, cut_m=400.0, rail_m=1300.0
+    ),
+}
+"""The end-ring fits compared by ``--ring-variants`` (what the fit's settings do)."""
+
+
+def ring_variant_lines(by_dir: list[list[Path]], vehicle_kind: str) -> list[str]:
+    """Per :data:`RING_VARIANTS` setting, the zones found and false zones of each folder's
+    rough runs separated together, and their sums."""
+    names = [csvs[0].parent.name for csvs in by_dir]
+    lines = [
+        "| end-ring fit | " + " | ".join(names) + " | all |",
+        "|---|" + "---|" * (len(names) + 1),
+    ]
+    for label, cfg in RING_VARIANTS.items():
+        total, cells = [0, 0, 0], []
+        for csvs in by_dir:
+            tally = [0, 0, 0]
+            rough = [c for c in csvs if c.stem.endswith("_irr")]
+            separate_rough(rough, vehicle_kind, tally=tally, ring_config=cfg)
+            total = [a + b for a, b in zip(total, tally, strict=True)]
+            cells.append(f"{tally[0]}/{tally[1]}" + (f", {tally[2]} false" if tally[2] else ""))
+        lines.append(f"| {label} | " + " | ".join(cells)
+                     + f" | {total[0]}/{total[1]}, {total[2]} false |")  # fmt: skip
+    return lines
 
 
 def compliance_lines(sep: SeparationResult, every_m: float) -> list[str]:
@@ -324,7 +374,8 @@ def table(results: list[dict[str, object]], vehicle_kind: str) -> list[str]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, default=default_dir())
+    ap.add_argument("--data", type=Path, nargs="+", default=[default_dir()],
+                    help="folders of runs, one track each")  # fmt: skip
     ap.add_argument("--vehicle", choices=("bogie", "lumped"), default="bogie")
     ap.add_argument("--runs", nargs="*", default=None, help="run names (default: all)")
     ap.add_argument("--separate", action="store_true", help="the rough runs together")
@@ -335,21 +386,34 @@ def main() -> None:
         action="store_true",
         help="with --separate: the passes without their end rings (as before them)",
     )
+    ap.add_argument("--ring-variants", action="store_true",
+                    help="the separation with other end-ring fits (RING_VARIANTS)")  # fmt: skip
     ap.add_argument("--truth-levels", action="store_true",
                     help="with --separate: the truth levels instead of the product's")  # fmt: skip
     args = ap.parse_args()
     # Every run with its truth: the public ``pub_*`` ones or those made with
     # benchmarks/peer_runs/make_rose_runs.py.
-    csvs = sorted(c for c in args.data.glob("*.csv") if c.with_suffix(".truth.json").exists())
+    by_dir = [
+        sorted(c for c in d.glob("*.csv") if c.with_suffix(".truth.json").exists())
+        for d in args.data
+    ]
     if args.runs:
-        csvs = [c for c in csvs if c.stem in args.runs]
-    if args.separate:
-        rough = [c for c in csvs if c.stem.endswith("_irr")]
-        lines = separate_rough(rough, args.vehicle, args.truth_levels, args.compliance_every,
-                               rings=not args.no_rings)  # fmt: skip
-        print("\n".join(lines))
+        by_dir = [[c for c in csvs if c.stem in args.runs] for csvs in by_dir]
+    if args.ring_variants:
+        print("\n".join(ring_variant_lines(by_dir, args.vehicle)))
         return
-    results = [run_one(c, args.vehicle) for c in csvs]
+    if args.separate:
+        tally = [0, 0, 0]
+        for csvs in by_dir:
+            rough = [c for c in csvs if c.stem.endswith("_irr")]
+            lines = separate_rough(rough, args.vehicle, args.truth_levels, args.compliance_every,
+                                   rings=not args.no_rings, tally=tally)  # fmt: skip
+            print("\n".join(lines) + "\n")
+        if len(by_dir) > 1:
+            print(f"Over {len(by_dir)} tracks: {tally[0]} of {tally[1]} zones found, "
+                  f"{tally[2]} false zones.")  # fmt: skip
+        return
+    results = [run_one(c, args.vehicle) for csvs in by_dir for c in csvs]
     print("\n".join(table(results, args.vehicle)))
 
 

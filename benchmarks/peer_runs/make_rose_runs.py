@@ -128,9 +128,17 @@ ZONES_SMOOTH = [(131.4, 135.0, 0.50), (221.4, 228.6, 0.30), (305.4, 311.4, 0.60)
 ZONES_ROUGH = [(146.4, 151.2, 0.40), (190.2, 196.8, 0.55), (232.8, 236.4, 0.35)]
 ZONES_ROUGH_2 = [(151.2, 158.4, 0.34), (190.2, 197.4, 0.55), (224.4, 232.2, 0.48)]
 ZONES_ROUGH_3 = [(143.4, 148.8, 0.31), (188.4, 192.0, 0.48), (213.6, 220.8, 0.38)]
+ZONES_ROUGH_4 = [(145.8, 151.8, 0.44), (170.4, 177.6, 0.59), (215.4, 222.6, 0.56)]
+ZONES_ROUGH_5 = [(128.4, 135.0, 0.40), (190.2, 196.8, 0.33), (223.8, 231.0, 0.51)]
+ZONES_ROUGH_6 = [(117.0, 123.6, 0.34), (196.8, 204.0, 0.36), (276.6, 284.4, 0.59)]
+ZONES_ROUGH_7 = [(112.2, 119.4, 0.50), (205.2, 212.4, 0.43), (297.0, 303.6, 0.58)]
 """Zones as (first soft sleeper, last soft sleeper, loss of overall support), m, m, -. The
-second and third rough sets were drawn once each (``numpy.random.default_rng(41)`` and
-``(43)``: a start within 12 m of 140/180/220 m, 6-13 bays, loss 30-60 %)."""
+second to fifth rough sets were drawn once each (``numpy.random.default_rng(41)``, ``(43)``,
+``(47)`` and ``(53)``: a start within 12 m of 140/180/220 m, 6-13 bays, loss 30-60 %). Sets 4
+and 5 as set 3: per zone in turn, start = c + uniform(-12, 12) rounded to the nearest sleeper,
+bays = integers(6, 14), loss = uniform(0.30, 0.60) rounded to 2 decimals. Sets 6 and 7
+(``(59)``, ``(61)``) are for tracks as long as the public rough runs', so their starts are
+drawn about 115/200/285 m, where the public rough runs' zones are, by the same recipe."""
 
 IRREGULARITY: dict[str, Any] = {
     "spectrum": "German low disturbance",
@@ -153,6 +161,12 @@ IRREGULARITY: dict[str, Any] = {
 }
 IRREGULARITY_2 = IRREGULARITY | {"seed": 5602683}
 IRREGULARITY_3 = IRREGULARITY | {"seed": 5547915}
+# Seeds 4 and 5: a fresh generator, not the zones' one continued:
+# numpy.random.default_rng(47 / 53).integers(1_000_000, 9_999_999).
+IRREGULARITY_4 = IRREGULARITY | {"seed": 1876287}
+IRREGULARITY_5 = IRREGULARITY | {"seed": 7806639}
+IRREGULARITY_6 = IRREGULARITY | {"seed": 8100619}
+IRREGULARITY_7 = IRREGULARITY | {"seed": 4806297}
 """The rough runs' geometry: the README's spectrum and synthesis, other phase seeds."""
 
 CASES: dict[str, dict[str, Any]] = {
@@ -212,12 +226,130 @@ CASES: dict[str, dict[str, Any]] = {
         "n_sleepers": 560,
         "travel_m": 290.0,
     },
+    "rose4_coach_irr": {
+        "vehicle": "coach",
+        "speed": 30.0,
+        "zones": ZONES_ROUGH_4,
+        "irr": IRREGULARITY_4,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose4_freight_irr": {
+        "vehicle": "freight",
+        "speed": 24.0,
+        "zones": ZONES_ROUGH_4,
+        "irr": IRREGULARITY_4,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose5_coach_irr": {
+        "vehicle": "coach",
+        "speed": 26.0,
+        "zones": ZONES_ROUGH_5,
+        "irr": IRREGULARITY_5,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose5_freight_irr": {
+        "vehicle": "freight",
+        # 21 m/s stopped in PuggleSolvers' output bookkeeping at the end of the run (no
+        # output index after its last stage); 20 m/s does not
+        "speed": 20.0,
+        "zones": ZONES_ROUGH_5,
+        "irr": IRREGULARITY_5,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose_coach2_irr": {
+        "vehicle": "coach",
+        "speed": 30.0,
+        "zones": ZONES_ROUGH,
+        "irr": IRREGULARITY,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose_freight2_irr": {
+        "vehicle": "freight",
+        "speed": 22.0,
+        "zones": ZONES_ROUGH,
+        "irr": IRREGULARITY,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose2_coach2_irr": {
+        "vehicle": "coach",
+        "speed": 26.0,
+        "zones": ZONES_ROUGH_2,
+        "irr": IRREGULARITY_2,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose2_freight2_irr": {
+        "vehicle": "freight",
+        "speed": 24.0,
+        "zones": ZONES_ROUGH_2,
+        "irr": IRREGULARITY_2,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose3_coach2_irr": {
+        "vehicle": "coach",
+        "speed": 29.0,
+        "zones": ZONES_ROUGH_3,
+        "irr": IRREGULARITY_3,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose3_freight2_irr": {
+        "vehicle": "freight",
+        "speed": 25.0,
+        "zones": ZONES_ROUGH_3,
+        "irr": IRREGULARITY_3,
+        "n_sleepers": 560,
+        "travel_m": 290.0,
+    },
+    "rose6_coach_irr": {
+        "vehicle": "coach",
+        "speed": 29.0,
+        "zones": ZONES_ROUGH_6,
+        "irr": IRREGULARITY_6,
+        "n_sleepers": 700,
+        "travel_m": 356.0,
+    },
+    "rose6_freight_irr": {
+        "vehicle": "freight",
+        "speed": 23.0,
+        "zones": ZONES_ROUGH_6,
+        "irr": IRREGULARITY_6,
+        "n_sleepers": 700,
+        "travel_m": 356.0,
+    },
+    "rose7_coach_irr": {
+        "vehicle": "coach",
+        "speed": 25.0,
+        "zones": ZONES_ROUGH_7,
+        "irr": IRREGULARITY_7,
+        "n_sleepers": 700,
+        "travel_m": 356.0,
+    },
+    "rose7_freight_irr": {
+        "vehicle": "freight",
+        "speed": 22.0,
+        "zones": ZONES_ROUGH_7,
+        "irr": IRREGULARITY_7,
+        "n_sleepers": 700,
+        "travel_m": 356.0,
+    },
 }
 """The runs: the smooth one alone on the public runs' 700-sleeper track; the two ``_irr``
 ones over one shorter track (same zones, same geometry; 560 sleepers, 290 m of travel, to fit
-the wagon's small time step into the time there was), each at its own speed. ``rose2_*`` and
-``rose3_*``: more such pairs, each on another track (zones, geometry, speeds); write each to
-its own folder, the scoring pairs every ``_irr`` run of a folder."""
+the wagon's small time step into the time there was), each at its own speed. ``rose2_*``,
+``rose3_*``, ``rose4_*`` and ``rose5_*``: more such pairs, each on another track (zones,
+geometry, speeds); write each to its own folder, the scoring pairs every ``_irr`` run of a
+folder. ``*_coach2_irr`` and ``*_freight2_irr``: a second coach and a second wagon pass over
+the first three tracks at other speeds (the fleet passes a track many times): written to the
+track's folder they make its separation one of four passes. ``rose6_*`` and ``rose7_*``:
+pairs on tracks as long as the public rough runs' (700 sleepers, 356 m of travel)."""
 
 BODY_START_M = 24.0
 CUT_FIRST_M = 40.0
