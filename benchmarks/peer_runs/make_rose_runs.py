@@ -340,6 +340,38 @@ CASES: dict[str, dict[str, Any]] = {
         "n_sleepers": 700,
         "travel_m": 356.0,
     },
+    "rose6_coach2_irr": {
+        "vehicle": "coach",
+        "speed": 26.0,
+        "zones": ZONES_ROUGH_6,
+        "irr": IRREGULARITY_6,
+        "n_sleepers": 700,
+        "travel_m": 356.0,
+    },
+    "rose6_freight2_irr": {
+        "vehicle": "freight",
+        "speed": 24.0,
+        "zones": ZONES_ROUGH_6,
+        "irr": IRREGULARITY_6,
+        "n_sleepers": 700,
+        "travel_m": 356.0,
+    },
+    "rose7_coach2_irr": {
+        "vehicle": "coach",
+        "speed": 30.0,
+        "zones": ZONES_ROUGH_7,
+        "irr": IRREGULARITY_7,
+        "n_sleepers": 700,
+        "travel_m": 356.0,
+    },
+    "rose7_freight2_irr": {
+        "vehicle": "freight",
+        "speed": 25.0,
+        "zones": ZONES_ROUGH_7,
+        "irr": IRREGULARITY_7,
+        "n_sleepers": 700,
+        "travel_m": 356.0,
+    },
 }
 """The runs: the smooth one alone on the public runs' 700-sleeper track; the two ``_irr``
 ones over one shorter track (same zones, same geometry; 560 sleepers, 290 m of travel, to fit
@@ -347,7 +379,7 @@ the wagon's small time step into the time there was), each at its own speed. ``r
 ``rose3_*``, ``rose4_*`` and ``rose5_*``: more such pairs, each on another track (zones,
 geometry, speeds); write each to its own folder, the scoring pairs every ``_irr`` run of a
 folder. ``*_coach2_irr`` and ``*_freight2_irr``: a second coach and a second wagon pass over
-the first three tracks at other speeds (the fleet passes a track many times): written to the
+tracks 1-3, 6 and 7 at other speeds (the fleet passes a track many times): written to the
 track's folder they make its separation one of four passes. ``rose6_*`` and ``rose7_*``:
 pairs on tracks as long as the public rough runs' (700 sleepers, 356 m of travel)."""
 
