@@ -210,6 +210,7 @@ def separate_rough(
         "| found |",
         "|---|---|---|---|---|---|",
     ]
+    found = 0
     for z in zones:
         inside = (sep.chainage_m >= z["start_m"]) & (sep.chainage_m <= z["end_m"])
         hit = [s for s in sep.soft_spots if s.start_m <= z["end_m"] and s.end_m >= z["start_m"]]
@@ -217,6 +218,7 @@ def separate_rough(
         if hit:
             d0, d1 = hit[0].start_m - z["start_m"], hit[0].end_m - z["end_m"]
             ok = ends_within(d0, d1) and abs(hit[0].loss_pct - loss) <= FOUND_TOL_PP
+            found += ok
             rep = (
                 f"{hit[0].start_m:.1f}-{hit[0].end_m:.1f} m | {d0:+.1f}, {d1:+.1f} | "
                 f"{loss:.0f} → {hit[0].loss_pct:.0f} % | {'yes' if ok else 'no'}"
@@ -235,7 +237,7 @@ def separate_rough(
         )
     ]
     if tally is not None:
-        tally[0] += sum(line.endswith("| yes |") for line in lines)
+        tally[0] += found
         tally[1] += len(zones)
         tally[2] += len(false)
     lines += ["", f"False zones: {', '.join(false) or 'none'}. Message: {sep.message or 'none'}"]

@@ -331,11 +331,11 @@ def fit_end_rings(passes: Sequence[Pass], config: EndRingConfig | None = None) -
     for j, c in cols.items():
         at[j] = slice(offset, offset + c.shape[1])
         offset += c.shape[1]
-    # one block of rows per pair of overlapping passes, where either has a shape: the normal
-    # equations are summed pair by pair (many passes stay small: 12 unknowns per pass)
     # where each pass's shapes reach (none without shapes), once per pass
     none = np.zeros(grid.size, dtype=bool)
     span = {j: np.any(c != 0.0, axis=1) for j, c in cols.items()}
+    # one block of rows per pair of overlapping passes, where either has a shape: the normal
+    # equations are summed pair by pair (many passes stay small: 12 unknowns per pass)
     pairs = []
     for j, k in itertools.combinations(range(len(passes)), 2):
         if j not in cols and k not in cols:
