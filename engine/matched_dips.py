@@ -62,6 +62,11 @@ def matched_dips(
     """Dips of ``profile`` that a filter matched to a dip shape and to the profile's own
     noise finds more than ``noise_factor`` standard deviations deep.
 
+    The strongest first; each dip found is subtracted (its shape at the filter's amplitude)
+    before the next is looked for, and when none is left the noise's spectrum and spread
+    are measured again on what is left and the search repeated while it finds more: the
+    noise is the profile without its zones.
+
     Parameters
     ----------
     chainage_m : ndarray
@@ -97,22 +102,34 @@ def matched_dips(
     out: list[Dip] = []
     # strongest first; each dip found is taken out of the profile before the next is looked
     # for, so that a deep zone's filter side lobes (the whitened shape's autocorrelation,
-    # ~25 m off) do not read as zones of their own
-    for _ in range(y.size):
-        z = np.where(np.isfinite(stats) & ~taken, stats / scale, -np.inf)
-        i, k = (int(v) for v in np.unravel_index(int(np.argmax(z)), z.shape))
-        if z[i, k] <= noise_factor:
+    # ~25 m off) do not read as zones of their own. Rounds: when no dip is left over the
+    # threshold, the noise is measured again on what is left and the search goes on while
+    # a round finds one (with a few zones on a few hundred metres, their dips fill half the
+    # spectrum's segments and the median of those holds their own band, which the filter
+    # then weighs down as noise; once per round, not per dip, keeps a 10 km line's cost)
+    while True:
+        found = len(out)
+        for _ in range(y.size):
+            z = np.where(np.isfinite(stats) & ~taken, stats / scale, -np.inf)
+            i, k = (int(v) for v in np.unravel_index(int(np.argmax(z)), z.shape))
+            if z[i, k] <= noise_factor:
+                break
+            length, t = shapes[i]
+            x = float(chainage_m[k])
+            out.append(Dip(x - 0.5 * length, x + 0.5 * length, x, float(-profile[k])))
+            # one dip per zone: the next peak must lie clear of this zone's extent and basin
+            taken |= np.abs(chainage_m - x) <= 0.5 * length + 3.0
+            amp = stats[i, k] / gains[i, k]
+            h = t.size // 2
+            lo, hi = max(k - h, 0), min(k + h + 1, y.size)
+            y[lo:hi] -= amp * t[lo - k + h : hi - k + h]
+            stats, gains = _filtered(y, runs, filters, len(shapes))
+        if len(out) == found:
             break
-        length, t = shapes[i]
-        x = float(chainage_m[k])
-        out.append(Dip(x - 0.5 * length, x + 0.5 * length, x, float(-profile[k])))
-        # one dip per zone: the next peak must lie clear of this zone's extent and basin
-        taken |= np.abs(chainage_m - x) <= 0.5 * length + 3.0
-        amp = stats[i, k] / gains[i, k]
-        h = t.size // 2
-        lo, hi = max(k - h, 0), min(k + h + 1, y.size)
-        y[lo:hi] -= amp * t[lo - k + h : hi - k + h]
-        stats, gains = _filtered(y, runs, filters, len(shapes))
+        again = _setup(chainage_m, y, shapes, segment_m, spread_window_m, local_share)
+        if again is None:  # not reached: y is defined where the profile is
+            break
+        _, runs, filters, stats, gains, scale = again
     out.sort(key=lambda d: d.start_m)
     return out
 
