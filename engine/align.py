@@ -107,6 +107,74 @@ def _without_ends(
     return np.where((chainage >= lo) & (chainage <= hi), level, np.nan)
 
 
+def _correlations(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    lags: NDArray[np.int_],
+    step: float,
+    min_overlap_m: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Normalised correlation of ``a`` with ``b`` shifted by each lag (samples; NaN where
+    the overlap is shorter than ``min_overlap_m``) and each overlap, m."""
+    n = a.size
+    corr = np.full(lags.size, np.nan)
+    over = np.zeros(lags.size)
+    for j, lag in enumerate(lags):
+        # b shifted by lag samples: b_shift[i] = b[i - lag]
+        if lag >= 0:
+            x, y = a[lag:], b[: n - lag]
+        else:
+            x, y = a[:lag], b[-lag:]
+        m = np.isfinite(x) & np.isfinite(y)
+        cnt = int(m.sum())
+        over[j] = cnt * step
+        if cnt * step < min_overlap_m:
+            continue
+        xm, ym = x[m] - x[m].mean(), y[m] - y[m].mean()
+        den = np.sqrt(np.dot(xm, xm) * np.dot(ym, ym))
+        corr[j] = np.dot(xm, ym) / den if den > 0 else np.nan
+    return corr, over
+
+
+def _vertex(corr: NDArray[np.float64], j: int) -> float:
+    """Sub-sample position of the peak at ``j`` from the parabola through it and its
+    neighbours, samples (0 at an edge or where the three do not bend down)."""
+    if not (0 < j < corr.size - 1 and np.all(np.isfinite(corr[j - 1 : j + 2]))):
+        return 0.0
+    c0, c1, c2 = corr[j - 1], corr[j], corr[j + 1]
+    den = c0 - 2 * c1 + c2
+    return float(0.5 * (c0 - c2) / den) if den < 0 else 0.0
+
+
+def _refined_on_slopes(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    lag: int,
+    refine_m: float,
+    step: float,
+    min_overlap_m: float,
+    fallback: float,
+) -> float:
+    """The shift (samples) where the slopes of ``a`` and ``b`` correlate best within
+    ``refine_m`` of ``lag``; ``fallback`` when their peak lies on the search's edge.
+
+    The levels' correlation peak is as broad as their longest waves, which carry most of
+    their energy and the inversion's largest errors (the ends' ring, the long-wave drift of
+    one vehicle's transfer): those pull it by up to a tenth of a metre, differently for each
+    vehicle. The slopes weight every wavelength by its wavenumber squared, so the short
+    waves, measured best, place the peak.
+    """
+    r = int(np.ceil(refine_m / step))
+    lags = np.arange(lag - r, lag + r + 1)
+    corr, _ = _correlations(np.diff(a), np.diff(b), lags, step, min_overlap_m)
+    if not np.any(np.isfinite(corr)):
+        return fallback
+    j = int(np.nanargmax(corr))
+    if j in (0, lags.size - 1):
+        return fallback
+    return float(lags[j]) + _vertex(corr, j)
+
+
 def align_profiles(
     ref_chainage: NDArray[np.float64],
     ref_level: NDArray[np.float64],
@@ -117,6 +185,7 @@ def align_profiles(
     min_overlap_m: float = 60.0,
     min_correlation: float = 0.5,
     edge_m: float = 0.0,
+    refine_m: float = 0.5,
 ) -> Alignment:
     """Chainage offset of a profile against a reference profile, by cross-correlation.
 
@@ -136,6 +205,10 @@ def align_profiles(
         Length left out of the comparison at each end of the profile's known stretch, m
         (:data:`END_RING_M` for a level from the inverse, whose ends ring); not when less than
         ``min_overlap_m`` would be left.
+    refine_m : float
+        The offset is then refined on the profiles' slopes within this distance of the
+        levels' correlation peak, m (0: not refined). The levels' peak finds the offset and
+        judges it (correlation, significance); the slopes place it to a few centimetres.
 
     Returns
     -------
@@ -162,33 +235,15 @@ def align_profiles(
     b[ib] = level
     k = int(np.ceil(max_shift_m / step))
     lags = np.arange(-k, k + 1)
-    corr = np.full(lags.size, np.nan)
-    over = np.zeros(lags.size)
-    for j, lag in enumerate(lags):
-        # b shifted by lag samples: b_shift[i] = b[i - lag]
-        if lag >= 0:
-            x, y = a[lag:], b[: n - lag]
-        else:
-            x, y = a[:lag], b[-lag:]
-        m = np.isfinite(x) & np.isfinite(y)
-        cnt = int(m.sum())
-        over[j] = cnt * step
-        if cnt * step < min_overlap_m:
-            continue
-        xm, ym = x[m] - x[m].mean(), y[m] - y[m].mean()
-        den = np.sqrt(np.dot(xm, xm) * np.dot(ym, ym))
-        corr[j] = np.dot(xm, ym) / den if den > 0 else np.nan
+    corr, over = _correlations(a, b, lags, step, min_overlap_m)
     if not np.any(np.isfinite(corr)):
         return Alignment(0.0, float("nan"), float(over.max()), False,
                          f"overlap shorter than {min_overlap_m:g} m")  # fmt: skip
     j = int(np.nanargmax(corr))
     best = float(corr[j])
-    shift = float(lags[j])
-    if 0 < j < lags.size - 1 and np.isfinite(corr[j - 1]) and np.isfinite(corr[j + 1]):
-        c0, c1, c2 = corr[j - 1], corr[j], corr[j + 1]
-        den = c0 - 2 * c1 + c2
-        if den < 0:
-            shift += 0.5 * (c0 - c2) / den
+    shift = float(lags[j]) + _vertex(corr, j)
+    if 0 < j < lags.size - 1 and refine_m > 0:
+        shift = _refined_on_slopes(a, b, int(lags[j]), refine_m, step, min_overlap_m, shift)
     offset = shift * step
     best_lag = int(lags[j])
     if best_lag >= 0:
